@@ -1,0 +1,208 @@
+"""Assembly: pair geometry -> scheme weights -> sparse operator matrices.
+
+Particles are processed in chunks of rows: for each chunk the pair data are
+put in normalised units (:class:`~manifold_sph.schemes.base.LocalPairs`), the
+scheme turns them into per-pair weights, particles whose local systems fail
+are recomputed with the scheme's fallback (e.g. ncsph -> cspm -> standard), and
+all weights go into one COO -> CSR conversion per operator.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from .kernels import Kernel
+from .neighbors import Neighborhood
+from .schemes import Scheme, get_scheme
+from .schemes.base import LocalPairs
+
+__all__ = ["Assembled", "assemble", "pair_kernel_data", "kernel_matrix"]
+
+#: Rows per chunk: bounds the temporary per-pair arrays.
+CHUNK_ROWS = 16384
+
+
+@dataclass
+class Assembled:
+    """Operator matrices of one scheme, and what the robustness checks found.
+
+    Attributes
+    ----------
+    dx, dy, lap : scipy.sparse.csr_matrix, shape (N, M)
+        Tangent-plane derivative and Laplacian weights (M columns: particles).
+    condition : ndarray, shape (N,)
+        Largest condition number among the local systems of the scheme first tried.
+    scheme_used : ndarray of str, shape (N,)
+        The scheme that produced each particle's row.
+    fallback : dict
+        ``{scheme name: indices}`` of particles that fell back *to* that scheme.
+    pair_dx, pair_dy : ndarray, shape (P,)
+        The derivative weights per neighbour pair (before duplicate columns are summed).
+    """
+
+    dx: sp.csr_matrix
+    dy: sp.csr_matrix
+    lap: sp.csr_matrix
+    condition: np.ndarray
+    scheme_used: np.ndarray
+    fallback: dict = field(default_factory=dict)
+    pair_dx: np.ndarray | None = None
+    pair_dy: np.ndarray | None = None
+
+
+def pair_kernel_data(kernel: Kernel, xy: np.ndarray, h_rows: np.ndarray):
+    """Kernel data for pairs with offsets ``xy`` (P, 2) and row smoothing lengths ``h_rows`` (P,).
+
+    Returns normalised ``(xi, W, dW, d2W, dw_over_r)`` as in :class:`LocalPairs` (h = 1 units).
+    """
+    xi = xy / h_rows[:, None]
+    R = np.hypot(xi[:, 0], xi[:, 1])
+    a = kernel.alpha(2)
+    W = a * kernel.w(R)
+    q = a * kernel.dw_over_R(R)  # alpha w'(R) / R, finite at R = 0
+    dW = -q[:, None] * xi  # gradient of W(x_i - x_j) with respect to x_i
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(R > 0, (a * kernel.d2w(R) - q) / (R * R), 0.0)
+    x, y = xi[:, 0], xi[:, 1]
+    d2W = np.stack([q + t * x * x, t * x * y, q + t * y * y], axis=1)
+    return xi, W, dW, d2W, q
+
+
+def kernel_matrix(nb: Neighborhood, xy: np.ndarray, kernel: Kernel, columns=None, n_cols=None) -> sp.csr_matrix:
+    """Sparse matrix of kernel values ``W_ij = W_{h_i}(x_ij)`` (d = 2) on the neighbour pairs."""
+    rows = nb.rows
+    hr = nb.h[rows]
+    R = np.hypot(xy[:, 0], xy[:, 1]) / hr
+    vals = kernel.alpha(2) * kernel.w(R) / hr**2
+    cols = nb.indices if columns is None else columns
+    n = nb.n_rows
+    return sp.coo_matrix((vals, (rows, cols)), shape=(n, n if n_cols is None else n_cols)).tocsr()
+
+
+def _local_pairs(lo, hi, nb, xy, dV_pairs, kernel) -> LocalPairs:
+    p0, p1 = nb.indptr[lo], nb.indptr[hi]
+    counts = np.diff(nb.indptr[lo : hi + 1])
+    row = np.repeat(np.arange(hi - lo), counts)
+    h_rows = nb.h[lo:hi][row]
+    xi, W, dW, d2W, q = pair_kernel_data(kernel, xy[p0:p1], h_rows)
+    is_self = np.zeros(p1 - p0, dtype=bool)
+    is_self[nb.indptr[lo:hi] - p0] = True  # the particle itself is first in its row
+    return LocalPairs(
+        indptr=nb.indptr[lo : hi + 1] - p0,
+        row=row,
+        is_self=is_self,
+        xy=xi,
+        dV=dV_pairs[p0:p1] / h_rows**2,
+        W=W,
+        dW=dW,
+        d2W=d2W,
+        dw_over_r=q,
+    )
+
+
+def _subset(pairs: LocalPairs, rows: np.ndarray) -> tuple[LocalPairs, np.ndarray]:
+    """Pairs of a subset of rows (indices into the chunk), and their positions."""
+    counts = np.diff(pairs.indptr)[rows]
+    starts = pairs.indptr[rows]
+    pos = np.repeat(starts - np.cumsum(counts) + counts, counts) + np.arange(counts.sum())
+    indptr = np.zeros(rows.size + 1, dtype=np.int64)
+    np.cumsum(counts, out=indptr[1:])
+    sub = LocalPairs(
+        indptr=indptr,
+        row=np.repeat(np.arange(rows.size), counts),
+        is_self=pairs.is_self[pos],
+        xy=pairs.xy[pos],
+        dV=pairs.dV[pos],
+        W=pairs.W[pos],
+        dW=pairs.dW[pos],
+        d2W=pairs.d2W[pos],
+        dw_over_r=pairs.dw_over_r[pos],
+    )
+    return sub, pos
+
+
+def _weights_with_fallback(pairs: LocalPairs, scheme: Scheme, max_condition: float):
+    """Weights of ``scheme`` with failed particles recomputed down its fallback chain."""
+    n = pairs.n
+    counts = np.diff(pairs.indptr)
+    res = scheme.weights(pairs, max_condition)
+    grad, lap = res.grad, res.lap
+    failed = res.failed | (counts < scheme.min_neighbors)
+    used = np.full(n, scheme.name, dtype=object)
+    todo = np.flatnonzero(failed)
+    current = scheme
+    while todo.size and current.fallback is not None:
+        current = get_scheme(current.fallback)
+        sub, pos = _subset(pairs, todo)
+        r = current.weights(sub, max_condition)
+        sub_failed = r.failed | (np.diff(sub.indptr) < current.min_neighbors)
+        ok_pairs = ~sub_failed[sub.row]
+        grad[pos[ok_pairs]] = r.grad[ok_pairs]
+        lap[pos[ok_pairs]] = r.lap[ok_pairs]
+        used[todo[~sub_failed]] = current.name
+        todo = todo[sub_failed]
+    return grad, lap, res.condition, used
+
+
+def assemble(
+    nb: Neighborhood,
+    xy: np.ndarray,
+    dV_pairs: np.ndarray,
+    kernel: Kernel,
+    scheme: Scheme,
+    *,
+    columns=None,
+    n_cols: int | None = None,
+    max_condition: float = 1e8,
+) -> Assembled:
+    """Build the derivative and Laplacian matrices of ``scheme``.
+
+    Parameters
+    ----------
+    nb : Neighborhood
+    xy : ndarray, shape (P, 2)
+        Pair offsets in the row particle's tangent plane (physical units).
+    dV_pairs : ndarray, shape (P,)
+        Area element of the neighbour of every pair.
+    kernel : Kernel
+    scheme : Scheme
+    columns : ndarray, shape (P,), optional
+        Matrix column of every pair (default ``nb.indices``; ghosts map to their owners).
+    n_cols : int, optional
+        Number of columns (default N).
+    max_condition : float
+        Local systems above this condition number fall back.
+    """
+    n = nb.n_rows
+    gx = np.empty(xy.shape[0])
+    gy = np.empty(xy.shape[0])
+    lp = np.empty(xy.shape[0])
+    condition = np.empty(n)
+    used = np.empty(n, dtype=object)
+    for lo in range(0, n, CHUNK_ROWS):
+        hi = min(lo + CHUNK_ROWS, n)
+        pairs = _local_pairs(lo, hi, nb, xy, dV_pairs, kernel)
+        grad, lap, cond, u = _weights_with_fallback(pairs, scheme, max_condition)
+        p0, p1 = nb.indptr[lo], nb.indptr[hi]
+        h_rows = nb.h[lo:hi][pairs.row]
+        gx[p0:p1] = grad[:, 0] / h_rows
+        gy[p0:p1] = grad[:, 1] / h_rows
+        lp[p0:p1] = lap / h_rows**2
+        condition[lo:hi] = cond
+        used[lo:hi] = u
+    rows = nb.rows
+    cols = nb.indices if columns is None else columns
+    shape = (n, n if n_cols is None else n_cols)
+
+    def csr(data):
+        return sp.coo_matrix((data, (rows, cols)), shape=shape).tocsr()
+
+    used = used.astype(str)
+    fallback = {name: np.flatnonzero(used == name) for name in np.unique(used) if name != scheme.name}
+    return Assembled(
+        dx=csr(gx), dy=csr(gy), lap=csr(lp), condition=condition, scheme_used=used, fallback=fallback,
+        pair_dx=gx, pair_dy=gy,
+    )

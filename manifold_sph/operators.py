@@ -1,0 +1,226 @@
+"""The operator set shared by :class:`~manifold_sph.Surface` and :class:`~manifold_sph.Domain2D`.
+
+After the geometry is set up (neighbourhood, tangent frames, pair offsets, area
+elements), one assembly gives the tangent-plane matrices ``dx``, ``dy`` and
+``lap``. Gradient and divergence matrices follow from them and the frames:
+
+- gradient matrix, shape (D N, N): row ``D i + k`` gives component ``k`` of the
+  gradient at particle ``i`` (``G @ f`` reshaped to (N, D) is the gradient);
+- divergence matrix, shape (N, D N): acts on the field flattened row-major,
+  ``F.reshape(-1)`` = ``[F_0x, F_0y, F_0z, F_1x, ...]``.
+
+``D`` is 3 on surfaces and 2 in the plane.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import scipy.sparse as sp
+
+from ._validation import as_field, check_positive
+from .area import AreaElements, area_elements
+from .assembly import Assembled, assemble
+from .kernels import get_kernel
+from .neighbors import Neighborhood, adaptive_smoothing_length, find_neighbors, smoothing_length_for_count
+from .schemes import get_scheme
+
+__all__ = ["OperatorSet"]
+
+
+class OperatorSet:
+    """Gradient, divergence and Laplacian on a set of particles (base class).
+
+    Subclasses call :meth:`_setup` with their geometry.
+    """
+
+    _dim: int = 3
+
+    # ------------------------------------------------------------------ setup
+    def _resolve(self, kernel, scheme, neighbors, max_condition):
+        self.kernel = get_kernel(kernel)
+        self.scheme = get_scheme(scheme)
+        if isinstance(neighbors, bool) or not isinstance(neighbors, (int, np.integer)):
+            raise TypeError(f"neighbors must be an integer mean neighbour count, got {neighbors!r}")
+        if neighbors < self.scheme.min_neighbors:
+            raise ValueError(
+                f"neighbors must be at least {self.scheme.min_neighbors} for scheme {self.scheme.name!r}, got {neighbors}"
+            )
+        self.neighbors = int(neighbors)
+        self.max_condition = check_positive("max_condition", max_condition)
+
+    def _smoothing_length(self, h, points, tree=None):
+        n = points.shape[0]
+        if self.neighbors >= n:
+            raise ValueError(f"neighbors must be smaller than the number of points {n}, got {self.neighbors}")
+        support = self.kernel.support
+        if h is None:
+            return smoothing_length_for_count(points, self.neighbors, support, tree=tree)
+        if isinstance(h, str):
+            if h != "adaptive":
+                raise ValueError(f"h must be None, 'adaptive', a positive number or an array of shape ({n},), got {h!r}")
+            return adaptive_smoothing_length(points, self.neighbors, support, tree=tree)
+        if np.ndim(h) == 0:
+            return check_positive("h", h)
+        hv = np.asarray(h, dtype=np.float64)
+        if hv.shape != (n,) or not np.all(np.isfinite(hv) & (hv > 0)):
+            raise ValueError(f"h must be positive and finite with shape ({n},), got shape {hv.shape}")
+        return hv
+
+    @staticmethod
+    def _check_isolated(nb: Neighborhood, hint: str) -> None:
+        lonely = np.flatnonzero(nb.counts < 2)
+        if lonely.size:
+            raise ValueError(
+                f"{lonely.size} particle(s) have no neighbour inside the kernel support "
+                f"(isolated points, first indices {lonely[:8].tolist()}); {hint}"
+            )
+
+    def _setup(self, nb, xy, frames, area, total_area, columns=None, column_normals=None):
+        """Area elements and assembly. ``frames`` (N, 2, D) maps tangent-plane components to ambient ones."""
+        self.neighborhood = nb
+        self._xy = xy
+        self._frames = frames
+        self._columns = nb.indices if columns is None else columns
+        self._column_normals = column_normals
+        self.area: AreaElements = area_elements(area, nb, xy, self.kernel, total_area=total_area, columns=columns)
+        dV = self.area.dV[self._columns]
+        self._ops: Assembled = assemble(
+            nb, xy, dV, self.kernel, self.scheme, columns=columns, n_cols=nb.n_rows, max_condition=self.max_condition
+        )
+        for name, m in (("dx", self._ops.dx), ("dy", self._ops.dy), ("lap", self._ops.lap)):
+            if not np.all(np.isfinite(m.data)):  # pragma: no cover - guarded by the fallbacks
+                raise FloatingPointError(f"operator {name} has non-finite weights; please report this cloud")
+        if self._ops.fallback:
+            parts = ", ".join(f"{idx.size} to {name!r}" for name, idx in self._ops.fallback.items())
+            warnings.warn(
+                f"scheme {self.scheme.name!r}: {parts} particle(s) fell back (too few neighbours, collinear "
+                f"neighbours or condition number above {self.max_condition:g}); see .fallback for the indices",
+                RuntimeWarning,
+                stacklevel=3,
+            )
+        self._cache = {}
+
+    # ------------------------------------------------------------ properties
+    @property
+    def n_points(self) -> int:
+        return self.neighborhood.n_rows
+
+    @property
+    def h(self) -> np.ndarray:
+        """(N,) smoothing length of each particle."""
+        return self.neighborhood.h
+
+    @property
+    def dV(self) -> np.ndarray:
+        """(N,) area elements."""
+        return self.area.dV
+
+    @property
+    def fallback(self) -> dict:
+        """``{scheme name: indices}`` of particles computed with a fallback scheme."""
+        return self._ops.fallback
+
+    @property
+    def condition(self) -> np.ndarray:
+        """(N,) largest condition number of each particle's local systems (first scheme tried)."""
+        return self._ops.condition
+
+    @property
+    def scheme_used(self) -> np.ndarray:
+        """(N,) name of the scheme that produced each particle's operators."""
+        return self._ops.scheme_used
+
+    # ------------------------------------------------------------- matrices
+    def derivative_matrices(self) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+        """Tangent-plane derivative matrices ``(Dx, Dy)``, each (N, N), in the particles' own frames."""
+        return self._ops.dx, self._ops.dy
+
+    def laplacian_matrix(self) -> sp.csr_matrix:
+        """Laplace-Beltrami matrix L, shape (N, N): ``L @ f == laplacian(f)``."""
+        return self._ops.lap
+
+    def _pair_coefficients(self):
+        """Per pair, the ambient vector ``dx_ij e1_i + dy_ij e2_i`` (P, D)."""
+        rows = self.neighborhood.rows
+        e = self._frames
+        return rows, self._ops.pair_dx[:, None] * e[rows, 0] + self._ops.pair_dy[:, None] * e[rows, 1]
+
+    def gradient_matrix(self) -> sp.csr_matrix:
+        """Gradient matrix G, shape (D N, N), D = 3 on surfaces, 2 in the plane.
+
+        ``(G @ f).reshape(N, D) == gradient(f)``.
+        """
+        if "grad" not in self._cache:
+            D, n = self._dim, self.n_points
+            rows, c = self._pair_coefficients()
+            r = (D * rows[:, None] + np.arange(D)).ravel()
+            cols = np.repeat(self._columns, D)
+            self._cache["grad"] = sp.coo_matrix((c.ravel(), (r, cols)), shape=(D * n, n)).tocsr()
+        return self._cache["grad"]
+
+    def divergence_matrix(self) -> sp.csr_matrix:
+        """Divergence matrix, shape (N, D N), acting on ``F.reshape(-1)`` (row-major (N, D) field).
+
+        On a surface it takes the tangential part of ``F`` at each neighbour first.
+        """
+        if "div" not in self._cache:
+            D, n = self._dim, self.n_points
+            rows, c = self._pair_coefficients()
+            if self._column_normals is not None:
+                nj = self._column_normals
+                c = c - np.einsum("pd,pd->p", c, nj)[:, None] * nj  # (I - n_j n_j^T) c
+            r = np.repeat(rows, D)
+            cols = (D * self._columns[:, None] + np.arange(D)).ravel()
+            self._cache["div"] = sp.coo_matrix((c.ravel(), (r, cols)), shape=(n, D * n)).tocsr()
+        return self._cache["div"]
+
+    # ------------------------------------------------------------ operators
+    def _tangential(self, F: np.ndarray) -> np.ndarray:
+        return F
+
+    def gradient(self, f) -> np.ndarray:
+        """Tangential gradient of a scalar field.
+
+        Parameters
+        ----------
+        f : array_like, shape (N,)
+
+        Returns
+        -------
+        ndarray, shape (N, D)
+        """
+        f = as_field("f", f, self.n_points)
+        e = self._frames
+        return (self._ops.dx @ f)[:, None] * e[:, 0] + (self._ops.dy @ f)[:, None] * e[:, 1]
+
+    def divergence(self, F) -> np.ndarray:
+        """Divergence of (the tangential part of) a vector field.
+
+        Parameters
+        ----------
+        F : array_like, shape (N, D)
+
+        Returns
+        -------
+        ndarray, shape (N,)
+        """
+        F = self._tangential(as_field("F", F, self.n_points, self._dim))
+        e = self._frames
+        dx, dy = self._ops.dx, self._ops.dy
+        return np.einsum("nk,nk->n", e[:, 0], dx @ F) + np.einsum("nk,nk->n", e[:, 1], dy @ F)
+
+    def laplacian(self, f) -> np.ndarray:
+        """Laplace-Beltrami operator (Laplacian in the plane) of a scalar field.
+
+        Parameters
+        ----------
+        f : array_like, shape (N,)
+
+        Returns
+        -------
+        ndarray, shape (N,)
+        """
+        return self._ops.lap @ as_field("f", f, self.n_points)
+

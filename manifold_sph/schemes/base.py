@@ -1,0 +1,159 @@
+"""The scheme interface: local 2D pair data in, per-pair weights out.
+
+Every scheme works on a chunk of particles in *normalised* units: offsets and
+kernel derivatives are expressed with ``h_i = 1`` (offsets divided by ``h_i``,
+area elements by ``h_i^2``). The assembly rescales first derivatives by
+``1 / h_i`` and second derivatives by ``1 / h_i^2``. This keeps the local
+systems dimensionless, so one condition-number threshold fits every ``h``.
+
+A scheme returns weights ``w`` such that, for the row particle ``i``,
+``d f / d x (i) = sum_p w_grad[p, 0] f[col[p]]`` over the pairs ``p`` of row ``i``
+(the particle itself included), likewise for ``d/dy`` and the Laplacian.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["LocalPairs", "SchemeWeights", "Scheme", "batched_inverse", "difference_to_weights"]
+
+
+@dataclass
+class LocalPairs:
+    """Pair data of a chunk of ``n`` row particles, in units of ``h_i``.
+
+    Attributes
+    ----------
+    indptr : ndarray, shape (n + 1,)
+        Chunk-local row offsets.
+    row : ndarray, shape (P,)
+        Chunk-local row of each pair.
+    is_self : ndarray, shape (P,)
+        True for the pair (i, i).
+    xy : ndarray, shape (P, 2)
+        Offsets ``x_j - x_i`` in the tangent plane of ``i``, divided by ``h_i``.
+    dV : ndarray, shape (P,)
+        Area element of ``j`` divided by ``h_i^2``.
+    W : ndarray, shape (P,)
+        Kernel ``W(x_i - x_j)`` with ``h = 1`` in ``d = 2``.
+    dW : ndarray, shape (P, 2)
+        Its gradient with respect to ``x_i``.
+    d2W : ndarray, shape (P, 3)
+        Its second derivatives ``(W_xx, W_xy, W_yy)``.
+    dw_over_r : ndarray, shape (P,)
+        ``alpha_2 w'(R) / R`` (the Taylor Laplacian's factor), finite at ``R = 0``.
+    """
+
+    indptr: np.ndarray
+    row: np.ndarray
+    is_self: np.ndarray
+    xy: np.ndarray
+    dV: np.ndarray
+    W: np.ndarray
+    dW: np.ndarray
+    d2W: np.ndarray
+    dw_over_r: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return self.indptr.size - 1
+
+    def row_sum(self, values: np.ndarray) -> np.ndarray:
+        """Sum per-pair values (P, ...) over each row -> (n, ...)."""
+        return np.add.reduceat(values, self.indptr[:-1], axis=0)
+
+    def moments(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """Per-particle moment matrices ``M[i, a, c] = sum_j rows[p, a] cols[p, c]``.
+
+        ``rows`` (P, A) and ``cols`` (P, C) -> (n, A, C).
+        """
+        prod = rows[:, :, None] * cols[:, None, :]
+        flat = prod.reshape(prod.shape[0], -1)
+        sums = np.add.reduceat(flat, self.indptr[:-1], axis=0)
+        return sums.reshape(self.n, rows.shape[1], cols.shape[1])
+
+
+@dataclass
+class SchemeWeights:
+    """Per-pair weights of one scheme on a chunk, and the particles it failed on.
+
+    Attributes
+    ----------
+    grad : ndarray, shape (P, 2)
+        Weights of ``(d/dx, d/dy)`` on ``f_j``.
+    lap : ndarray, shape (P,)
+        Weights of the Laplacian on ``f_j``.
+    failed : ndarray, shape (n,)
+        Particles whose local system was singular or ill-conditioned; their
+        weights are zero and the assembly recomputes them with the fallback.
+    condition : ndarray, shape (n,)
+        Largest 2-norm condition number of the local systems of each particle
+        (1 for schemes without systems).
+    """
+
+    grad: np.ndarray
+    lap: np.ndarray
+    failed: np.ndarray
+    condition: np.ndarray
+
+
+class Scheme:
+    """Base class. Subclasses set ``name``, ``fallback``, ``min_neighbors`` and implement ``weights``."""
+
+    #: Registry name.
+    name: str = ""
+    #: Scheme used for particles this one fails on (None: never fails).
+    fallback: str | None = None
+    #: Fewest particles in a neighbourhood (itself included) the scheme needs.
+    min_neighbors: int = 2
+
+    def weights(self, pairs: LocalPairs, max_condition: float) -> SchemeWeights:  # pragma: no cover - interface
+        raise NotImplementedError
+
+    def __repr__(self) -> str:
+        return f"<scheme {self.name!r}>"
+
+
+def batched_inverse(A: np.ndarray, max_condition: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Invert a stack of small matrices, flagging the ill-conditioned ones.
+
+    Parameters
+    ----------
+    A : ndarray, shape (n, k, k)
+    max_condition : float
+        Matrices with a 2-norm condition number above this (or not finite) fail.
+
+    Returns
+    -------
+    inv : ndarray, shape (n, k, k)
+        Inverses, zero where the matrix failed.
+    cond : ndarray, shape (n,)
+    failed : ndarray of bool, shape (n,)
+    """
+    n, k, _ = A.shape
+    if n == 0:
+        return np.zeros_like(A), np.zeros(0), np.zeros(0, dtype=bool)
+    finite = np.all(np.isfinite(A), axis=(1, 2))
+    A = np.where(finite[:, None, None], A, 0.0)
+    s = np.linalg.svd(A, compute_uv=False)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cond = np.where(s[:, -1] > 0, s[:, 0] / s[:, -1], np.inf)
+    failed = ~finite | ~(cond <= max_condition)
+    inv = np.zeros_like(A)
+    good = ~failed
+    if good.any():
+        inv[good] = np.linalg.inv(A[good])
+    return inv, cond, failed
+
+
+def difference_to_weights(pairs: LocalPairs, c: np.ndarray) -> np.ndarray:
+    """Turn weights on ``f_j - f_i`` into weights on ``f_j`` (the self pair takes minus the row sum).
+
+    ``c`` has shape (P,) or (P, m); returns the same shape.
+    """
+    w = np.where(pairs.is_self.reshape((-1,) + (1,) * (c.ndim - 1)), 0.0, c)
+    sums = np.add.reduceat(w, pairs.indptr[:-1], axis=0)
+    w[pairs.is_self] -= sums  # exactly one self pair per row, in row order
+    return w
