@@ -99,14 +99,14 @@ def area_elements(
     return AreaElements(dV=dV, method=method, n_negative=int((dV < 0).sum()), residual=residual)
 
 
-def _solve_partition_of_unity(A: sp.csr_matrix, rtol: float = 1e-13):
+def _solve_partition_of_unity(A: sp.csr_matrix, rtol: float = 1e-15):
     """Solve ``A dV = 1``: BiCGSTAB with the Shepard (row-sum) preconditioner, started
     from the Shepard elements; sparse LU if the iteration does not converge."""
     n = A.shape[0]
     ones = np.ones(n)
     rowsum = np.asarray(A.sum(axis=1)).ravel()
     if np.all(rowsum > 0):
-        dV, info = spla.bicgstab(A, ones, x0=1.0 / rowsum, rtol=rtol, atol=0.0, M=sp.diags(1.0 / rowsum), maxiter=1000)
+        dV, info = spla.bicgstab(A, ones, x0=1.0 / rowsum, rtol=rtol, atol=0.0, M=sp.diags(1.0 / rowsum), maxiter=2000)
         if info == 0 and np.all(np.isfinite(dV)) and np.abs(A @ dV - 1.0).max() < 1e-9:
             return dV
     with np.errstate(all="ignore"):

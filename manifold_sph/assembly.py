@@ -201,7 +201,7 @@ def assemble(
         return sp.coo_matrix((data, (rows, cols)), shape=shape).tocsr()
 
     used = used.astype(str)
-    fallback = {name: np.flatnonzero(used == name) for name in np.unique(used) if name != scheme.name}
+    fallback = {str(name): np.flatnonzero(used == name) for name in np.unique(used) if name != scheme.name}
     return Assembled(
         dx=csr(gx), dy=csr(gy), lap=csr(lp), condition=condition, scheme_used=used, fallback=fallback,
         pair_dx=gx, pair_dy=gy,

@@ -34,8 +34,8 @@ def tangent_frames(normals) -> tuple[np.ndarray, np.ndarray]:
     --------
     >>> import numpy as np
     >>> u, v = tangent_frames(np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0]]))
-    >>> u.tolist(), v.tolist()
-    ([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], [[0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    >>> (u + 0.0).tolist(), (v + 0.0).tolist()   # + 0.0 turns -0.0 into 0.0
+    ([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0]], [[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
     """
     n = np.asarray(normals, dtype=np.float64)
     nx, ny, nz = n[:, 0], n[:, 1], n[:, 2]

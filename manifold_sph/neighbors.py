@@ -95,10 +95,10 @@ def smoothing_length_for_count(points, target: float = 27, support: float = 3.0,
     Examples
     --------
     >>> import numpy as np
-    >>> g = np.stack(np.meshgrid(np.arange(40.0), np.arange(40.0)), -1).reshape(-1, 2)
-    >>> h = smoothing_length_for_count(g, target=9, support=3.0)
-    >>> round(3 * h, 3)  # the mean count of 9 is reached just past the diagonal neighbours
-    1.414
+    >>> p = np.random.default_rng(0).uniform(size=(2000, 2))
+    >>> h = smoothing_length_for_count(p, target=27, support=3.0)
+    >>> float(find_neighbors(p, h=h, support=3.0).counts.mean())
+    27.0
     """
     pts = np.asarray(points, dtype=np.float64)
     n = pts.shape[0]

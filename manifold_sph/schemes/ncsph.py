@@ -1,16 +1,24 @@
 """NCSPH (seed 1, 2.4.3), with the final system the seed omits (METHOD.md section 4).
 
 With ``f_i`` known, the second-order terms are kept in the first-derivative rows:
-``M1 g + M2 H = b1``, ``N1 g + N2 H = b2``, so
-``(N2 - N1 M1^-1 M2) H = b2 - N1 M1^-1 b1``. First derivatives are CSPM's.
+``M1 g + M2 H = b1``, ``N1 g + N2 H = b2``, i.e.
+``(N2 - N1 M1^-1 M2) H = b2 - N1 M1^-1 b1``. We solve the equivalent 5x5 block
+system for ``(g, H)`` directly (rows ``W_x, W_y, W_xx, W_xy, W_yy``, columns
+``x, y, x^2/2, xy, y^2/2``): the Schur complement loses digits to cancellation
+near boundaries, the pivoted 5x5 solve does not. The Laplacian is
+``H_xx + H_yy`` from that solve; first derivatives are CSPM's, as the seed says.
+Exact for quadratic polynomials (Laplacian) and linear ones (gradient).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .base import LocalPairs, Scheme, SchemeWeights, difference_to_weights
-from .cspm import first_derivative_weights, quadratic_columns, second_derivative_weights
+from .base import LocalPairs, Scheme, SchemeWeights, batched_inverse, difference_to_weights
+from .cspm import first_derivative_weights, quadratic_columns
+
+#: Selects H_xx + H_yy from (g_x, g_y, H_xx, H_xy, H_yy).
+LAPLACE_ROW = np.array([0.0, 0.0, 1.0, 0.0, 1.0])
 
 
 class NCSPH(Scheme):
@@ -19,15 +27,13 @@ class NCSPH(Scheme):
     min_neighbors = 6
 
     def weights(self, pairs: LocalPairs, max_condition: float) -> SchemeWeights:
-        c, M1inv, cond1, failed1 = first_derivative_weights(pairs, max_condition)
-        rows1 = pairs.dW * pairs.dV[:, None]
-        rows2 = pairs.d2W * pairs.dV[:, None]
-        quad = quadratic_columns(pairs.xy)
-        M2 = pairs.moments(rows1, quad)
-        N1 = pairs.moments(rows2, pairs.xy)
-        N2 = pairs.moments(rows2, quad)
-        K = N2 - N1 @ M1inv @ M2
-        lap, cond2, failed2 = second_derivative_weights(pairs, K, N1, c, max_condition)
+        c, _, cond1, failed1 = first_derivative_weights(pairs, max_condition)
+        rows = np.concatenate([pairs.dW, pairs.d2W], axis=1) * pairs.dV[:, None]
+        cols = np.concatenate([pairs.xy, quadratic_columns(pairs.xy)], axis=1)
+        A = pairs.moments(rows, cols)
+        Ainv, cond2, failed2 = batched_inverse(A, max_condition)
+        y = np.einsum("nca,c->na", Ainv, LAPLACE_ROW)  # y = A^-T e
+        lap = np.einsum("pa,pa->p", rows, y[pairs.row])
         failed = failed1 | failed2
         grad = difference_to_weights(pairs, c)
         lap = difference_to_weights(pairs, lap)
