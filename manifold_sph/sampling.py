@@ -5,11 +5,12 @@
 * ``random``: area-uniform random points (each shape provides an exact or
   mesh-based area-uniform generator).
 * ``poisson``: near-uniform "blue noise": area-uniform random start, then
-  repulsion iterations. Each iteration finds the 8 nearest neighbours with a
-  ``cKDTree``, pushes each point away from neighbours closer than
-  ``1.25 x`` the target hexagonal spacing ``sqrt(2 A / (sqrt(3) n))`` (force
-  ``(1 - d/R)``), keeps the tangential part of the displacement and projects back
-  onto the surface. Vectorised; loops run over iterations only.
+  repulsion iterations. Each iteration finds the 6 nearest neighbours with a
+  ``cKDTree``, pushes each point away from the neighbours closer than the
+  target hexagonal spacing ``R = sqrt(2 A / (sqrt(3) n))`` (displacement
+  ``0.35 (R - d)`` along the pair direction, summed), keeps the tangential part
+  and projects back onto the surface; a final exact projection ends it.
+  Vectorised; loops run over iterations only.
 * ``variable``: density proportional to ``density_ratio ** s`` with ``s`` in
   [-1, 1] the shape's axis coordinate (z / r on the sphere and torus, the arc
   angle on the sausage, x on the double torus, y in the square): rejection
@@ -54,9 +55,9 @@ SQUARE_SAMPLINGS = ("poisson", "halton", "random", "variable")
 #: Number of repulsion iterations of the "poisson" and "variable" samplings.
 POISSON_ITERATIONS = 20
 
-_K = 8  # neighbours per repulsion step
-_BETA = 1.25  # repulsion radius / target spacing
-_STEP = 0.3  # relaxation step (fraction of the summed displacement)
+_K = 6  # neighbours per repulsion step
+_BETA = 1.0  # repulsion radius / target spacing
+_STEP = 0.35  # relaxation step (fraction of the summed displacement)
 _HEX = 2.0 / math.sqrt(3.0)  # area per point of a hexagonal lattice of unit spacing
 
 
@@ -177,8 +178,12 @@ def _relax(P, spacing, move, n_iter, ghosts=None):
             sa = np.concatenate([s, sg])
         else:
             A, sa = P, s
-        d, j = cKDTree(A, balanced_tree=False, compact_nodes=False).query(P, _K + 1, workers=-1)
+        tree = cKDTree(A, balanced_tree=False, compact_nodes=False)
+        d, j = tree.query(P, _K + 1, workers=-1, distance_upper_bound=_BETA * float(sa.max()))
         d, j = d[:, 1:], j[:, 1:]
+        missing = j >= len(A)  # fewer than _K neighbours within reach
+        j[missing] = 0
+        d[missing] = np.inf
         R = (0.5 * _BETA) * (s[:, None] + sa[j])
         w = np.clip(1.0 - d / R, 0.0, None) * R / np.maximum(d, 1e-300)
         disp = w.sum(axis=1)[:, None] * P
@@ -192,7 +197,7 @@ def _surface_move(shape):
     def move(P, disp):
         n, _ = shape._unit_normal(P)
         disp = disp - np.einsum("ni,ni->n", disp, n)[:, None] * n
-        return shape.project(P + disp)
+        return shape._approx_project(P + disp)
 
     return move
 
@@ -240,7 +245,8 @@ def sample_surface(shape, n: int, sampling: str = "poisson", seed=0, density_rat
     if sampling == "poisson":
         P = shape._uniform_random(n, rng)
         s0 = math.sqrt(_HEX * area / n)
-        return _relax(P, lambda Q: np.full(len(Q), s0), _surface_move(shape), iterations)
+        P = _relax(P, lambda Q: np.full(len(Q), s0), _surface_move(shape), iterations)
+        return shape.project(P)
     # variable: rejection sampling, then relaxation with spacing ~ density^(-1/2)
     q = density_ratio
     wmax = max(q, 1.0 / q)
@@ -262,7 +268,7 @@ def sample_surface(shape, n: int, sampling: str = "poisson", seed=0, density_rat
         dens = n * _density_weight(shape.axis_coordinate(Q), q) / (mean_w * area)
         return np.sqrt(_HEX / dens)
 
-    return _relax(P, spacing, _surface_move(shape), iterations)
+    return shape.project(_relax(P, spacing, _surface_move(shape), iterations))
 
 
 # ----------------------------------------------------------------------------

@@ -239,13 +239,40 @@ class ImplicitShape:
         return np.stack([half + disc, half - disc], axis=1)
 
     # -- projection ------------------------------------------------------------
+    def _phi_grad(self, x: np.ndarray):
+        return self._phi(x), self._grad(x)
+
+    def _newton_step(self, x: np.ndarray):
+        """One clamped Newton step towards phi = 0; returns new x and |phi|/|grad phi|."""
+        f, g = self._phi_grad(x)
+        g2 = np.einsum("ni,ni->n", g, g)
+        bad = g2 <= _TINY
+        if bad.any():
+            raise ValueError(
+                f"cannot project {int(bad.sum())} point(s) where grad phi vanishes "
+                f"(first indices {np.flatnonzero(bad)[:5].tolist()})"
+            )
+        step = (f / g2)[:, None] * g
+        slen = np.linalg.norm(step, axis=1)
+        big = slen > self._max_step
+        step[big] *= (self._max_step / slen[big])[:, None]
+        return x - step, np.abs(f) / np.sqrt(g2)
+
+    def _approx_project(self, x: np.ndarray) -> np.ndarray:
+        """Cheap projection for points already near the surface (two Newton steps)."""
+        x, _ = self._newton_step(x)
+        x, _ = self._newton_step(x)
+        return x
+
     def project(self, x, tol: float = 1e-13, maxiter: int = 50) -> np.ndarray:
         """Project points onto ``phi = 0`` by Newton steps along ``grad phi``.
 
         Each step is ``x <- x - phi grad phi / |grad phi|^2`` (length clamped), run
         per point until the distance estimate ``|phi| / |grad phi|`` is below
-        ``tol``. Meant for points near the surface: the result is a nearby surface
-        point (the closest one to second order), not always the closest one.
+        ``tol`` (one more step is then taken, so converged points sit on the
+        surface to rounding). Meant for points near the surface: the result is a
+        nearby surface point (the closest one to second order), not always the
+        closest one.
 
         Parameters
         ----------
@@ -265,30 +292,13 @@ class ImplicitShape:
         maxiter = check_int("maxiter", maxiter, minimum=1)
         active = np.arange(len(x))
         for _ in range(maxiter):
-            xa = x[active]
-            f = self._phi(xa)
-            g = self._grad(xa)
-            g2 = np.einsum("ni,ni->n", g, g)
-            bad = g2 <= _TINY
-            if bad.any():
-                raise ValueError(
-                    f"cannot project {int(bad.sum())} point(s) where grad phi vanishes "
-                    f"(first indices {active[bad][:5].tolist()})"
-                )
-            step = (f / g2)[:, None] * g
-            slen = np.linalg.norm(step, axis=1)
-            big = slen > self._max_step
-            step[big] *= (self._max_step / slen[big])[:, None]
-            x[active] = xa - step
-            done = np.abs(f) / np.sqrt(g2) <= tol
-            # a converged point still took its (tiny) last step: one more is free
-            active = active[~done]
+            x[active], dist = self._newton_step(x[active])
+            active = active[dist > tol]
             if active.size == 0:
                 break
         else:
-            f = self._phi(x[active])
-            g = np.linalg.norm(self._grad(x[active]), axis=1)
-            still = np.abs(f) / g > tol
+            f, g = self._phi_grad(x[active])
+            still = np.abs(f) / np.linalg.norm(g, axis=1) > tol
             if still.any():
                 warnings.warn(
                     f"project: {int(still.sum())} point(s) did not converge in {maxiter} "
@@ -548,6 +558,9 @@ class Sphere(ImplicitShape):
             raise ValueError("cannot project the sphere's center onto the sphere")
         return self.center + self.radius * d / dn[:, None]
 
+    def _approx_project(self, x):
+        return self.project(x)
+
     def _uniform_random(self, n, rng):
         g = rng.standard_normal((n, 3))
         return self.center + self.radius * g / np.linalg.norm(g, axis=1)[:, None]
@@ -653,6 +666,9 @@ class Torus(ImplicitShape):
             raise ValueError("cannot project points on the torus core circle: every tube point is closest")
         return self.center + core + self.r * e / en[:, None]
 
+    def _approx_project(self, x):
+        return self.project(x)
+
     def parametrization(self, t, p) -> np.ndarray:
         """Points of eq. (1.15): ``t`` around the tube, ``p`` around the z axis, (N, 3)."""
         t = np.asarray(t, dtype=float)
@@ -685,12 +701,19 @@ class DoubleTorus(ImplicitShape):
     (``grad phi`` vanishes on it only if ``c = 0`` or ``c = 1/16``, where the
     holes ``g < -sqrt(c)`` close: ``min g = -1/4``), and has genus 2 there.
 
-    The default ``c = 0.04`` gives holes about 0.33 x 0.45 wide, a tube half
-    thickness between ``sqrt(c)/2 = 0.1`` (at the ends x ~ 0, 2) and 0.2, and
-    principal curvatures below ~22 in magnitude; ``|grad phi|`` stays above
-    ~0.35 on the surface. The area (about 6.53) is a numerical estimate: the
-    marching-cubes mesh (spacing ``sqrt(c)/10``), projected onto the surface,
-    subdivided twice and Richardson-extrapolated (see ``_numerical_area``).
+    The default ``c = 0.04`` keeps the holes well open (each about 0.33 long in
+    x and 0.45 wide in y), the tube half-height is ``sqrt(c) = 0.2`` and its
+    half-width in the plane ranges from ``sqrt(c)/2 = 0.1`` (at the ends x ~ 0
+    and x ~ 2, where ``|grad g| = 2``) upwards; ``|grad phi| >= 0.18`` on the
+    surface (no pinch). The flattened ends carry the largest principal
+    curvature, about 22 (radius 0.046): at the seed's 3070 points with 27
+    neighbours (``rho_s = 0.135``) the kernel support spans about three
+    curvature radii there. Smaller c makes that worse (c = 0.01: 41) and
+    c -> 1/16 closes the holes; 0.04 is the compromise. The area (6.53091) is
+    a numerical estimate: the marching-cubes mesh (spacing ``sqrt(c)/10``),
+    projected onto the surface, subdivided twice and Richardson-extrapolated
+    (``_numerical_area``; the same procedure gets the sphere and torus areas to
+    1e-7 relative, and halving the grid spacing changes the estimate by 6e-10).
     The "variable" sampling coordinate is ``s = (x - 1) / x_half`` (one handle
     against the other).
 
@@ -699,10 +722,10 @@ class DoubleTorus(ImplicitShape):
     >>> import numpy as np
     >>> dt = DoubleTorus()
     >>> x = dt.project(np.array([[1.0, 0.5, 0.3], [0.0, 0.0, 0.1]]))
-    >>> np.abs(dt.phi(x)).max() < 1e-14
+    >>> bool(np.abs(dt.phi(x)).max() < 1e-14)
     True
-    >>> round(dt.area, 3)
-    6.531
+    >>> round(dt.area, 4)
+    6.5309
     """
 
     name = "double_torus"
@@ -733,15 +756,19 @@ class DoubleTorus(ImplicitShape):
         s2 = s * s
         return s2 * s2 - s2 + x[:, 1] ** 2, s, s2
 
+    def _phi_grad(self, x):
+        g, s, s2 = self._g(x)
+        gx = 4 * s2 * s - 2 * s
+        gy = 2 * x[:, 1]
+        phi = g * g + x[:, 2] ** 2 - self.c
+        return phi, np.stack([2 * g * gx, 2 * g * gy, 2 * x[:, 2]], axis=1)
+
     def _phi(self, x):
         g, _, _ = self._g(x)
         return g * g + x[:, 2] ** 2 - self.c
 
     def _grad(self, x):
-        g, s, s2 = self._g(x)
-        gx = 4 * s2 * s - 2 * s
-        gy = 2 * x[:, 1]
-        return np.stack([2 * g * gx, 2 * g * gy, 2 * x[:, 2]], axis=1)
+        return self._phi_grad(x)[1]
 
     def _hess(self, x):
         g, s, s2 = self._g(x)
@@ -787,21 +814,23 @@ class Sausage(ImplicitShape):
     branch cut of ``atan2`` (theta = pi) lies in the gap between the ends, where
     ``phi >= (pi/theta0)^power - 1 > 0``.
 
-    Defaults: ``arc_radius = 1``, ``tube_radius = 0.25``, ``power = 8``,
-    ``theta0 = pi - 0.05``. Area 8.3636, tip radius of curvature
-    ``tube_radius^2 power / (2 theta0 arc_radius)`` ~ 0.08 (the seed's "region
-    of high curvature"), gap between the two ends :attr:`gap` = 0.0999. For
-    ``N = 2652`` points with 27 neighbours per support disc,
-    ``rho_s = sqrt(27 area / (pi N)) = 0.1646``, so the gap is about
-    ``0.61 rho_s``: a plain radius search joins the ends, the normal test
-    (n_i . n_j > 0) separates them. The "variable" sampling coordinate is
-    ``s = theta / theta0`` (one end against the other).
+    Defaults: ``arc_radius = 1``, ``tube_radius = 0.25``, ``power = 16``,
+    ``theta0 = pi - 0.045``. Area 9.4837 (quadrature, :attr:`area`); the tips
+    have radius of curvature ``tube_radius^2 power / (2 theta0 arc_radius)``
+    = 0.161 and the largest principal curvature on the surface is about 6.8
+    (the seed's "region of high curvature"). The gap between the two ends,
+    :attr:`gap`, is 0.0896. For ``N = 2652`` points with 27 neighbours per
+    support disc, ``rho_s = sqrt(27 area / (pi N)) = 0.1753``, so the gap is
+    ``0.51 rho_s``: a plain radius search joins the ends, while the normals of
+    the facing end caps point at each other (``n_i . n_j < 0``) so the normal
+    test of METHOD.md section 2 separates them. The "variable" sampling
+    coordinate is ``s = theta / theta0`` (one end against the other).
 
     Examples
     --------
     >>> s = Sausage()
     >>> round(s.gap, 4), round(s.area, 4)
-    (0.0999, 8.3636)
+    (0.0896, 9.4837)
     >>> import numpy as np
     >>> s.arc_angle(np.array([[0.0, 1.0, 0.0]])).round(6).tolist()
     [1.570796]
@@ -809,7 +838,7 @@ class Sausage(ImplicitShape):
 
     name = "sausage"
 
-    def __init__(self, arc_radius: float = 1.0, tube_radius: float = 0.25, theta0: float = math.pi - 0.05, power: int = 8):
+    def __init__(self, arc_radius: float = 1.0, tube_radius: float = 0.25, theta0: float = math.pi - 0.045, power: int = 16):
         self.arc_radius = check_positive("arc_radius", arc_radius)
         self.tube_radius = check_positive("tube_radius", tube_radius)
         if not self.tube_radius < self.arc_radius:
@@ -847,21 +876,24 @@ class Sausage(ImplicitShape):
         th = np.arctan2(x[:, 1], x[:, 0])
         return q, th
 
+    def _phi_grad(self, x):
+        q = np.maximum(np.hypot(x[:, 0], x[:, 1]), _TINY)
+        th = np.arctan2(x[:, 1], x[:, 0])
+        r2 = self.tube_radius**2
+        dq = q - self.arc_radius
+        t = th / self.theta0
+        tp1 = t ** (self.power - 1)
+        phi = (dq * dq + x[:, 2] ** 2) / r2 + tp1 * t - 1.0
+        k = 2 * dq / (q * r2)
+        bt = self.power * tp1 / (self.theta0 * q * q)  # dB/dtheta / q^2
+        grad = np.stack([k * x[:, 0] - bt * x[:, 1], k * x[:, 1] + bt * x[:, 0], 2 * x[:, 2] / r2], axis=1)
+        return phi, grad
+
     def _phi(self, x):
-        q, th = self._parts(x)
-        rho2 = (q - self.arc_radius) ** 2 + x[:, 2] ** 2
-        return rho2 / self.tube_radius**2 + (th / self.theta0) ** self.power - 1.0
+        return self._phi_grad(x)[0]
 
     def _grad(self, x):
-        q, th = self._parts(x)
-        r2 = self.tube_radius**2
-        k = 2 * (q - self.arc_radius) / (q * r2)
-        p = self.power
-        bt = p * (th / self.theta0) ** (p - 1) / self.theta0  # dB/dtheta
-        q2 = q * q
-        return np.stack(
-            [k * x[:, 0] - bt * x[:, 1] / q2, k * x[:, 1] + bt * x[:, 0] / q2, 2 * x[:, 2] / r2], axis=1
-        )
+        return self._phi_grad(x)[1]
 
     def _hess(self, x):
         q, th = self._parts(x)
@@ -1028,8 +1060,8 @@ def sausage(
     n,
     arc_radius=1.0,
     tube_radius=0.25,
-    theta0=math.pi - 0.05,
-    power=8,
+    theta0=math.pi - 0.045,
+    power=16,
     sampling="poisson",
     seed=0,
     density_ratio=4.0,
