@@ -46,6 +46,7 @@ __all__ = [
 ]
 
 _TINY = 1e-300
+_QMIN = 1e-100  # distance to an axis below which axis-singular derivatives are clamped
 
 
 # ----------------------------------------------------------------------------
@@ -611,7 +612,7 @@ class Torus(ImplicitShape):
         return ("torus", self.R, self.r, *self.center.tolist())
 
     def _rho(self, d):
-        return np.maximum(np.hypot(d[:, 0], d[:, 1]), _TINY)
+        return np.maximum(np.hypot(d[:, 0], d[:, 1]), _QMIN)
 
     def _phi(self, x):
         d = x - self.center
@@ -872,12 +873,12 @@ class Sausage(ImplicitShape):
         return np.clip(self.arc_angle(x) / self.theta0, -1.0, 1.0)
 
     def _parts(self, x):
-        q = np.maximum(np.hypot(x[:, 0], x[:, 1]), _TINY)
+        q = np.maximum(np.hypot(x[:, 0], x[:, 1]), _QMIN)
         th = np.arctan2(x[:, 1], x[:, 0])
         return q, th
 
     def _phi_grad(self, x):
-        q = np.maximum(np.hypot(x[:, 0], x[:, 1]), _TINY)
+        q = np.maximum(np.hypot(x[:, 0], x[:, 1]), _QMIN)
         th = np.arctan2(x[:, 1], x[:, 0])
         r2 = self.tube_radius**2
         dq = q - self.arc_radius
@@ -890,7 +891,10 @@ class Sausage(ImplicitShape):
         return phi, grad
 
     def _phi(self, x):
-        return self._phi_grad(x)[0]
+        q = np.hypot(x[:, 0], x[:, 1])
+        th = np.arctan2(x[:, 1], x[:, 0])
+        rho2 = (q - self.arc_radius) ** 2 + x[:, 2] ** 2
+        return rho2 / self.tube_radius**2 + (th / self.theta0) ** self.power - 1.0
 
     def _grad(self, x):
         return self._phi_grad(x)[1]
@@ -947,16 +951,19 @@ class Sausage(ImplicitShape):
         """Area by quadrature of the parametrisation (accurate to ~1e-12 relative).
 
         ``theta = theta0 (1 - u^2)`` removes the square-root behaviour at the tips;
-        Gauss-Legendre in ``u`` (400 nodes) and the trapezoidal rule in ``alpha``
-        (256 nodes, spectrally accurate for periodic integrands).
+        Gauss-Legendre in ``u`` (200 nodes) and the trapezoidal rule in ``alpha``
+        (128 nodes, spectrally accurate for periodic integrands); 50 x 64 nodes
+        already give the same value to 1e-15.
         """
         key = ("area",) + self._key()
         if key not in _AREA_CACHE:
-            u, w = np.polynomial.legendre.leggauss(400)
+            from scipy.special import roots_legendre
+
+            u, w = roots_legendre(200)
             u = 0.5 * (u + 1)
             w = 0.5 * w
             theta = self.theta0 * (1 - u * u)
-            alpha = np.linspace(0, 2 * math.pi, 256, endpoint=False)
+            alpha = np.linspace(0, 2 * math.pi, 128, endpoint=False)
             J = self._area_density(theta[:, None], alpha[None, :])
             inner = J.mean(axis=1) * 2 * math.pi
             # two halves (theta > 0 and < 0), d theta = 2 theta0 u du
