@@ -145,6 +145,20 @@ class ImplicitShape:
         Sampling names accepted by :meth:`sample`.
     area_is_exact : bool
         Whether :attr:`area` is a closed form (True) or a numerical estimate.
+
+    Examples
+    --------
+    Exact Laplace-Beltrami of ``f = xyz`` (a degree-3 spherical harmonic, so
+    ``Lap_S f = -12 f`` on the unit sphere) from its ambient derivatives:
+
+    >>> import numpy as np
+    >>> s = Sphere()
+    >>> x = np.array([[0.48, 0.6, 0.64]])
+    >>> X, Y, Z = x.T
+    >>> grad = np.stack([Y * Z, X * Z, X * Y], axis=1)
+    >>> hess = np.array([[[0, Z[0], Y[0]], [Z[0], 0, X[0]], [Y[0], X[0], 0]]])
+    >>> s.laplace_beltrami(x, grad, hess).round(10).tolist(), (-12 * X * Y * Z).round(10).tolist()
+    ([-2.21184], [-2.21184])
     """
 
     name = "implicit"
@@ -553,6 +567,8 @@ class Sphere(ImplicitShape):
     def project(self, x, tol: float = 1e-13, maxiter: int = 50) -> np.ndarray:
         """Closest point ``c + r (x - c) / |x - c|`` (exact; ``tol``, ``maxiter`` unused)."""
         x = as_points("x", x)
+        check_positive("tol", tol)
+        check_int("maxiter", maxiter, minimum=1)
         d = x - self.center
         dn = np.linalg.norm(d, axis=1)
         if np.any(dn <= _TINY):
@@ -654,6 +670,8 @@ class Torus(ImplicitShape):
     def project(self, x, tol: float = 1e-13, maxiter: int = 50) -> np.ndarray:
         """Exact closest point on the torus (``tol``, ``maxiter`` unused)."""
         x = as_points("x", x)
+        check_positive("tol", tol)
+        check_int("maxiter", maxiter, minimum=1)
         d = x - self.center
         rho = np.hypot(d[:, 0], d[:, 1])
         if np.any(rho <= _TINY):
@@ -705,7 +723,7 @@ class DoubleTorus(ImplicitShape):
     The default ``c = 0.04`` keeps the holes well open (each about 0.33 long in
     x and 0.45 wide in y), the tube half-height is ``sqrt(c) = 0.2`` and its
     half-width in the plane ranges from ``sqrt(c)/2 = 0.1`` (at the ends x ~ 0
-    and x ~ 2, where ``|grad g| = 2``) upwards; ``|grad phi| >= 0.18`` on the
+    and x ~ 2, where ``|grad g| = 2``) upwards; ``|grad phi| >= 0.17`` on the
     surface (no pinch). The flattened ends carry the largest principal
     curvature, about 22 (radius 0.046): at the seed's 3070 points with 27
     neighbours (``rho_s = 0.135``) the kernel support spans about three

@@ -171,3 +171,19 @@ def test_field_shape_errors(domains):
         d.divergence(np.ones((1024, 3)))
     with pytest.raises(ValueError, match="f must be finite"):
         d.gradient(np.full(1024, np.inf))
+
+
+@pytest.mark.parametrize("n", [1007, 4029])
+def test_poisson_square_exactness(n):
+    """Issue targets on Poisson-disk points of [-1, 1]^2 without mirroring: msph exact on
+    quadratics (gradient and Laplacian), ncsph's Laplacian too, cspm's gradient on linear ones."""
+    from manifold_sph import shapes
+
+    p = shapes.square(n, sampling="poisson", seed=0)
+    f, g, lap = quadratic(p)
+    msph = Domain2D(p, scheme="msph")
+    assert np.abs(msph.gradient(f) - g).max() / np.abs(g).max() < 1e-10
+    assert np.abs(msph.laplacian(f) - lap).max() / 3.0 < 1e-10
+    assert np.abs(Domain2D(p, scheme="ncsph").laplacian(f) - lap).max() / 3.0 < 1e-10
+    lin = 0.5 - p[:, 0] + 4 * p[:, 1]
+    assert np.abs(Domain2D(p, scheme="cspm").gradient(lin) - [-1, 4]).max() < 1e-10 * 4

@@ -369,7 +369,7 @@ def test_double_torus_smooth():
 def test_sampling_functions_signatures():
     assert len(sphere(50)) == 50
     assert len(torus(50, R=1.0, r=0.3, center=(1, 2, 3))) == 50
-    assert len(double_torus(50, c=0.03)) == 50
+    assert len(double_torus(50, c=0.03, sampling="random")) == 50
     assert len(sausage(50, tube_radius=0.2)) == 50
     assert np.abs(torus(50, center=(1, 2, 3)).points[:, 2] - 3).max() <= 0.2 + 1e-12
 
