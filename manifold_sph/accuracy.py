@@ -160,7 +160,7 @@ def planar_errors(points, schemes=None, *, bounds=(-1.0, 1.0, -1.0, 1.0), mirror
     from .domain import Domain2D
 
     p = np.asarray(points, dtype=np.float64)
-    g_ex = np.stack(functions.xy_2d.gradient(p), 1) if isinstance(functions.xy_2d.gradient(p), list) else functions.xy_2d.gradient(p)
+    g_ex = functions.xy_2d.gradient(p)
     f = functions.sin_pi_x_cos_pi_y
     lap_ex = np.trace(f.hessian(p), axis1=1, axis2=2)
     fld = functions.sin_pi_field_2d

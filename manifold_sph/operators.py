@@ -23,7 +23,7 @@ from ._validation import as_field, check_positive
 from .area import AreaElements, area_elements
 from .assembly import Assembled, assemble
 from .kernels import get_kernel
-from .neighbors import Neighborhood, adaptive_smoothing_length, find_neighbors, smoothing_length_for_count
+from .neighbors import Neighborhood, adaptive_smoothing_length, smoothing_length_for_count
 from .schemes import get_scheme
 
 __all__ = ["OperatorSet"]

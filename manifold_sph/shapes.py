@@ -21,7 +21,6 @@ ends nearly touch). The functions :func:`sphere`, :func:`torus`,
 from __future__ import annotations
 
 import math
-import numbers
 import warnings
 
 import numpy as np

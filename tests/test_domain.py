@@ -1,6 +1,5 @@
 """Planar domain: exactness on polynomials, identities, invariance, mirroring, bad input."""
 
-import warnings
 
 import numpy as np
 import pytest

@@ -2,7 +2,6 @@
 
 import numpy as np
 import pytest
-from scipy.spatial import cKDTree
 
 from manifold_sph.neighbors import adaptive_smoothing_length, find_neighbors, smoothing_length_for_count
 

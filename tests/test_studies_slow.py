@@ -1,6 +1,5 @@
 """Large-N accuracy targets of the operators issue (run with ``pytest -m slow``; minutes)."""
 
-import numpy as np
 import pytest
 
 from manifold_sph import shapes

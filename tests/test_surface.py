@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from manifold_sph import PointCloud, Surface, functions, shapes
-from manifold_sph.accuracy import exact_operators, operator_errors
+from manifold_sph import Surface, functions, shapes
+from manifold_sph.accuracy import operator_errors
 
 SCHEMES = ["standard", "cspm", "msph", "ncsph"]
 

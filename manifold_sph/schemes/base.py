@@ -157,3 +157,12 @@ def difference_to_weights(pairs: LocalPairs, c: np.ndarray) -> np.ndarray:
     sums = np.add.reduceat(w, pairs.indptr[:-1], axis=0)
     w[pairs.is_self] -= sums  # exactly one self pair per row, in row order
     return w
+
+
+def corrected_weights(pairs: LocalPairs, grad_c: np.ndarray, lap_c: np.ndarray, failed: np.ndarray, condition) -> SchemeWeights:
+    """Weights of a corrected scheme from its weights on ``f_j - f_i``; failed particles get zeros."""
+    grad = difference_to_weights(pairs, grad_c)
+    lap = difference_to_weights(pairs, lap_c)
+    grad[failed[pairs.row]] = 0.0
+    lap[failed[pairs.row]] = 0.0
+    return SchemeWeights(grad=grad, lap=lap, failed=failed, condition=condition)

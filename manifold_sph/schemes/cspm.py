@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import LocalPairs, Scheme, SchemeWeights, batched_inverse, difference_to_weights
+from .base import LocalPairs, Scheme, SchemeWeights, batched_inverse, corrected_weights
 
 #: Selects f_xx + f_yy from H = (f_xx, f_xy, f_yy).
 LAPLACE_ROW = np.array([1.0, 0.0, 1.0])
@@ -53,9 +53,4 @@ class CSPM(Scheme):
         N2 = pairs.moments(rows2, quadratic_columns(pairs.xy))
         N1 = pairs.moments(rows2, pairs.xy)
         lap, cond2, failed2 = second_derivative_weights(pairs, N2, N1, c, max_condition)
-        failed = failed1 | failed2
-        grad = difference_to_weights(pairs, c)
-        lap = difference_to_weights(pairs, lap)
-        grad[failed[pairs.row]] = 0.0
-        lap[failed[pairs.row]] = 0.0
-        return SchemeWeights(grad=grad, lap=lap, failed=failed, condition=np.maximum(cond1, cond2))
+        return corrected_weights(pairs, c, lap, failed1 | failed2, np.maximum(cond1, cond2))

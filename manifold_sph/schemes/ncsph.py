@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import LocalPairs, Scheme, SchemeWeights, batched_inverse, difference_to_weights
+from .base import LocalPairs, Scheme, SchemeWeights, batched_inverse, corrected_weights
 from .cspm import first_derivative_weights, quadratic_columns
 
 #: Selects H_xx + H_yy from (g_x, g_y, H_xx, H_xy, H_yy).
@@ -34,9 +34,4 @@ class NCSPH(Scheme):
         Ainv, cond2, failed2 = batched_inverse(A, max_condition)
         y = np.einsum("nca,c->na", Ainv, LAPLACE_ROW)  # y = A^-T e
         lap = np.einsum("pa,pa->p", rows, y[pairs.row])
-        failed = failed1 | failed2
-        grad = difference_to_weights(pairs, c)
-        lap = difference_to_weights(pairs, lap)
-        grad[failed[pairs.row]] = 0.0
-        lap[failed[pairs.row]] = 0.0
-        return SchemeWeights(grad=grad, lap=lap, failed=failed, condition=np.maximum(cond1, cond2))
+        return corrected_weights(pairs, c, lap, failed1 | failed2, np.maximum(cond1, cond2))
