@@ -96,7 +96,7 @@ class Domain2D(OperatorSet):
         *,
         scheme="cspm",
         kernel="quintic",
-        neighbors: int = 27,
+        neighbors: int | None = None,
         h=None,
         area: str = "numerical",
         bounds=None,

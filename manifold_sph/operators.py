@@ -41,6 +41,8 @@ class OperatorSet:
     def _resolve(self, kernel, scheme, neighbors, max_condition):
         self.kernel = get_kernel(kernel)
         self.scheme = get_scheme(scheme)
+        if neighbors is None:
+            neighbors = self.scheme.default_neighbors
         if isinstance(neighbors, bool) or not isinstance(neighbors, (int, np.integer)):
             raise TypeError(f"neighbors must be an integer mean neighbour count, got {neighbors!r}")
         if neighbors < self.scheme.min_neighbors:

@@ -13,6 +13,17 @@ from .pointcloud import PointCloud
 __all__ = ["Surface"]
 
 
+def _estimate_normals(points: np.ndarray) -> np.ndarray:
+    try:
+        from .normals import estimate_normals
+    except ImportError:  # pragma: no cover - until the scan module lands
+        raise ValueError(
+            "normals are required: pass normals= (N, 3) or a PointCloud with normals "
+            "(automatic normal estimation is not available in this build)"
+        ) from None
+    return estimate_normals(points)
+
+
 class Surface(OperatorSet):
     """Gradient, divergence and Laplace-Beltrami on a point cloud sampling a surface.
 
@@ -24,13 +35,14 @@ class Surface(OperatorSet):
     ----------
     points : array_like, shape (N, 3), or PointCloud
     normals : array_like, shape (N, 3), optional
-        Unit (or unnormalised, non-zero) normals; required unless ``points`` is a
-        PointCloud that has them. Normal estimation for scans arrives with the
-        scan-processing module; until then clouds without normals are refused.
+        Unit (or unnormalised, non-zero) normals. When neither ``normals`` nor the
+        PointCloud has them, they are estimated with
+        :func:`manifold_sph.normals.estimate_normals` (PCA, consistently oriented).
     scheme : {"cspm", "msph", "ncsph", "standard"} or Scheme
     kernel : {"quintic", "cubic", "gaussian", "wendland2", "quartic"} or Kernel
-    neighbors : int
-        Target mean number of particles inside the support (itself included), 27 by default.
+    neighbors : int, optional
+        Target mean number of particles inside the support (itself included); by
+        default the scheme's own choice (27 for the second-order schemes).
     h : None, float, "adaptive" or ndarray of shape (N,)
         Smoothing length: ``None`` chooses a uniform ``h`` giving ``neighbors`` on
         average; ``"adaptive"`` a per-particle ``h_i`` giving exactly ``neighbors``
@@ -78,7 +90,7 @@ class Surface(OperatorSet):
         *,
         scheme="cspm",
         kernel="quintic",
-        neighbors: int = 27,
+        neighbors: int | None = None,
         h=None,
         area: str = "numerical",
         normal_threshold: float = 0.0,
@@ -90,10 +102,7 @@ class Surface(OperatorSet):
         else:
             cloud = PointCloud(points, normals)
         if cloud.normals is None:
-            raise ValueError(
-                "normals are required: pass normals= (N, 3) or a PointCloud with normals "
-                "(automatic normal estimation is not available yet)"
-            )
+            cloud = PointCloud(cloud.points, _estimate_normals(cloud.points), shape=cloud.shape)
         self.cloud = cloud
         self._resolve(kernel, scheme, neighbors, max_condition)
         pts, nrm = cloud.points, cloud.normals

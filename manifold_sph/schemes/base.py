@@ -108,6 +108,9 @@ class Scheme:
     fallback: str | None = None
     #: Fewest particles in a neighbourhood (itself included) the scheme needs.
     min_neighbors: int = 2
+    #: Mean neighbour count used when the caller gives none (27: the seeds' choice for
+    #: second-order schemes with the quintic spline).
+    default_neighbors: int = 27
 
     def weights(self, pairs: LocalPairs, max_condition: float) -> SchemeWeights:  # pragma: no cover - interface
         raise NotImplementedError
