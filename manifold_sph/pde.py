@@ -1,0 +1,554 @@
+"""PDEs on point-cloud surfaces (METHOD.md section 6): heat, wave, Poisson, Helmholtz-Hodge.
+
+Every solver works with the surface's sparse Laplace-Beltrami matrix ``L``, so
+implicit steps and Poisson problems are sparse solves; one factorisation is
+reused for all steps.
+
+The SPH Laplacians are not symmetric. On near-uniform clouds their spectra lie
+in the closed left half-plane; on uniformly *random* samples the corrected
+schemes (cspm, msph, ncsph) have eigenvalues with large positive real parts, and
+time stepping with them grows without bound. :func:`stabilized_laplacian` gives
+two Laplacians whose spectra are provably in the left half-plane (``"taylor"``:
+the standard SPH Laplacian with Shepard area elements, a weighted graph
+Laplacian; ``"weak"``: ``-M^-1 G^T M G`` from the scheme's gradient), at a cost
+in accuracy; every solver accepts such a matrix through ``laplacian=``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, NamedTuple
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from ._validation import as_field, check_in, check_int, check_positive
+from .operators import OperatorSet
+
+__all__ = [
+    "Snapshots",
+    "spectral_radius",
+    "spectrum_right_edge",
+    "explicit_dt_limit",
+    "stabilized_laplacian",
+    "heat",
+    "wave",
+    "wave_energy",
+    "poisson",
+    "screened_poisson",
+    "HodgeDecomposition",
+    "helmholtz_hodge",
+]
+
+HEAT_METHODS = ("explicit", "implicit", "crank-nicolson")
+
+
+class Snapshots(NamedTuple):
+    """States saved every ``every`` steps: ``snapshots`` (S, N) and ``times`` (S,)."""
+
+    snapshots: np.ndarray
+    times: np.ndarray
+
+
+# ----------------------------------------------------------------------------- helpers
+def _laplacian(surface, laplacian) -> sp.csr_matrix:
+    if not isinstance(surface, OperatorSet):
+        raise TypeError(f"surface must be a Surface or Domain2D, got {type(surface).__name__}")
+    if laplacian is None:
+        return surface.laplacian_matrix()
+    L = sp.csr_matrix(laplacian)
+    n = surface.n_points
+    if L.shape != (n, n):
+        raise ValueError(f"laplacian must have shape ({n}, {n}), got {L.shape}")
+    return L
+
+
+def _fixed(fixed, fixed_values, n: int, u0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Boolean mask of held particles and their values (default: the initial values)."""
+    if fixed is None:
+        if fixed_values is not None:
+            raise ValueError("fixed_values was given without fixed (the particles to hold)")
+        return np.zeros(n, dtype=bool), np.zeros(0)
+    arr = np.asarray(fixed)
+    if arr.dtype == bool:
+        if arr.shape != (n,):
+            raise ValueError(f"fixed as a boolean mask must have shape ({n},), got {arr.shape}")
+        mask = arr.copy()
+    else:
+        if arr.size and not np.issubdtype(arr.dtype, np.integer):
+            raise TypeError(f"fixed must be integer indices or a boolean mask, got dtype {arr.dtype}")
+        idx = arr.astype(np.int64).ravel()
+        bad = (idx < 0) | (idx >= n)
+        if bad.any():
+            raise ValueError(f"fixed indices must lie in [0, {n}), got {idx[bad][:5].tolist()}")
+        mask = np.zeros(n, dtype=bool)
+        mask[idx] = True
+    k = int(mask.sum())
+    if fixed_values is None:
+        values = u0[mask].copy()
+    else:
+        values = np.asarray(fixed_values, dtype=np.float64)
+        if values.ndim == 0:
+            values = np.full(k, float(values))
+        if values.shape != (k,):
+            raise ValueError(f"fixed_values must be a scalar or have shape ({k},) (one per fixed particle), got {values.shape}")
+        if not np.all(np.isfinite(values)):
+            raise ValueError("fixed_values must be finite")
+    return mask, values
+
+
+def _check_steps(dt, steps, every):
+    dt = check_positive("dt", dt)
+    steps = check_int("steps", steps, minimum=1)
+    if every is not None:
+        every = check_int("every", every, minimum=1)
+    return dt, steps, every
+
+
+def spectral_radius(L, *, tol: float = 1e-6, seed: int = 0) -> float:
+    """Largest eigenvalue modulus of ``L`` (ARPACK; power iteration if it does not converge).
+
+    Examples
+    --------
+    >>> import scipy.sparse as sp
+    >>> round(spectral_radius(sp.diags([-1.0, -4.0, -2.5] * 10)), 6)
+    4.0
+    """
+    L = sp.csr_matrix(L)
+    n = L.shape[0]
+    v0 = np.random.default_rng(seed).standard_normal(n)
+    if n > 3:
+        try:
+            lam = spla.eigs(L, k=1, which="LM", v0=v0, tol=tol, maxiter=max(1000, 10 * n), return_eigenvectors=False)
+            return float(np.abs(lam).max())
+        except (spla.ArpackNoConvergence, spla.ArpackError):
+            pass
+    x = v0 / np.linalg.norm(v0)
+    rho = 0.0
+    for _ in range(2000):
+        y = L @ x
+        new = float(np.linalg.norm(y))
+        if new == 0.0:
+            return 0.0
+        x = y / new
+        if abs(new - rho) <= tol * new:
+            break
+        rho = new
+    return new
+
+
+def spectrum_right_edge(L, k: int = 6, *, seed: int = 0) -> np.ndarray:
+    """The ``k`` eigenvalues of ``L`` with the largest real parts (growing modes have Re > 0).
+
+    Uses ARPACK; returns them sorted by decreasing real part.
+    """
+    L = sp.csr_matrix(L)
+    v0 = np.random.default_rng(seed).standard_normal(L.shape[0])
+    try:
+        lam = spla.eigs(L, k=k, which="LR", v0=v0, tol=1e-8, maxiter=20 * L.shape[0], return_eigenvectors=False)
+    except spla.ArpackNoConvergence as exc:  # keep what converged
+        lam = exc.eigenvalues
+    return lam[np.argsort(-lam.real)]
+
+
+def explicit_dt_limit(surface, *, k: float = 1.0, equation: str = "heat", laplacian=None) -> float:
+    """Largest stable time step of the explicit schemes, from the spectral radius ``rho`` of ``L``.
+
+    Heat (forward Euler): ``2 / (k rho)``. Wave (centred): ``2 / (c sqrt(rho))`` with ``c = k``.
+    Exact for eigenvalues on the negative real axis; complex eigenvalues near the
+    imaginary axis are not covered (use an implicit method).
+    """
+    L = _laplacian(surface, laplacian)
+    check_in("equation", equation, ("heat", "wave"))
+    key = ("rho", id(laplacian))
+    cache = surface._cache
+    if key not in cache:
+        cache[key] = spectral_radius(L)
+    rho = cache[key]
+    k = check_positive("k" if equation == "heat" else "c", k)
+    if rho == 0:
+        return np.inf
+    return 2.0 / (k * rho) if equation == "heat" else 2.0 / (k * np.sqrt(rho))
+
+
+def stabilized_laplacian(surface, method: str = "taylor") -> sp.csr_matrix:
+    """A Laplace-Beltrami matrix whose spectrum lies in the closed left half-plane.
+
+    Parameters
+    ----------
+    surface : Surface or Domain2D
+    method : {"taylor", "weak"}
+        ``"taylor"``: the standard SPH (Taylor) Laplacian with Shepard area elements.
+        Its off-diagonal weights are non-negative and its rows sum to zero, so every
+        Gershgorin disc lies in the left half-plane and ``I - dt L`` is an M-matrix
+        (maximum principle). Consistent only on near-uniform clouds.
+        ``"weak"``: ``-M^-1 G^T M G`` with ``G`` the surface's gradient matrix and
+        ``M = diag(dV)`` (positive area elements required): similar to a symmetric
+        negative semi-definite matrix, so its eigenvalues are real and <= 0.
+
+    Returns
+    -------
+    scipy.sparse.csr_matrix, shape (N, N)
+    """
+    check_in("method", method, ("taylor", "weak"))
+    if not isinstance(surface, OperatorSet):
+        raise TypeError(f"surface must be a Surface or Domain2D, got {type(surface).__name__}")
+    key = ("stabilized", method)
+    if key in surface._cache:
+        return surface._cache[key]
+    if method == "taylor":
+        from .area import area_elements
+        from .assembly import assemble
+        from .schemes import get_scheme
+
+        nb = surface.neighborhood
+        shep = area_elements("shepard", nb, surface._xy, surface.kernel, columns=surface._columns)
+        ops = assemble(nb, surface._xy, shep.dV[surface._columns], surface.kernel, get_scheme("standard"),
+                       columns=surface._columns, n_cols=nb.n_rows)
+        L = ops.lap
+    else:
+        dV = surface.dV
+        if np.any(dV <= 0):
+            raise ValueError(
+                f"stabilized_laplacian(method='weak') needs positive area elements, but {int((dV <= 0).sum())} "
+                "are not; build the surface with area='shepard'"
+            )
+        D = surface._dim
+        G = surface.gradient_matrix()
+        M = sp.diags(np.repeat(dV, D))
+        L = (-sp.diags(1.0 / dV) @ (G.T @ M @ G)).tocsr()
+    surface._cache[key] = L
+    return L
+
+
+# ----------------------------------------------------------------------------- heat
+def heat(
+    surface,
+    u0,
+    dt: float,
+    steps: int,
+    k: float = 1.0,
+    method: str = "implicit",
+    fixed=None,
+    fixed_values=None,
+    every: int | None = None,
+    callback: Callable | None = None,
+    laplacian=None,
+):
+    """Heat equation ``u_t = k Lap_S u``.
+
+    Parameters
+    ----------
+    surface : Surface or Domain2D
+    u0 : array_like, shape (N,)
+        Initial temperature.
+    dt : float
+        Time step (> 0). The explicit method refuses a ``dt`` above its stability
+        limit :func:`explicit_dt_limit`, quoting the limit.
+    steps : int
+    k : float
+        Diffusivity.
+    method : {"implicit", "crank-nicolson", "explicit"}
+        Backward Euler, Crank-Nicolson (one sparse LU reused for all steps) or the
+        seed's forward Euler.
+    fixed : array_like of int or bool mask, optional
+        Particles held at ``fixed_values`` (default: their initial values), e.g. a
+        heat source at the north pole.
+    fixed_values : float or array_like, shape (n_fixed,), optional
+    every : int, optional
+        Save the state every ``every`` steps (the initial and the final state included).
+    callback : callable, optional
+        ``callback(step, t, u)`` after every step.
+    laplacian : sparse matrix, optional
+        Use this Laplacian instead of the surface's (e.g. :func:`stabilized_laplacian`).
+
+    Returns
+    -------
+    ndarray, shape (N,) or Snapshots
+        The final state, or ``Snapshots(snapshots (S, N), times (S,))`` when ``every`` is given.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from manifold_sph import Surface, shapes
+    >>> cloud = shapes.sphere(2000)
+    >>> z = cloud.points[:, 2]                      # a degree-1 harmonic: decays as exp(-2 k t)
+    >>> u = heat(Surface(cloud), z, dt=0.01, steps=10, method="crank-nicolson")
+    >>> bool(np.allclose(u, np.exp(-0.2) * z, atol=2e-3))
+    True
+    """
+    L = _laplacian(surface, laplacian)
+    n = L.shape[0]
+    u = as_field("u0", u0, n).copy()
+    dt, steps, every = _check_steps(dt, steps, every)
+    k = check_positive("k", k)
+    check_in("method", method, HEAT_METHODS)
+    mask, values = _fixed(fixed, fixed_values, n, u)
+    u[mask] = values
+    free = ~mask
+    a = k * dt
+    if method == "explicit":
+        limit = explicit_dt_limit(surface, k=k, equation="heat", laplacian=laplacian)
+        if dt > limit:
+            raise ValueError(
+                f"dt = {dt:g} is above the explicit heat stability limit {limit:.4g} "
+                f"(2 / (k * spectral radius)); use a smaller dt or method='implicit'"
+            )
+        theta = 0.0
+    else:
+        theta = 1.0 if method == "implicit" else 0.5
+    solve = None
+    if theta > 0:
+        Lff = L[free][:, free]
+        A = (sp.identity(int(free.sum()), format="csc") - theta * a * Lff).tocsc()
+        solve = spla.splu(A).solve
+        rhs_fixed = theta * a * (L[free][:, mask] @ values) if mask.any() else 0.0
+    saved, times = ([u.copy()], [0.0]) if every else (None, None)
+    for step in range(1, steps + 1):
+        Lu = L @ u
+        if theta == 0:
+            u = u + a * Lu
+        else:
+            new = u.copy()
+            new[free] = solve(u[free] + (1 - theta) * a * Lu[free] + rhs_fixed)
+            u = new
+        u[mask] = values
+        if not np.all(np.isfinite(u)):
+            raise FloatingPointError(f"heat: the solution stopped being finite at step {step}")
+        if callback is not None:
+            callback(step, step * dt, u)
+        if every and (step % every == 0 or step == steps):
+            saved.append(u.copy())
+            times.append(step * dt)
+    if every:
+        return Snapshots(np.array(saved), np.array(times))
+    return u
+
+
+# ----------------------------------------------------------------------------- wave
+def wave(
+    surface,
+    u0,
+    dt: float,
+    steps: int,
+    c: float = 1.0,
+    v0=None,
+    fixed=None,
+    fixed_values=None,
+    every: int | None = None,
+    callback: Callable | None = None,
+    laplacian=None,
+):
+    """Wave equation ``u_tt = c^2 Lap_S u`` with the centred scheme.
+
+    ``u^{n+1} = 2 u^n - u^{n-1} + c^2 dt^2 L u^n`` (METHOD.md section 6; the seed's
+    eq. 3.20 as printed is not consistent), started with
+    ``u^1 = u^0 + dt v0 + c^2 dt^2 L u^0 / 2``. The scheme is explicit: a ``dt``
+    above ``2 / (c sqrt(rho(L)))`` is refused with the limit in the message.
+
+    Parameters and return value as for :func:`heat` (``c`` the wave speed, ``v0``
+    the initial velocity, default zero).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from manifold_sph import Surface, shapes
+    >>> cloud = shapes.sphere(2000)
+    >>> z = cloud.points[:, 2]                      # Y_1: u = cos(sqrt(2) t) z
+    >>> u = wave(Surface(cloud), z, dt=0.01, steps=100)
+    >>> bool(np.allclose(u, np.cos(np.sqrt(2.0)) * z, atol=1e-2))
+    True
+    """
+    L = _laplacian(surface, laplacian)
+    n = L.shape[0]
+    u = as_field("u0", u0, n).copy()
+    v = np.zeros(n) if v0 is None else as_field("v0", v0, n)
+    dt, steps, every = _check_steps(dt, steps, every)
+    c = check_positive("c", c)
+    limit = explicit_dt_limit(surface, k=c, equation="wave", laplacian=laplacian)
+    if dt > limit:
+        raise ValueError(
+            f"dt = {dt:g} is above the centred wave scheme's stability limit {limit:.4g} "
+            f"(2 / (c * sqrt(spectral radius)))"
+        )
+    mask, values = _fixed(fixed, fixed_values, n, u)
+    u[mask] = values
+    b = (c * dt) ** 2
+    prev = u
+    u = prev + dt * v + 0.5 * b * (L @ prev)
+    u[mask] = values
+    saved, times = ([prev.copy()], [0.0]) if every else (None, None)
+    for step in range(1, steps + 1):
+        if step > 1:
+            prev, u = u, 2 * u - prev + b * (L @ u)
+            u[mask] = values
+        if not np.all(np.isfinite(u)):
+            raise FloatingPointError(f"wave: the solution stopped being finite at step {step}")
+        if callback is not None:
+            callback(step, step * dt, u)
+        if every and (step % every == 0 or step == steps):
+            saved.append(u.copy())
+            times.append(step * dt)
+    if every:
+        return Snapshots(np.array(saved), np.array(times))
+    return u
+
+
+def wave_energy(surface, u_prev, u_next, dt: float, c: float = 1.0, laplacian=None) -> float:
+    """Discrete energy of the centred scheme between two successive states.
+
+    ``E = 1/2 |(u^{n+1} - u^n)/dt|_M^2 - c^2/2 (u^{n+1})^T M L u^n`` with
+    ``M = diag(dV)``; exactly conserved when ``M L`` is symmetric, so its drift
+    measures the non-symmetry of the SPH Laplacian.
+    """
+    L = _laplacian(surface, laplacian)
+    dV = surface.dV
+    vel = (np.asarray(u_next) - np.asarray(u_prev)) / dt
+    return float(0.5 * np.sum(dV * vel**2) - 0.5 * c**2 * np.dot(u_next * dV, L @ u_prev))
+
+
+# ----------------------------------------------------------------------------- Poisson
+def _has_boundary(surface) -> bool:
+    from .domain import Domain2D
+
+    return isinstance(surface, Domain2D) and not surface.mirror
+
+
+def poisson(surface, rhs, *, dirichlet=None, tol: float = 1e-3, laplacian=None) -> np.ndarray:
+    """Solve ``Lap_S u = rhs``.
+
+    On a closed surface the solution is defined up to a constant: the zero-mean one
+    (``sum dV u = 0``) is returned, and ``rhs`` must have zero mean,
+    ``|sum dV rhs| <= tol * sum dV |rhs|``, otherwise a ValueError quotes the mean.
+    With ``dirichlet=(indices, values)`` the given particles are held at the values
+    instead (needed on domains with a boundary).
+
+    Parameters
+    ----------
+    surface : Surface or Domain2D
+    rhs : array_like, shape (N,)
+    dirichlet : (array_like of int, array_like of float), optional
+    tol : float
+        Relative tolerance on the mean of ``rhs``.
+
+    Returns
+    -------
+    ndarray, shape (N,)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from manifold_sph import Surface, shapes
+    >>> cloud = shapes.sphere(2000)
+    >>> x = cloud.points
+    >>> u = poisson(Surface(cloud), -12 * x.prod(axis=1))     # Lap_S(xyz) = -12 xyz
+    >>> bool(np.linalg.norm(u - x.prod(axis=1)) / np.linalg.norm(x.prod(axis=1)) < 0.02)
+    True
+    """
+    L = _laplacian(surface, laplacian)
+    n = L.shape[0]
+    f = as_field("rhs", rhs, n)
+    if dirichlet is not None:
+        try:
+            idx, vals = dirichlet
+        except (TypeError, ValueError):
+            raise TypeError("dirichlet must be a pair (indices, values)") from None
+        mask, values = _fixed(np.asarray(idx), vals, n, np.zeros(n))
+        if not mask.any():
+            raise ValueError("dirichlet needs at least one particle")
+        free = ~mask
+        u = np.zeros(n)
+        u[mask] = values
+        A = L[free][:, free].tocsc()
+        u[free] = spla.spsolve(A, f[free] - L[free][:, mask] @ values)
+        if not np.all(np.isfinite(u)):
+            raise ValueError("poisson: the Dirichlet problem is singular for these held particles")
+        return u
+    if _has_boundary(surface):
+        raise ValueError(
+            "poisson on a domain with a boundary needs a constraint: pass dirichlet=(indices, values) "
+            "(the zero-mean solution is only defined on closed surfaces)"
+        )
+    dV = surface.dV
+    mean = float(np.dot(dV, f))
+    scale = float(np.dot(np.abs(dV), np.abs(f)))
+    if abs(mean) > tol * max(scale, 1e-300):
+        raise ValueError(
+            f"rhs must have zero mean on a closed surface, but sum(dV * rhs) = {mean:.4g} "
+            f"({abs(mean) / scale:.2e} of sum(dV * |rhs|), tolerance {tol:g}); subtract its mean"
+        )
+    # bordered system [[L, 1], [dV^T, 0]] [u, lam] = [rhs, 0]
+    K = sp.bmat([[L, np.ones((n, 1))], [dV[None, :], None]], format="csc")
+    sol = spla.spsolve(K, np.append(f, 0.0))
+    if not np.all(np.isfinite(sol)):
+        raise ValueError("poisson: the Laplacian has a null space beyond the constants (disconnected cloud?)")
+    return sol[:n]
+
+
+def screened_poisson(surface, rhs, alpha: float, *, laplacian=None) -> np.ndarray:
+    """Solve ``u - alpha Lap_S u = rhs`` (alpha > 0), a well-posed smoothing problem.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from manifold_sph import Surface, shapes
+    >>> cloud = shapes.sphere(2000)
+    >>> z = cloud.points[:, 2]                      # (1 + 2 alpha) u = rhs for Y_1
+    >>> u = screened_poisson(Surface(cloud), 3 * z, alpha=1.0)
+    >>> bool(np.allclose(u, z, atol=5e-3))
+    True
+    """
+    L = _laplacian(surface, laplacian)
+    n = L.shape[0]
+    f = as_field("rhs", rhs, n)
+    alpha = check_positive("alpha", alpha)
+    return spla.spsolve((sp.identity(n, format="csc") - alpha * L).tocsc(), f)
+
+
+# ----------------------------------------------------------------------------- Hodge
+@dataclass
+class HodgeDecomposition:
+    """``F = gradient + cogradient + harmonic`` with ``gradient = grad phi`` and
+    ``cogradient = n x grad psi`` (all (N, 3)); ``phi``, ``psi`` zero-mean (N,)."""
+
+    gradient: np.ndarray
+    cogradient: np.ndarray
+    harmonic: np.ndarray
+    phi: np.ndarray
+    psi: np.ndarray
+
+
+def helmholtz_hodge(surface, F) -> HodgeDecomposition:
+    """Helmholtz-Hodge decomposition of a tangent field on a closed surface.
+
+    ``Lap phi = div F`` and ``Lap psi = -div(n x F)`` are solved with :func:`poisson`;
+    the harmonic part is what remains (zero on a sphere; on a torus it holds the
+    two harmonic fields).
+
+    Parameters
+    ----------
+    surface : Surface
+    F : array_like, shape (N, 3)
+        Its normal part is discarded.
+
+    Returns
+    -------
+    HodgeDecomposition
+    """
+    from .surface import Surface
+
+    if not isinstance(surface, Surface):
+        raise TypeError(f"surface must be a Surface (a closed point-cloud surface), got {type(surface).__name__}")
+    n = surface.normals
+    F = as_field("F", F, surface.n_points, 3)
+    F = F - np.einsum("ij,ij->i", F, n)[:, None] * n
+
+    def zero_mean(g):
+        return g - np.dot(surface.dV, g) / surface.dV.sum()
+
+    phi = poisson(surface, zero_mean(surface.divergence(F)))
+    psi = poisson(surface, zero_mean(-surface.divergence(np.cross(n, F))))
+    grad = surface.gradient(phi)
+    cograd = np.cross(n, surface.gradient(psi))
+    return HodgeDecomposition(gradient=grad, cogradient=cograd, harmonic=F - grad - cograd, phi=phi, psi=psi)
