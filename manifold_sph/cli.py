@@ -1,5 +1,9 @@
 """The ``manifold-sph`` command line.
 
+Subcommands: ``demo`` (the main job: four schemes against the exact operators
+on a sphere, a short heat and wave run, pictures and a summary table),
+``operators``, ``convergence``, ``heat``, ``wave``, ``poisson`` and ``render``.
+
 Exit codes: 0 success, 1 failure while computing, 2 a user mistake (reported
 in one line, without a traceback).
 """
@@ -9,8 +13,19 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import time
+from pathlib import Path
 
-__all__ = ["main"]
+import numpy as np
+
+__all__ = ["main", "run_demo", "FOUR_SCHEMES"]
+
+#: The four schemes of the source (seed 1) compared by ``demo`` and ``operators --scheme all``.
+FOUR_SCHEMES = ("standard", "cspm", "msph", "ncsph")
+
+
+class UserError(ValueError):
+    """A mistake in the command line or its inputs (exit code 2)."""
 
 
 def _sizes(text: str) -> list[int]:
@@ -23,19 +38,50 @@ def _sizes(text: str) -> list[int]:
     return sizes
 
 
+def _pair(text: str) -> tuple[float, float]:
+    try:
+        lo, hi = (float(t) for t in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected two comma-separated numbers LOW,HIGH, got {text!r}") from None
+    return lo, hi
+
+
+def _window(text: str) -> tuple[int, int]:
+    try:
+        w, h = (int(t) for t in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--size must be WIDTHxHEIGHT in pixels, e.g. 800x600, got {text!r}") from None
+    if w < 16 or h < 16:
+        raise argparse.ArgumentTypeError(f"--size must be at least 16x16, got {text!r}")
+    return w, h
+
+
+def _positive_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return v
+
+
 def _parser() -> argparse.ArgumentParser:
     from .accuracy import SCALAR_FUNCTIONS, SHAPES
+    from .render import CAMERAS
     from .schemes import SCHEMES
 
     p = argparse.ArgumentParser(
         prog="manifold-sph",
-        description="Consistent SPH operators on point-cloud surfaces: errors against exact references.",
+        description="Consistent SPH operators on point-cloud surfaces: errors against exact references, PDEs, pictures.",
     )
     sub = p.add_subparsers(dest="command", required=True)
+    schemes = sorted(SCHEMES)
 
-    def common(q):
+    def common(q, function=True):
         q.add_argument("--shape", default="sphere", choices=sorted(SHAPES), help="built-in surface (default sphere)")
-        q.add_argument("--function", default="cos_xz_sin_y", choices=SCALAR_FUNCTIONS, help="test function")
+        if function:
+            q.add_argument("--function", default="cos_xz_sin_y", choices=SCALAR_FUNCTIONS, help="test function")
         q.add_argument("--sampling", default=None, help="sampling of the shape (default: its near-uniform one)")
         q.add_argument("--seed", type=int, default=0, help="random seed of the sampling")
         q.add_argument("--neighbors", type=int, default=27, help="mean neighbour count (default 27)")
@@ -43,59 +89,530 @@ def _parser() -> argparse.ArgumentParser:
         q.add_argument("--area", default="numerical", choices=["numerical", "geometric", "shepard"])
         q.add_argument("--json", action="store_true", help="print JSON instead of a table")
 
+    def pictures(q):
+        q.add_argument("--camera", default="iso", choices=sorted(CAMERAS), help="camera preset (default iso)")
+        q.add_argument("--size", type=_window, default=None, help="image size WIDTHxHEIGHT in pixels")
+        q.add_argument("--overwrite", action="store_true", help="replace existing output files")
+
+    demo = sub.add_parser("demo", help="the main job: schemes vs exact operators on a sphere, heat and wave, pictures")
+    demo.add_argument("--out", required=True, help="folder for the pictures and summary (created if missing)")
+    demo.add_argument("--n", type=int, default=4032, help="number of points on the sphere (default 4032)")
+    demo.add_argument("--no-render", action="store_true", help="skip the 3D pictures (tables and plots only)")
+    demo.add_argument("--overwrite", action="store_true", help="replace existing output files")
+    demo.add_argument("--json", action="store_true", help="print the summary as JSON")
+
     ops = sub.add_parser("operators", help="errors of every scheme on one cloud")
     common(ops)
     ops.add_argument("--n", type=int, default=4032, help="number of points (default 4032)")
-    ops.add_argument("--scheme", default="all", choices=["all", *sorted(SCHEMES)])
+    ops.add_argument("--file", default=None, help="read the points from this file instead (they must lie on --shape)")
+    ops.add_argument("--scheme", default="all", choices=["all", *schemes], help="'all': the four source schemes")
 
     conv = sub.add_parser("convergence", help="errors and fitted orders over several cloud sizes")
     common(conv)
     conv.add_argument("--sizes", type=_sizes, default=[1002, 2012, 4032, 8672, 15872, 32672])
-    conv.add_argument("--scheme", default="cspm", choices=sorted(SCHEMES))
+    conv.add_argument("--scheme", default="cspm", choices=schemes)
+    conv.add_argument("--plot", default=None, help="also write a log-log plot to this PNG/PDF/SVG file")
+    conv.add_argument("--overwrite", action="store_true", help="replace an existing --plot file")
+
+    for name, helptext in (("heat", "heat equation u_t = k Lap u"), ("wave", "wave equation u_tt = c^2 Lap u")):
+        q = sub.add_parser(name, help=helptext + " on a built-in shape or a file")
+        common(q, function=False)
+        q.add_argument("--file", default=None, help="read the points (and normals) from this file")
+        q.add_argument("--n", type=int, default=4032, help="number of points (default 4032)")
+        q.add_argument("--scheme", default="cspm", choices=schemes)
+        q.add_argument(
+            "--init", default="hotspot",
+            help="initial state: 'hotspot' (a Gaussian bump at the top), 'harmonic' (z + xy, exact solution "
+                 "known on the unit sphere) or a test function name (default hotspot)",
+        )
+        q.add_argument("--dt", type=float, default=None, help="time step (default: heat 1e-3, wave half the stability limit)")
+        q.add_argument("--steps", type=_positive_int, default=200, help="number of steps (default 200)")
+        q.add_argument("--every", type=_positive_int, default=None, help="save a frame every this many steps (default steps/40)")
+        if name == "heat":
+            q.add_argument("--k", type=float, default=1.0, help="diffusivity (default 1)")
+            q.add_argument("--method", default="implicit", choices=["implicit", "crank-nicolson", "explicit"])
+        else:
+            q.add_argument("--c", type=float, default=1.0, help="wave speed (default 1)")
+        q.add_argument("--out", default=None, help="folder for the final picture and the animation")
+        q.add_argument("--format", default="gif", choices=["gif", "mp4"], help="animation format (mp4 needs imageio-ffmpeg)")
+        pictures(q)
+
+    poi = sub.add_parser("poisson", help="solve Lap u = Lap f on a closed built-in shape and compare u with f")
+    common(poi)
+    poi.add_argument("--n", type=int, default=4032, help="number of points (default 4032)")
+    poi.add_argument("--scheme", default="cspm", choices=schemes)
+    poi.add_argument("--out", default=None, help="folder for a picture: f | exact | solution | error")
+    pictures(poi)
+
+    ren = sub.add_parser("render", help="picture of a field on a point-cloud file")
+    ren.add_argument("file", help="point cloud (ply, pcd, xyz, csv, obj, npy, npz, vtk)")
+    ren.add_argument(
+        "--field", default="z",
+        help="a field stored in the file, a coordinate x/y/z, or a test function name (default z)",
+    )
+    ren.add_argument("--operator", default="none", choices=["none", "laplacian", "gradient"],
+                     help="draw the SPH Laplacian of the field, or the field with its gradient as arrows")
+    ren.add_argument("--scheme", default="cspm", choices=schemes)
+    ren.add_argument("--out", default=None, help="PNG file to write (default: FILE with the field name and .png)")
+    ren.add_argument("--clim", type=_pair, default=None, help="colour limits LOW,HIGH")
+    ren.add_argument("--robust", type=float, default=None, help="clip this percentage at each end of the colour range")
+    ren.add_argument("--cmap", default="viridis", help="matplotlib colour map (default viridis)")
+    ren.add_argument("--transparent", action="store_true", help="transparent background")
+    ren.add_argument("--json", action="store_true", help="print what was written as JSON")
+    pictures(ren)
     return p
 
 
-def _run(args) -> int:
-    from .accuracy import convergence, format_rows, make_cloud, operator_errors
+# --- shared pieces -------------------------------------------------------------------
 
-    kw = dict(neighbors=args.neighbors, kernel=args.kernel, area=args.area)
-    if args.command == "operators":
-        cloud = make_cloud(args.shape, args.n, args.sampling, args.seed)
-        schemes = None if args.scheme == "all" else [args.scheme]
-        rows = operator_errors(cloud, args.function, schemes, **kw)
-        if args.json:
-            print(json.dumps({"shape": args.shape, "function": args.function, "rows": rows}, indent=2))
-        else:
-            print(f"{args.shape}, N = {args.n}, f = {args.function}: relative errors against the exact operators")
-            print(format_rows(rows))
-        return 0
-    if args.command == "convergence":
-        from tqdm import tqdm
 
-        with tqdm(total=len(args.sizes), desc=f"{args.scheme} on {args.shape}", disable=args.json, file=sys.stderr) as bar:
-            table = convergence(
-                args.shape, args.sizes, args.scheme, args.function,
-                sampling=args.sampling, seed=args.seed, progress=bar.update, **kw,
-            )
-        if args.json:
-            print(json.dumps(table.to_dict(), indent=2))
+def _surface_kwargs(args) -> dict:
+    return dict(neighbors=args.neighbors, kernel=args.kernel, area=args.area)
+
+
+def _cloud_from_args(args):
+    """A PointCloud from --file (with normals estimated if missing) or from --shape/--n."""
+    from .accuracy import make_cloud
+
+    if getattr(args, "file", None):
+        from .io import read
+
+        return read(args.file)
+    return make_cloud(args.shape, args.n, args.sampling, args.seed)
+
+
+def _attach_shape(cloud, shape_name: str, path: str):
+    """The cloud with the exact shape ``shape_name`` attached, if its points lie on it."""
+    from .pointcloud import PointCloud
+    from .shapes import SHAPES
+
+    shape = SHAPES[shape_name]()
+    x = cloud.points
+    dist = float(np.abs(np.linalg.norm(shape.project(x) - x, axis=1)).max())
+    ext = float(np.ptp(x, axis=0).max())
+    if not dist <= 1e-6 * ext:
+        raise UserError(
+            f"the points of {path!r} do not lie on the default {shape_name} (largest distance {dist:.3g}); "
+            "give the --shape they sample"
+        )
+    return PointCloud(x, cloud.normals, shape=shape)
+
+
+def _initial_state(name: str, points: np.ndarray) -> np.ndarray:
+    from .accuracy import SCALAR_FUNCTIONS, get_function
+
+    x = points
+    if name == "hotspot":
+        top = x[np.argmax(x[:, 2])]
+        sigma = 0.15 * float(np.ptp(x, axis=0).max())
+        return np.exp(-np.sum((x - top) ** 2, axis=1) / (2 * sigma**2))
+    if name == "harmonic":
+        return x[:, 2] + x[:, 0] * x[:, 1]
+    if name in SCALAR_FUNCTIONS:
+        return get_function(name).value(x)
+    raise UserError(f"--init must be 'hotspot', 'harmonic' or one of {list(SCALAR_FUNCTIONS)}, got {name!r}")
+
+
+def _out_dir(path, create: bool = True) -> Path:
+    d = Path(path)
+    if d.exists() and not d.is_dir():
+        raise UserError(f"--out {str(d)!r} exists and is not a folder")
+    if create:
+        d.mkdir(parents=True, exist_ok=True)
+    return d
+
+
+def _check_free(paths, overwrite: bool) -> None:
+    """Refuse, before any work, to overwrite existing outputs (one line naming them)."""
+    if overwrite:
+        return
+    taken = [str(p) for p in paths if Path(p).exists()]
+    if taken:
+        more = f" and {len(taken) - 1} more" if len(taken) > 1 else ""
+        raise UserError(f"{taken[0]!r}{more} exist(s); pass --overwrite to replace")
+
+
+def _render_ok(need: bool) -> bool:
+    """Whether 3D pictures can be drawn; a one-line note on stderr when they cannot."""
+    if not need:
+        return False
+    from .render import rendering_available
+
+    ok, why = rendering_available()
+    if not ok:
+        print(f"manifold-sph: note: skipping 3D pictures ({why})", file=sys.stderr)
+    return ok
+
+
+# --- demo ----------------------------------------------------------------------------
+
+
+def run_demo(out, *, n: int = 4032, render: bool = True, overwrite: bool = False, progress: bool = False) -> dict:
+    """The main job: the four schemes against the exact operators on a sphere, heat, wave, pictures.
+
+    On the unit sphere (``n`` Fibonacci points), with ``f = cos(xz - sin y)``:
+    relative errors of the Laplace-Beltrami and gradient of standard SPH, CSPM,
+    MSPH and NCSPH (:func:`manifold_sph.accuracy.operator_errors`); a
+    Crank-Nicolson heat run and a centred wave run (CSPM) from
+    ``u0 = z + xy``, compared with the exact solutions
+    ``z exp(-2t) + xy exp(-6t)`` and ``z cos(sqrt(2) t) + xy cos(sqrt(6) t)``.
+
+    Writes to ``out``: ``summary.json``, ``summary.txt``, ``boxplot_laplacian.png``,
+    ``boxplot_gradient.png``, ``area_histogram.png`` and, when ``render``,
+    ``laplacian_cspm.png`` (f | exact | SPH | error), ``gradient_cspm.png``
+    (gradient arrows), ``heat.gif`` and ``wave.gif``.
+
+    Returns
+    -------
+    dict
+        The summary (also in ``summary.json``).
+    """
+    from tqdm import tqdm
+
+    from . import functions, pde, plots
+    from .accuracy import exact_operators, format_rows, operator_errors
+    from .errors import absolute_error, l2_error
+    from .shapes import sphere
+    from .surface import Surface
+
+    out = _out_dir(out)
+    names = ["summary.json", "summary.txt", "boxplot_laplacian.png", "boxplot_gradient.png", "area_histogram.png"]
+    if render:
+        names += ["laplacian_cspm.png", "gradient_cspm.png", "heat.gif", "wave.gif"]
+    _check_free([out / nm for nm in names], overwrite)
+    t_start = time.perf_counter()
+    bar = tqdm(total=8 if render else 6, desc="demo", disable=not progress, file=sys.stderr)
+
+    cloud = sphere(n)
+    fn = functions.cos_xz_sin_y
+    f, grad_ex, lap_ex = exact_operators(cloud, fn)
+    rows = operator_errors(cloud, fn, FOUR_SCHEMES)
+    bar.update()
+    surfaces = {name: Surface(cloud, scheme=name) for name in FOUR_SCHEMES}
+    lap = {k: s.laplacian(f) for k, s in surfaces.items()}
+    grad = {k: s.gradient(f) for k, s in surfaces.items()}
+    bar.update()
+    plots.error_boxplot(
+        {k: absolute_error(v, lap_ex) for k, v in lap.items()},
+        title=f"Laplace-Beltrami of cos(xz - sin y), sphere N = {n}", ylabel="|Lap_SPH f - Lap_S f|",
+        filename=out / "boxplot_laplacian.png", overwrite=overwrite,
+    )
+    plots.error_boxplot(
+        {k: absolute_error(v, grad_ex) for k, v in grad.items()},
+        title=f"Surface gradient of cos(xz - sin y), sphere N = {n}", ylabel="|grad_SPH f - grad_S f|",
+        filename=out / "boxplot_gradient.png", overwrite=overwrite,
+    )
+    plots.area_histogram(
+        {"numerical": surfaces["cspm"].dV},
+        reference=4 * np.pi / n, title=f"Area elements, sphere N = {n} (reference 4 pi / N)",
+        filename=out / "area_histogram.png", overwrite=overwrite,
+    )
+    bar.update()
+
+    s = surfaces["cspm"]
+    x = cloud.points
+    z, xy = x[:, 2], x[:, 0] * x[:, 1]
+    u0 = z + xy
+    t_end_heat, heat_steps = 0.2, 40
+    heat = pde.heat(s, u0, dt=t_end_heat / heat_steps, steps=heat_steps, method="crank-nicolson", every=2)
+    heat_exact = z * np.exp(-2 * t_end_heat) + xy * np.exp(-6 * t_end_heat)
+    heat_err = l2_error(heat.snapshots[-1], heat_exact)
+    bar.update()
+    dt_lim = pde.explicit_dt_limit(s, equation="wave")
+    t_end_wave = 2.0
+    wave_steps = int(np.ceil(t_end_wave / (0.5 * dt_lim)))
+    dt_wave = t_end_wave / wave_steps
+    wave = pde.wave(s, u0, dt=dt_wave, steps=wave_steps, every=max(1, wave_steps // 24))
+    wave_exact = z * np.cos(np.sqrt(2.0) * t_end_wave) + xy * np.cos(np.sqrt(6.0) * t_end_wave)
+    wave_err = l2_error(wave.snapshots[-1], wave_exact)
+    bar.update()
+
+    summary = {
+        "shape": "sphere",
+        "n": int(n),
+        "function": "cos_xz_sin_y",
+        "rows": rows,
+        "heat": {
+            "scheme": "cspm", "method": "crank-nicolson", "u0": "z + xy", "t": t_end_heat, "dt": t_end_heat / heat_steps,
+            "steps": heat_steps, "l2_rel_error": heat_err, "exact": "z exp(-2t) + xy exp(-6t)",
+        },
+        "wave": {
+            "scheme": "cspm", "u0": "z + xy", "t": t_end_wave, "dt": dt_wave, "steps": wave_steps,
+            "dt_limit": dt_lim, "l2_rel_error": wave_err, "exact": "z cos(sqrt(2) t) + xy cos(sqrt(6) t)",
+        },
+    }
+    if _render_ok(render):
+        from .render import animate, render_comparison, render_field
+
+        render_comparison(
+            s, f, lap_ex, lap["cspm"], names=("f", "exact Lap_S f", "CSPM", "error"), panel_size=(300, 300),
+            filename=out / "laplacian_cspm.png", overwrite=overwrite,
+        )
+        render_field(
+            s, f, vectors=grad["cspm"], bar_title="f", title="f = cos(xz - sin y) and its CSPM gradient",
+            window_size=(600, 500), camera="equator", filename=out / "gradient_cspm.png", overwrite=overwrite,
+        )
+        bar.update()
+        animate(s, heat, out / "heat.gif", title="heat, u0 = z + xy (CSPM, Crank-Nicolson)", bar_title="u",
+                window_size=(360, 320), fps=8, overwrite=overwrite)
+        animate(s, wave, out / "wave.gif", title="wave, u0 = z + xy (CSPM)", bar_title="u",
+                window_size=(360, 320), fps=10, overwrite=overwrite)
+        bar.update()
+        summary["pictures"] = True
+    else:
+        summary["pictures"] = False
+    bar.close()
+    summary["seconds"] = round(time.perf_counter() - t_start, 2)
+    text = (
+        f"sphere, N = {n}, f = cos(xz - sin y): relative errors against the exact operators\n"
+        f"{format_rows(rows)}\n\n"
+        f"heat (cspm, Crank-Nicolson, t = {t_end_heat:g}, {heat_steps} steps): relative L2 error {heat_err:.3e}\n"
+        f"wave (cspm, centred, t = {t_end_wave:g}, {wave_steps} steps, dt = {dt_wave:.3g}): relative L2 error {wave_err:.3e}\n"
+    )
+    (out / "summary.txt").write_text(text)
+    (out / "summary.json").write_text(json.dumps(summary, indent=2))
+    summary["text"] = text
+    return summary
+
+
+# --- subcommands ---------------------------------------------------------------------
+
+
+def _cmd_demo(args) -> int:
+    if args.n < 500:
+        raise UserError(f"--n must be at least 500 for the demo, got {args.n}")
+    summary = run_demo(args.out, n=args.n, render=not args.no_render, overwrite=args.overwrite, progress=not args.json)
+    text = summary.pop("text")
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    else:
+        print(text, end="")
+        print(f"pictures and summary written to {args.out} ({summary['seconds']:.1f} s)")
+    return 0
+
+
+def _cmd_operators(args) -> int:
+    from .accuracy import format_rows, operator_errors
+
+    if args.file:
+        cloud = _attach_shape(_cloud_from_args(args), args.shape, args.file)
+    else:
+        cloud = _cloud_from_args(args)
+    schemes = list(FOUR_SCHEMES) if args.scheme == "all" else [args.scheme]
+    rows = operator_errors(cloud, args.function, schemes, **_surface_kwargs(args))
+    if args.json:
+        print(json.dumps({"shape": args.shape, "function": args.function, "rows": rows}, indent=2))
+    else:
+        print(f"{args.shape}, N = {len(cloud)}, f = {args.function}: relative errors against the exact operators")
+        print(format_rows(rows))
+    return 0
+
+
+def _cmd_convergence(args) -> int:
+    from tqdm import tqdm
+
+    from .accuracy import convergence
+
+    if args.plot:
+        _check_free([args.plot], args.overwrite)
+    with tqdm(total=len(args.sizes), desc=f"{args.scheme} on {args.shape}", disable=args.json, file=sys.stderr) as bar:
+        table = convergence(
+            args.shape, args.sizes, args.scheme, args.function,
+            sampling=args.sampling, seed=args.seed, progress=bar.update, **_surface_kwargs(args),
+        )
+    if args.plot:
+        from .plots import convergence_plot
+
+        convergence_plot(
+            {args.scheme: table}, reference_order=2,
+            title=f"{args.scheme} on {args.shape}, f = {args.function} (relative errors)",
+            filename=args.plot, overwrite=args.overwrite,
+        )
+    if args.json:
+        print(json.dumps(table.to_dict(), indent=2))
+    else:
+        print(f"{args.scheme} on {args.shape}, f = {args.function} (orders fitted against h ~ N^-1/2)")
+        print(table.to_text())
+        if args.plot:
+            print(f"plot written to {args.plot}")
+    return 0
+
+
+def _cmd_evolve(args) -> int:
+    from tqdm import tqdm
+
+    from . import pde
+    from .errors import l2_error
+    from .surface import Surface
+
+    cloud = _cloud_from_args(args)
+    s = Surface(cloud, scheme=args.scheme, **_surface_kwargs(args))
+    x = s.points
+    u0 = _initial_state(args.init, x)
+    every = args.every or max(1, args.steps // 40)
+    files = []
+    if args.out:
+        out = _out_dir(args.out)
+        files = [out / f"{args.command}_final.png", out / f"{args.command}.{args.format}"]
+        _check_free(files, args.overwrite)
+    with tqdm(total=args.steps, desc=args.command, disable=args.json, file=sys.stderr, unit="step") as bar:
+        cb = lambda step, t, u: bar.update()  # noqa: E731
+        if args.command == "heat":
+            dt = 1e-3 if args.dt is None else args.dt
+            res = pde.heat(s, u0, dt=dt, steps=args.steps, k=args.k, method=args.method, every=every, callback=cb)
         else:
-            print(f"{args.scheme} on {args.shape}, f = {args.function} (orders fitted against h ~ N^-1/2)")
-            print(table.to_text())
-        return 0
-    raise AssertionError(args.command)  # pragma: no cover - argparse enforces the choices
+            dt = 0.5 * pde.explicit_dt_limit(s, k=args.c, equation="wave") if args.dt is None else args.dt
+            res = pde.wave(s, u0, dt=dt, steps=args.steps, c=args.c, every=every, callback=cb)
+    u = res.snapshots[-1]
+    t = float(res.times[-1])
+    summary = {
+        "command": args.command, "n": int(s.n_points), "scheme": args.scheme, "init": args.init,
+        "dt": dt, "steps": args.steps, "t": t,
+        "min": float(u.min()), "max": float(u.max()), "mean": float(np.dot(s.dV, u) / s.dV.sum()),
+    }
+    exact_known = args.init == "harmonic" and not args.file and args.shape == "sphere"
+    if exact_known:
+        z, xy = x[:, 2], x[:, 0] * x[:, 1]
+        if args.command == "heat":
+            ex = z * np.exp(-2 * args.k * t) + xy * np.exp(-6 * args.k * t)
+        else:
+            ex = z * np.cos(np.sqrt(2.0) * args.c * t) + xy * np.cos(np.sqrt(6.0) * args.c * t)
+        summary["l2_rel_error"] = l2_error(u, ex)
+    if args.out and _render_ok(True):
+        from .render import animate, render_field
+
+        size = args.size or (480, 400)
+        lim = (float(res.snapshots.min()), float(res.snapshots.max()))
+        render_field(s, u, title=f"{args.command}, t = {t:.4g}", bar_title="u", camera=args.camera, window_size=size,
+                     clim=lim if lim[1] > lim[0] else None, filename=files[0], overwrite=args.overwrite)
+        animate(s, res, files[1], title=f"{args.command} ({args.scheme})", bar_title="u", camera=args.camera,
+                window_size=size, progress=not args.json, overwrite=args.overwrite)
+        summary["files"] = [str(f) for f in files]
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    else:
+        print(
+            f"{args.command} on {args.file or args.shape} (N = {summary['n']}, {args.scheme}), {args.steps} steps of dt = {dt:.4g}, "
+            f"t = {t:.4g}: min {summary['min']:.4g}, max {summary['max']:.4g}, mean {summary['mean']:.4g}"
+        )
+        if "l2_rel_error" in summary:
+            print(f"relative L2 error against the exact solution: {summary['l2_rel_error']:.3e}")
+        for f in summary.get("files", []):
+            print(f"wrote {f}")
+    return 0
+
+
+def _cmd_poisson(args) -> int:
+    from . import pde
+    from .accuracy import exact_operators, get_function
+    from .errors import l2_error, linf_error
+    from .surface import Surface
+
+    cloud = _cloud_from_args(args)
+    s = Surface(cloud, scheme=args.scheme, **_surface_kwargs(args))
+    f, _, lap_ex = exact_operators(cloud, get_function(args.function))
+    dV = s.dV
+    rhs = lap_ex - np.dot(dV, lap_ex) / dV.sum()
+    u = pde.poisson(s, rhs)
+    ref = f - np.dot(dV, f) / dV.sum()
+    summary = {
+        "shape": args.shape, "n": int(s.n_points), "scheme": args.scheme, "function": args.function,
+        "l2_rel_error": l2_error(u, ref), "linf_rel_error": linf_error(u, ref),
+    }
+    if args.out:
+        out = _out_dir(args.out)
+        target = out / f"poisson_{args.shape}_{args.scheme}.png"
+        _check_free([target], args.overwrite)
+        if _render_ok(True):
+            from .render import render_comparison
+
+            w, h = args.size or (300, 300)
+            render_comparison(s, rhs, ref, u, names=("rhs", "exact u", "SPH u", "error"), camera=args.camera,
+                              panel_size=(w, h), filename=target, overwrite=args.overwrite)
+            summary["files"] = [str(target)]
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    else:
+        print(
+            f"poisson on {args.shape} (N = {summary['n']}, {args.scheme}), Lap u = Lap f with f = {args.function}: "
+            f"relative error of u (zero mean) L2 {summary['l2_rel_error']:.3e}, Linf {summary['linf_rel_error']:.3e}"
+        )
+        for fl in summary.get("files", []):
+            print(f"wrote {fl}")
+    return 0
+
+
+def _cmd_render(args) -> int:
+    from .accuracy import SCALAR_FUNCTIONS, get_function
+    from .io import read
+
+    cloud, fields = read(args.file, return_fields=True)
+    x = cloud.points
+    name = args.field
+    if name in fields and np.asarray(fields[name]).shape == (len(x),):
+        values = np.asarray(fields[name], dtype=np.float64)
+    elif name in ("x", "y", "z"):
+        values = x[:, "xyz".index(name)]
+    elif name in SCALAR_FUNCTIONS:
+        values = get_function(name).value(x)
+    else:
+        stored = sorted(k for k, v in fields.items() if np.asarray(v).shape == (len(x),))
+        raise UserError(
+            f"--field {name!r} is neither a field of {args.file!r} (it has {stored}) nor x, y, z "
+            f"nor a test function {list(SCALAR_FUNCTIONS)}"
+        )
+    out = Path(args.out) if args.out else Path(args.file).with_name(f"{Path(args.file).stem}_{name}_{args.operator}.png")
+    _check_free([out], args.overwrite)
+    from .render import render_field, rendering_available
+
+    ok, why = rendering_available()
+    if not ok:
+        raise RuntimeError(f"cannot render here: {why}")
+
+    vectors, label = None, name
+    if args.operator != "none":
+        from .surface import Surface
+
+        s = Surface(cloud, scheme=args.scheme)
+        if args.operator == "laplacian":
+            values, label = s.laplacian(values), f"Lap {name}"
+        else:
+            vectors, cloud = s.gradient(values), s
+    render_field(
+        cloud, values, vectors=vectors, bar_title=label, camera=args.camera, window_size=args.size or (800, 600),
+        clim=args.clim, robust=args.robust, cmap=args.cmap, transparent=args.transparent,
+        filename=out, overwrite=args.overwrite,
+    )
+    if args.json:
+        print(json.dumps({"file": str(out), "field": name, "operator": args.operator, "n": len(x)}))
+    else:
+        print(f"wrote {out}")
+    return 0
+
+
+_COMMANDS = {
+    "demo": _cmd_demo,
+    "operators": _cmd_operators,
+    "convergence": _cmd_convergence,
+    "heat": _cmd_evolve,
+    "wave": _cmd_evolve,
+    "poisson": _cmd_poisson,
+    "render": _cmd_render,
+}
 
 
 def main(argv=None) -> int:
     """Entry point of the ``manifold-sph`` console script."""
     args = _parser().parse_args(argv)
     try:
-        return _run(args)
-    except (ValueError, TypeError) as exc:
-        print(f"manifold-sph: error: {exc}", file=sys.stderr)
+        return _COMMANDS[args.command](args)
+    except (ValueError, TypeError, FileNotFoundError, FileExistsError) as exc:
+        msg = " ".join(str(exc).split())
+        print(f"manifold-sph: error: {msg}", file=sys.stderr)
         return 2
     except Exception as exc:  # noqa: BLE001 - one line for the user, exit code 1
-        print(f"manifold-sph: failed: {type(exc).__name__}: {exc}", file=sys.stderr)
+        msg = " ".join(str(exc).split())
+        print(f"manifold-sph: failed: {type(exc).__name__}: {msg}", file=sys.stderr)
         return 1
 
 

@@ -39,3 +39,126 @@ def test_bad_sizes_exit_2(capsys):
     except SystemExit as exc:
         assert exc.code == 2
     assert "at least two sizes" in capsys.readouterr().err
+
+
+# --- demo, PDEs, render (issue 5) ------------------------------------------------------------
+
+import os  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+
+def _gl() -> bool:
+    env = {k: v for k, v in os.environ.items() if k != "DISPLAY"}
+    code = "from manifold_sph.render import rendering_available as r; print(r()[0])"
+    try:
+        res = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
+    except subprocess.TimeoutExpired:
+        return False
+    return res.stdout.strip().endswith("True")
+
+
+_GL = _gl()
+
+
+def test_demo_writes_summary_and_pictures(tmp_path, capsys):
+    out = tmp_path / "demo"
+    assert main(["demo", "--out", str(out), "--n", "1002", "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    rows = {r["scheme"]: r for r in summary["rows"]}
+    assert set(rows) == {"standard", "cspm", "msph", "ncsph"}
+    for name in ("cspm", "msph", "ncsph"):
+        assert rows[name]["lap_l2"] < 0.05 and rows[name]["grad_l2"] < 0.05
+    # heat and wave from z + xy against their exact solutions on the unit sphere
+    assert summary["heat"]["l2_rel_error"] < 0.01
+    assert summary["wave"]["l2_rel_error"] < 0.02
+    assert json.loads((out / "summary.json").read_text())["n"] == 1002
+    assert "ncsph" in (out / "summary.txt").read_text()
+    for name in ("boxplot_laplacian.png", "boxplot_gradient.png", "area_histogram.png"):
+        assert (out / name).stat().st_size > 1000
+    if _GL:
+        assert summary["pictures"] is True
+        for name in ("laplacian_cspm.png", "gradient_cspm.png", "heat.gif", "wave.gif"):
+            assert (out / name).stat().st_size > 1000
+    # a second run refuses to overwrite, in one line, exit code 2
+    assert main(["demo", "--out", str(out), "--n", "1002", "--no-render"]) == 2
+    err = capsys.readouterr().err
+    assert "pass --overwrite to replace" in err and err.count("\n") == 1
+
+
+@pytest.mark.parametrize(
+    "cmd, bound",
+    [
+        (["heat", "--init", "harmonic", "--method", "crank-nicolson", "--dt", "0.01", "--steps", "20"], 0.01),
+        (["wave", "--init", "harmonic", "--steps", "20"], 0.02),
+    ],
+)
+def test_heat_and_wave_against_exact_solutions(cmd, bound, capsys):
+    assert main([*cmd, "--n", "1002", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["n"] == 1002 and out["steps"] == int(cmd[cmd.index("--steps") + 1])
+    assert 0 < out["l2_rel_error"] < bound
+
+
+def test_heat_pictures_and_maximum_principle(tmp_path, capsys):
+    assert main(["heat", "--n", "600", "--steps", "10", "--dt", "0.002", "--out", str(tmp_path), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert 0.0 <= out["min"] and out["max"] <= 1.0 + 1e-9  # hot spot diffuses, no new extrema
+    if _GL:
+        assert (tmp_path / "heat_final.png").exists() and (tmp_path / "heat.gif").exists()
+
+
+def test_poisson(capsys):
+    assert main(["poisson", "--n", "1002", "--scheme", "msph", "--function", "xyz", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["l2_rel_error"] < 0.05
+
+
+@pytest.mark.skipif(not _GL, reason="off-screen rendering is not available here")
+def test_render_file(tmp_path, capsys):
+    from manifold_sph import shapes
+    from manifold_sph.io import write
+
+    cloud = shapes.torus(800)
+    src = tmp_path / "t.ply"
+    write(src, cloud, fields={"height": cloud.points[:, 2]})
+    png = tmp_path / "t.png"
+    assert main(["render", str(src), "--field", "height", "--out", str(png), "--size", "160x120", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["file"] == str(png)
+    from PIL import Image
+
+    img = np.asarray(Image.open(png))
+    assert img.shape == (120, 160, 3) and img.std() > 10
+    assert main(["render", str(src), "--field", "cos_xz_sin_y", "--operator", "laplacian", "--out", str(png)]) == 2
+    assert "exist" in capsys.readouterr().err
+    assert main(["render", str(src), "--field", "nope", "--out", str(tmp_path / "n.png")]) == 2
+    err = capsys.readouterr().err
+    assert "--field 'nope' is neither a field of" in err and "'height'" in err and err.count("\n") == 1
+
+
+def test_render_missing_file_exit_2(capsys):
+    assert main(["render", "no/such/file.ply"]) == 2
+    assert "no such file" in capsys.readouterr().err
+
+
+def test_convergence_plot_file(tmp_path, capsys):
+    plot = tmp_path / "c.png"
+    assert main(["convergence", "--sizes", "500,1002", "--scheme", "cspm", "--plot", str(plot), "--json"]) == 0
+    assert plot.stat().st_size > 1000
+    json.loads(capsys.readouterr().out)
+
+
+def test_operators_from_file(tmp_path, capsys):
+    from manifold_sph import shapes
+    from manifold_sph.io import write
+
+    src = tmp_path / "s.ply"
+    write(src, shapes.sphere(1002))
+    assert main(["operators", "--file", str(src), "--scheme", "msph", "--json"]) == 0
+    (row,) = json.loads(capsys.readouterr().out)["rows"]
+    assert row["n"] == 1002 and row["lap_l2"] < 0.05
+    assert main(["operators", "--file", str(src), "--shape", "torus"]) == 2
+    assert "do not lie on the default torus" in capsys.readouterr().err

@@ -127,10 +127,15 @@ def test_sausage_filter_keeps_the_ends_apart():
     assert with_filter.neighborhood.n_filtered > 0
 
 
-def test_missing_normals_is_an_error():
-    p = shapes.sphere(100).points
-    with pytest.raises(ValueError, match="normals are required"):
-        Surface(p)
+def test_missing_normals_are_estimated():
+    # Surface(points) without normals estimates them (PCA + outward orientation)
+    cloud = shapes.sphere(2000)
+    s = Surface(cloud.points)
+    assert np.einsum("ij,ij->i", s.normals, cloud.normals).min() > 0.999  # outward, accurate
+    f = functions.xyz.value(cloud.points)
+    ref = Surface(cloud).laplacian(f)
+    assert rel_l2(s.laplacian(f), -12 * f) < 0.02  # Lap_S(xyz) = -12 xyz
+    assert rel_l2(s.laplacian(f), ref) < 0.01  # close to the exact-normal operator
 
 
 @pytest.mark.parametrize(

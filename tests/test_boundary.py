@@ -1,0 +1,106 @@
+"""Open boundaries: detection, and what the operators and the heat equation do there."""
+
+import numpy as np
+import pytest
+from scipy.sparse import csgraph
+
+from manifold_sph import Surface, shapes
+from manifold_sph.boundary import angular_gaps, detect_boundary
+from manifold_sph.pde import heat
+
+
+@pytest.fixture(scope="module")
+def open_scan():
+    """A synthetic scan with holes: a sphere without its north cap, plus a separate open cylinder-free patch."""
+    c = shapes.sphere(3000, sampling="poisson", seed=1)
+    keep = c.points[:, 2] < 0.6
+    spacing = np.sqrt(4 * np.pi / 3000)
+    return c.points[keep], c.normals[keep], spacing
+
+
+def test_closed_surfaces_have_no_boundary():
+    for cloud in (shapes.sphere(2000, sampling="poisson"), shapes.torus(3000), shapes.sphere(3000, sampling="variable")):
+        assert detect_boundary(cloud).n_boundary == 0
+
+
+def test_rim_of_an_open_sphere(open_scan):
+    p, n, spacing = open_scan
+    rep = detect_boundary(p, n)
+    z = p[:, 2]
+    rim = z > 0.6 - 0.3 * spacing
+    inner = z < 0.6 - 2.5 * spacing
+    assert rep.mask[rim].all()  # every particle on the rim found
+    assert not rep.mask[inner].any()  # and no interior particle
+    assert rep.n_loops == 1
+    assert "in 1 connected piece(s)" in rep.report
+    # a Surface gives the same answer with its own neighbourhood
+    s = Surface(p, n, scheme="standard", area="shepard")
+    rs = detect_boundary(s)
+    assert rs.mask[rim].all() and not rs.mask[inner].any()
+
+
+def test_plate_edges_and_angular_gaps():
+    g = np.linspace(0, 1, 15)
+    x, y = np.meshgrid(g, g)
+    plate = np.c_[x.ravel(), y.ravel(), np.zeros(225)]
+    rep = detect_boundary(plate, np.tile([0.0, 0, 1], (225, 1)))
+    edge = (x.ravel() == 0) | (x.ravel() == 1) | (y.ravel() == 0) | (y.ravel() == 1)
+    np.testing.assert_array_equal(rep.mask, edge)
+    corner = (x.ravel() == 0) & (y.ravel() == 0)
+    np.testing.assert_allclose(np.degrees(rep.gap[corner]), 270.0)
+    # lonely rows get a full turn
+    assert angular_gaps(np.array([[0.0, 0.0], [1.0, 0.0]]), np.array([0, 1, 2])).tolist() == [2 * np.pi, 2 * np.pi]
+
+
+def test_standard_shepard_laplacian_is_an_m_matrix(open_scan):
+    p, n, _ = open_scan
+    s = Surface(p, n, scheme="standard", area="shepard")
+    L = s.laplacian_matrix().tocoo()
+    off = L.row != L.col
+    assert L.data[off].min() >= 0  # non-negative off-diagonal weights
+    assert np.abs(np.asarray(s.laplacian_matrix().sum(axis=1))).max() < 1e-8 * np.abs(L.data).max()  # zero row sums
+    assert (L.diagonal() < 0).all()
+
+
+def test_heat_on_an_open_scan_respects_the_maximum_principle(open_scan):
+    p, n, _ = open_scan
+    # a second, disjoint piece: the same open sphere shifted away
+    P = np.vstack([p, p + [5.0, 0, 0]])
+    N = np.vstack([n, n])
+    s = Surface(P, N, scheme="standard", area="shepard")
+    u0 = np.zeros(len(P))
+    u0[np.argmin(P[:, 2])] = 1.0  # a point source at the south pole of the first piece
+    u0[len(p) + np.argmin(p[:, 2])] = -2.0  # and a cold one on the second
+    for dt, steps in ((1e-4, 5), (0.05, 200)):
+        u = heat(s, u0, dt, steps, method="implicit")
+        assert u.min() >= -2.0 - 1e-9 and u.max() <= 1.0 + 1e-9
+    _, lab = csgraph.connected_components(s.laplacian_matrix(), directed=False)
+    assert lab.max() + 1 == 2
+    for c in range(2):  # the long run tends to a constant on every component (insulated boundary)
+        assert np.ptp(u[lab == c]) < 1e-6
+    assert u[lab == lab[0]].mean() > 0 > u[lab == lab[-1]].mean()
+
+
+def test_dirichlet_rim_holds_values(open_scan):
+    p, n, _ = open_scan
+    s = Surface(p, n, scheme="standard", area="shepard")
+    rim = detect_boundary(s).mask
+    u = heat(s, np.zeros(len(p)), 0.05, 100, fixed=rim, fixed_values=1.0)
+    np.testing.assert_array_equal(u[rim], 1.0)
+    assert u.max() <= 1 + 1e-9 and u.min() > 0.9  # heated from the rim towards the rim value (0.977 at t = 5)
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        (dict(k=2), "k must be at least 3"),
+        (dict(k=10_000), "k must be at most the number of points"),
+        (dict(max_gap=0), "max_gap must be a finite positive number"),
+        (dict(max_offset=-1), "max_offset must be a finite positive number"),
+        (dict(normals=np.ones((3, 3))), r"normals must have shape \(500, 3\)"),
+    ],
+)
+def test_bad_input(kwargs, match):
+    p = shapes.sphere(500).points
+    with pytest.raises(ValueError, match=match):
+        detect_boundary(p, **kwargs)

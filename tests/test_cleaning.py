@@ -1,0 +1,92 @@
+"""Cleaning: duplicates, outliers, voxel downsampling, each reporting what it removed."""
+
+import numpy as np
+import pytest
+
+from manifold_sph import PointCloud, shapes
+from manifold_sph.cleaning import clean, merge_duplicates, remove_outliers, voxel_downsample
+
+
+@pytest.fixture(scope="module")
+def sphere():
+    return shapes.sphere(1000)
+
+
+def test_merge_exact_duplicates(sphere):
+    p, n = sphere.points, sphere.normals
+    dup = np.vstack([p, p[[3, 7, 7]]])
+    r = merge_duplicates(dup, np.vstack([n, -n[[3, 7, 7]]]))
+    np.testing.assert_array_equal(r.points, p)  # input order kept
+    np.testing.assert_allclose(np.abs(np.einsum("ij,ij->i", r.normals, n)), 1.0)
+    assert r.removed.tolist() == [1000, 1001, 1002]
+    assert r.groups[1000] == 3 and r.groups[1002] == 7
+    assert r.report == "merge_duplicates: merged 3 of 1003 points into 2 groups (tolerance 0)"
+    PointCloud(r.points, r.normals)  # now acceptable
+
+
+def test_merge_with_tolerance_averages(sphere):
+    p = sphere.points
+    q = np.vstack([p, p[:10] + 1e-7])
+    r = merge_duplicates(q, tolerance=1e-5)
+    assert len(r.points) == 1000 and r.n_removed == 10
+    np.testing.assert_allclose(r.points[:10], p[:10] + 5e-8, atol=1e-15)
+
+
+def test_remove_outliers(sphere):
+    rng = np.random.default_rng(0)
+    far = rng.uniform(2, 3, size=(8, 3)) * rng.choice([-1, 1], size=(8, 3))
+    r = remove_outliers(np.vstack([sphere.points, far]), k=10)
+    assert r.removed.tolist() == list(range(1000, 1008))
+    assert "removed 8 of 1008 points" in r.report
+    # a clean, even cloud loses almost nothing
+    assert remove_outliers(sphere).n_removed <= 5
+
+
+def test_voxel_downsample(sphere):
+    size = 0.15
+    for mode in ("nearest", "centroid"):
+        r = voxel_downsample(sphere, voxel_size=size, mode=mode)
+        cells = np.floor((r.points - sphere.points.min(axis=0)) / size)
+        if mode == "nearest":
+            assert len(np.unique(cells, axis=0)) == len(r.points)  # one point per voxel
+            assert set(map(tuple, r.points)) <= set(map(tuple, sphere.points))
+        assert 100 < len(r.points) < 1000
+        assert r.normals.shape == r.points.shape
+        assert (r.groups >= 0).all() and r.groups.max() == len(r.points) - 1
+        assert "voxel_downsample: kept" in r.report
+
+
+def test_clean_chain(sphere):
+    p = sphere.points
+    r = clean(np.vstack([p, p[:4], [[9.0, 9.0, 9.0]]]), voxel_size=0.05)
+    lines = r.report.splitlines()
+    assert [ln.split(":")[0] for ln in lines] == ["merge_duplicates", "remove_outliers", "voxel_downsample"]
+    assert r.groups[-1] == -1  # the outlier
+    assert r.groups[1000] == r.groups[0]  # the duplicate went where its original went
+    assert r.keep_mask.sum() == len(r.points)
+    cloud = r.to_cloud()
+    assert len(cloud) == len(r.points)
+
+
+@pytest.mark.parametrize(
+    "fn, kwargs, exc, match",
+    [
+        (merge_duplicates, {"tolerance": -1.0}, ValueError, "tolerance must be a finite non-negative number"),
+        (remove_outliers, {"k": 0}, ValueError, "k must be at least 1"),
+        (remove_outliers, {"k": 50}, ValueError, "k must be smaller than the number of points 20"),
+        (remove_outliers, {"std_ratio": 0}, ValueError, "std_ratio must be a finite positive number"),
+        (voxel_downsample, {"voxel_size": 0}, ValueError, "voxel_size must be a finite positive number"),
+        (voxel_downsample, {"voxel_size": 0.1, "mode": "mean"}, ValueError, "mode must be one of"),
+    ],
+)
+def test_bad_input(fn, kwargs, exc, match):
+    p = np.random.default_rng(0).random((20, 3))
+    with pytest.raises(exc, match=match):
+        fn(p, **kwargs)
+
+
+def test_bad_points_and_normals():
+    with pytest.raises(ValueError, match="points must be finite"):
+        merge_duplicates(np.full((5, 3), np.nan))
+    with pytest.raises(ValueError, match=r"normals must have shape \(20, 3\)"):
+        remove_outliers(np.random.default_rng(0).random((20, 3)), np.ones((4, 3)))

@@ -1,0 +1,266 @@
+"""Off-screen rendering: images with no display, sizes, not blank, golden image, GIF/MP4, bad input.
+
+Run ``python tests/test_render.py`` to regenerate the golden image (after a
+deliberate change of the renderer's look).
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from manifold_sph import Surface, shapes
+from manifold_sph.render import (
+    CAMERAS,
+    animate,
+    color_limits,
+    render_comparison,
+    render_field,
+    render_panels,
+    save_png,
+)
+
+GOLDEN = Path(__file__).parent / "data" / "golden_sphere.png"
+
+
+def golden_scene():
+    cloud = shapes.sphere(300)
+    return render_field(cloud, cloud.points[:, 2], clim=(-1, 1), camera="iso", window_size=(160, 120), point_size=9)
+
+
+def _probe() -> tuple[bool, str]:
+    """Render in a child process with no DISPLAY (a GL crash must not take pytest down)."""
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    code = "from manifold_sph.render import rendering_available as r; ok, why = r(); print(ok, why)"
+    try:
+        res = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
+    except subprocess.TimeoutExpired:
+        return False, "the rendering probe timed out"
+    line = res.stdout.strip().splitlines()[-1] if res.stdout.strip() else ""
+    if res.returncode != 0 or not line.startswith("True"):
+        return False, f"off-screen rendering is not available here: {line or res.stderr.strip()[-300:]}"
+    return True, line
+
+
+_OK, _WHY = _probe()
+needs_gl = pytest.mark.skipif(not _OK, reason=_WHY)
+
+
+@pytest.fixture(autouse=True)
+def _no_display(monkeypatch):
+    monkeypatch.delenv("DISPLAY", raising=False)
+
+
+@pytest.fixture(scope="module")
+def cloud():
+    return shapes.sphere(600)
+
+
+# --- colour limits (no rendering) ---------------------------------------------------------
+
+
+def test_color_limits_full_robust_explicit():
+    v = np.r_[np.linspace(-1.0, 1.0, 201), 40.0]  # one outlier, like the sausage's tips
+    assert color_limits(v) == (-1.0, 40.0)
+    lo, hi = color_limits(v, robust=1)
+    assert -1.0 <= lo < -0.95 and 0.95 < hi <= 1.0
+    assert color_limits(v, robust=True)[1] < 1.0
+    assert color_limits(v, clim=(-2, 3)) == (-2.0, 3.0)
+    lo, hi = color_limits(np.array([0.1234567, 0.9876543]))
+    assert lo <= 0.1234567 and hi >= 0.9876543 and hi - lo < 0.8652 * 1.01  # rounded outwards, tidy
+
+
+@pytest.mark.parametrize(
+    "kwargs, exc, match",
+    [
+        ({"clim": (1, 0)}, ValueError, r"clim must satisfy low < high, got \(1, 0\)"),
+        ({"clim": "0,1"}, TypeError, "clim must be a pair"),
+        ({"clim": (0, np.inf)}, ValueError, "clim must be finite"),
+        ({"robust": 60}, ValueError, "robust must be a percentage below 50, got 60"),
+        ({"robust": -1}, ValueError, "robust must be a finite positive number"),
+    ],
+)
+def test_color_limits_bad_input(kwargs, exc, match):
+    with pytest.raises(exc, match=match):
+        color_limits([0.0, 1.0], **kwargs)
+
+
+def test_color_limits_nan_is_an_error():
+    with pytest.raises(ValueError, match="values must be finite.*1 NaN"):
+        color_limits([0.0, np.nan])
+
+
+def test_save_png_never_overwrites(tmp_path):
+    img = np.zeros((8, 10, 3), np.uint8)
+    path = save_png(img, tmp_path / "a.png")
+    with pytest.raises(FileExistsError, match="a.png' exists; pass overwrite=True"):
+        save_png(img + 1, path)
+    save_png(img + 1, path, overwrite=True)
+    from PIL import Image
+
+    assert np.asarray(Image.open(path))[0, 0, 0] == 1
+    with pytest.raises(ValueError, match=r"filename must end in \.png, got '.*a\.jpg'"):
+        save_png(img, tmp_path / "a.jpg")
+    with pytest.raises(ValueError, match=r"image must be a uint8 array of shape \(H, W, 3\)"):
+        save_png(np.zeros((8, 10)), tmp_path / "b.png")
+
+
+# --- rendering ------------------------------------------------------------------------------
+
+
+@needs_gl
+def test_render_field_size_not_blank_and_png(cloud, tmp_path):
+    assert "DISPLAY" not in os.environ
+    target = tmp_path / "f.png"
+    img = render_field(cloud, cloud.points[:, 0], window_size=(200, 150), bar_title="x", filename=target)
+    assert img.shape == (150, 200, 3) and img.dtype == np.uint8
+    assert img.std() > 20  # not blank: the sphere and its colours
+    # the picture holds several colours of the colour map, not one
+    assert len(np.unique(img.reshape(-1, 3), axis=0)) > 100
+    from PIL import Image
+
+    assert np.array_equal(np.asarray(Image.open(target)), img)
+    with pytest.raises(FileExistsError, match="exists; pass overwrite=True"):
+        render_field(cloud, cloud.points[:, 0], window_size=(200, 150), filename=target)
+    assert render_field(cloud, None, window_size=(64, 48), filename=target, overwrite=True).shape == (48, 64, 3)
+
+
+@needs_gl
+def test_cameras_differ_and_transparent_background(cloud):
+    f = cloud.points[:, 2]
+    eq = render_field(cloud, f, camera="equator", window_size=(120, 120), show_scalar_bar=False)
+    pole = render_field(cloud, f, camera="north_pole", window_size=(120, 120), show_scalar_bar=False)
+    assert np.abs(eq.astype(float) - pole.astype(float)).mean() > 10  # z seen side-on vs from above
+    # viridis: z ~ 1 (yellow: much red, little blue) faces the north-pole camera, z ~ 0 (teal) the equator one
+    pole_c = pole[50:70, 50:70].reshape(-1, 3).astype(float).mean(axis=0)
+    eq_c = eq[50:70, 50:70].reshape(-1, 3).astype(float).mean(axis=0)
+    assert pole_c[0] > 120 and pole_c[2] < 80, pole_c
+    assert eq_c[0] < 100 and eq_c[2] > 80, eq_c
+    rgba = render_field(cloud, f, window_size=(120, 100), transparent=True)
+    assert rgba.shape == (100, 120, 4)
+    alpha = rgba[..., 3]
+    assert alpha[0, 0] == 0 and alpha[50, 60] == 255
+    assert set(CAMERAS) >= {"iso", "equator", "north_pole"}
+
+
+@needs_gl
+def test_vectors_are_drawn(cloud):
+    s = Surface(cloud)
+    f = cloud.points[:, 2]
+    plain = render_field(s, f, window_size=(160, 160), point_size=6)
+    arrows = render_field(s, f, vectors=s.gradient(f), window_size=(160, 160), point_size=6, vector_color="red")
+    def red(img):
+        img = img.astype(int)
+        return int(((img[..., 0] > 120) & (img[..., 0] > 2 * img[..., 1]) & (img[..., 0] > 2 * img[..., 2])).sum())
+
+    assert red(plain) == 0 and red(arrows) > 30, red(arrows)
+
+
+@needs_gl
+def test_panels_and_comparison(cloud):
+    x = cloud.points
+    img = render_panels(cloud, {"x": x[:, 0], "y": x[:, 1], "z": x[:, 2]}, panel_size=(100, 90), shared_clim=True)
+    assert img.shape == (90, 300, 3)
+    thirds = [img[:, 100 * i : 100 * (i + 1)].astype(float) for i in range(3)]
+    assert all(t.std() > 10 for t in thirds)
+    exact = -2 * x[:, 2]
+    img = render_comparison(cloud, x[:, 2], exact, exact + 1e-3 * x[:, 0], panel_size=(80, 80))
+    assert img.shape == (80, 320, 3)
+    # exact and approximation share a colour range and are nearly equal: their panels nearly agree
+    body = slice(18, 62)  # between the panel titles and the colour bars
+    assert np.abs(img[body, 80:160].astype(float) - img[body, 160:240].astype(float)).mean() < 2
+    assert np.abs(img[body, 0:80].astype(float) - img[body, 160:240].astype(float)).mean() > 5
+
+
+@needs_gl
+def test_golden_image():
+    assert GOLDEN.exists(), "tests/data/golden_sphere.png is missing: run python tests/test_render.py"
+    from PIL import Image
+
+    want = np.asarray(Image.open(GOLDEN).convert("RGB")).astype(float)
+    got = golden_scene().astype(float)
+    assert got.shape == want.shape
+    diff = np.abs(got - want)
+    # tolerance for GL drivers: small mean difference, few strongly different pixels
+    assert diff.mean() < 4.0, diff.mean()
+    assert (diff.max(axis=2) > 80).mean() < 0.03
+
+
+@needs_gl
+def test_animate_gif(cloud, tmp_path):
+    from PIL import Image, ImageSequence
+
+    z = cloud.points[:, 2]
+    snaps = np.array([z * np.exp(-2 * t) for t in np.linspace(0, 1, 6)])
+    path = animate(cloud, snaps, tmp_path / "h.gif", times=np.linspace(0, 1, 6), window_size=(96, 80), fps=5)
+    frames = [np.asarray(f.convert("RGB")).astype(float) for f in ImageSequence.Iterator(Image.open(path))]
+    assert len(frames) == 6 and frames[0].shape == (80, 96, 3)
+    # the field decays towards 0 in a fixed colour range: successive frames change
+    assert all(np.abs(frames[k + 1] - frames[k]).mean() > 0.2 for k in range(5))
+    with pytest.raises(FileExistsError, match="h.gif' exists"):
+        animate(cloud, snaps, path)
+    assert not list(tmp_path.glob("*.partial*"))
+
+    class Result:  # the PDE solvers' Snapshots
+        snapshots = snaps[:3]
+        times = np.array([0.0, 0.1, 0.2])
+
+    path2 = animate(cloud, Result(), tmp_path / "r.gif", window_size=(64, 64))
+    assert Image.open(path2).n_frames == 3
+
+
+@needs_gl
+def test_animate_mp4(cloud, tmp_path):
+    pytest.importorskip("imageio_ffmpeg", reason="MP4 needs imageio-ffmpeg (optional)")
+    import imageio.v2 as iio
+
+    z = cloud.points[:, 2]
+    snaps = np.array([z * np.cos(t) for t in np.linspace(0, 3, 8)])
+    path = animate(cloud, snaps, tmp_path / "w.mp4", window_size=(97, 80))
+    reader = iio.get_reader(path)
+    frames = [f for f in reader]
+    assert len(frames) == 8 and frames[0].shape[:2] == (80, 98)  # width made even for H.264
+
+
+@pytest.mark.parametrize(
+    "kwargs, exc, match",
+    [
+        ({"field": np.zeros(5)}, ValueError, r"field must have shape \(600,\), got shape \(5,\)"),
+        ({"window_size": (100,)}, TypeError, "window_size must be a pair"),
+        ({"window_size": (8, 100)}, ValueError, r"window_size\[0\] \(width\) must be at least 16, got 8"),
+        ({"camera": "below"}, ValueError, "camera must be one of .*got 'below'"),
+        ({"vectors": np.zeros((600, 4))}, ValueError, r"vectors must have shape \(600, 3\)"),
+        ({"filename": "x.jpg"}, ValueError, r"filename must end in \.png"),
+        ({"zoom": 0}, ValueError, "zoom must be a finite positive number, got 0"),
+    ],
+)
+def test_render_field_bad_input(cloud, kwargs, exc, match):
+    args = {"field": cloud.points[:, 2], **kwargs}
+    f = args.pop("field")
+    if "camera" in kwargs and not _OK:
+        pytest.skip(_WHY)
+    with pytest.raises(exc, match=match):
+        render_field(cloud, f, **args)
+
+
+def test_bad_points_and_snapshots(cloud, tmp_path):
+    with pytest.raises(ValueError, match=r"points must have shape \(N, 2\) or \(N, 3\), got shape \(4, 4\)"):
+        render_field(np.zeros((4, 4)))
+    with pytest.raises(ValueError, match=r"snapshots must have shape \(S, 600\) with S >= 1, got shape \(3, 5\)"):
+        animate(cloud, np.zeros((3, 5)), tmp_path / "a.gif")
+    with pytest.raises(ValueError, match=r"filename must end in \.gif or \.mp4"):
+        animate(cloud, np.zeros((3, 600)), tmp_path / "a.avi")
+    with pytest.raises(TypeError, match="fields must be a non-empty mapping"):
+        render_panels(cloud, [cloud.points[:, 0]])
+    with pytest.raises(ValueError, match="shared_clim names 'w', which is not a panel title"):
+        render_panels(cloud, {"x": cloud.points[:, 0]}, shared_clim=["w"])
+
+
+if __name__ == "__main__":  # pragma: no cover
+    save_png(golden_scene(), GOLDEN, overwrite=True)
+    print(f"wrote {GOLDEN}")
