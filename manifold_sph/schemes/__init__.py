@@ -9,11 +9,12 @@ from __future__ import annotations
 from .base import LocalPairs, Scheme, SchemeWeights
 from .cspm import CSPM
 from .msph import MSPH
+from .msph4 import MSPH3, MSPH4, MSPH5
 from .ncsph import NCSPH
 from .standard import Standard
 
 #: Registry: name -> scheme class.
-SCHEMES: dict[str, type[Scheme]] = {cls.name: cls for cls in (Standard, CSPM, MSPH, NCSPH)}
+SCHEMES: dict[str, type[Scheme]] = {cls.name: cls for cls in (Standard, CSPM, MSPH, NCSPH, MSPH3, MSPH4, MSPH5)}
 
 
 def get_scheme(scheme) -> Scheme:
@@ -31,4 +32,4 @@ def get_scheme(scheme) -> Scheme:
     return SCHEMES[scheme]()
 
 
-__all__ = ["SCHEMES", "get_scheme", "Scheme", "LocalPairs", "SchemeWeights", "Standard", "CSPM", "MSPH", "NCSPH"]
+__all__ = ["SCHEMES", "get_scheme", "Scheme", "LocalPairs", "SchemeWeights", "Standard", "CSPM", "MSPH", "NCSPH", "MSPH3", "MSPH4", "MSPH5"]
