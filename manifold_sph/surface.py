@@ -38,7 +38,9 @@ class Surface(OperatorSet):
         Unit (or unnormalised, non-zero) normals. When neither ``normals`` nor the
         PointCloud has them, they are estimated with
         :func:`manifold_sph.normals.estimate_normals` (PCA, consistently oriented).
-    scheme : {"cspm", "msph", "ncsph", "standard"} or Scheme
+    scheme : {"cspm", "msph", "ncsph", "standard", "msph3", "msph4", "msph5"} or Scheme
+        ``msph3/4/5`` carry the corrected system to Taylor degree 3/4/5 (higher order,
+        more neighbours by default, and they need accurate normals).
     kernel : {"quintic", "cubic", "gaussian", "wendland2", "quartic"} or Kernel
     neighbors : int, optional
         Target mean number of particles inside the support (itself included); by
