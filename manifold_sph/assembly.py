@@ -77,9 +77,11 @@ def kernel_matrix(nb: Neighborhood, xy: np.ndarray, kernel: Kernel, columns=None
     hr = nb.h[rows]
     R = np.hypot(xy[:, 0], xy[:, 1]) / hr
     vals = kernel.alpha(2) * kernel.w(R) / hr**2
-    cols = nb.indices if columns is None else columns
     n = nb.n_rows
-    return sp.coo_matrix((vals, (rows, cols)), shape=(n, n if n_cols is None else n_cols)).tocsr()
+    shape = (n, n if n_cols is None else n_cols)
+    if columns is None:
+        return sp.csr_matrix((vals, nb.indices, nb.indptr), shape=shape)
+    return sp.coo_matrix((vals, (rows, columns)), shape=shape).tocsr()
 
 
 def _local_pairs(lo, hi, nb, xy, dV_pairs, kernel) -> LocalPairs:
@@ -198,7 +200,9 @@ def assemble(
     shape = (n, n if n_cols is None else n_cols)
 
     def csr(data):
-        return sp.coo_matrix((data, (rows, cols)), shape=shape).tocsr()
+        if columns is None:  # pairs are already in CSR order, one entry per (row, column)
+            return sp.csr_matrix((data, nb.indices, nb.indptr), shape=shape)
+        return sp.coo_matrix((data, (rows, cols)), shape=shape).tocsr()  # ghosts: sum duplicates
 
     used = used.astype(str)
     fallback = {str(name): np.flatnonzero(used == name) for name in np.unique(used) if name != scheme.name}

@@ -160,6 +160,9 @@ def _parser() -> argparse.ArgumentParser:
     ren.add_argument("--transparent", action="store_true", help="transparent background")
     ren.add_argument("--json", action="store_true", help="print what was written as JSON")
     pictures(ren)
+    from .spem.cli import add_parser as _add_spem_parser
+
+    _add_spem_parser(sub)
     return p
 
 
@@ -590,7 +593,14 @@ def _cmd_render(args) -> int:
     return 0
 
 
+def _cmd_spem(args) -> int:
+    from .spem.cli import run
+
+    return run(args)
+
+
 _COMMANDS = {
+    "spem": _cmd_spem,
     "demo": _cmd_demo,
     "operators": _cmd_operators,
     "convergence": _cmd_convergence,

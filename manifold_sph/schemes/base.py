@@ -126,7 +126,8 @@ def batched_inverse(A: np.ndarray, max_condition: float) -> tuple[np.ndarray, np
     ----------
     A : ndarray, shape (n, k, k)
     max_condition : float
-        Matrices with a 2-norm condition number above this (or not finite) fail.
+        Matrices whose 1-norm condition number ``|A|_1 |A^-1|_1`` exceeds this
+        (or is not finite) fail.
 
     Returns
     -------
@@ -139,15 +140,22 @@ def batched_inverse(A: np.ndarray, max_condition: float) -> tuple[np.ndarray, np
     if n == 0:
         return np.zeros_like(A), np.zeros(0), np.zeros(0, dtype=bool)
     finite = np.all(np.isfinite(A), axis=(1, 2))
-    A = np.where(finite[:, None, None], A, 0.0)
-    s = np.linalg.svd(A, compute_uv=False)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        cond = np.where(s[:, -1] > 0, s[:, 0] / s[:, -1], np.inf)
-    failed = ~finite | ~(cond <= max_condition)
-    inv = np.zeros_like(A)
-    good = ~failed
-    if good.any():
-        inv[good] = np.linalg.inv(A[good])
+    A = np.where(finite[:, None, None], A, np.eye(k))
+    try:
+        with np.errstate(all="ignore"):
+            inv = np.linalg.inv(A)
+    except np.linalg.LinAlgError:  # an exactly singular matrix: invert one by one
+        inv = np.full_like(A, np.nan)
+        for i in np.flatnonzero(finite):  # rare path; n is one chunk
+            try:
+                inv[i] = np.linalg.inv(A[i])
+            except np.linalg.LinAlgError:
+                pass
+    with np.errstate(all="ignore"):
+        cond = np.abs(A).sum(axis=1).max(axis=1) * np.abs(inv).sum(axis=1).max(axis=1)
+    cond = np.where(finite & np.isfinite(cond), cond, np.inf)
+    failed = ~(cond <= max_condition)
+    inv[failed] = 0.0
     return inv, cond, failed
 
 

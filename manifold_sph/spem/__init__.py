@@ -1,0 +1,43 @@
+"""SPEM: smoothed-particle electromagnetics, time-domain Maxwell on particles (METHOD.md section 7).
+
+Modules: :mod:`.layouts` (E / H particle sets: staggered, Yee-style, jittered,
+Poisson, disk, line), :mod:`.operators` (cross-set CSPM derivative matrices,
+the SBP correction), :mod:`.solver` (leap-frog TMz and 1D solvers, CFL check,
+PEC, materials, split-field PML), :mod:`.pml`, :mod:`.sources` (sinusoid,
+Gaussian pulse, hard/soft point and line sources), :mod:`.dirichlet` (the
+Kronecker-delta system), :mod:`.cases` / :mod:`.cases2d` (the source's
+validation cases with exact references), :mod:`.analysis` (null modes and
+dispersion), :mod:`.cli` (``manifold-sph spem CASE``).
+
+Examples
+--------
+>>> from manifold_sph.spem import TMzSolver, yee_layout
+>>> import numpy as np
+>>> lay = yee_layout((0.0, 0.1, 0.0, 0.1), 0.005)
+>>> s = TMzSolver(lay)
+>>> a = 0.1
+>>> s.set_initial(np.sin(np.pi * lay.e[:, 0] / a) * np.sin(np.pi * lay.e[:, 1] / a))
+>>> out = s.run(100)
+>>> bool(np.abs(s.e_field).max() <= 1.0)
+True
+"""
+
+from .constants import C0, EPS0, ETA0, MU0
+from .dirichlet import KroneckerSystem
+from .layouts import (LAYOUTS, Layout, disk_layout, jitter, line_layout, make_layout, poisson_layout,
+                      staggered_layout, yee_layout)
+from .operators import FORMS, cross_gradient, cross_pairs
+from .pml import PML, sigma_max
+from .solver import DEFAULT_H_RATIO, Line1DSolver, TMzSolver, cfl_number
+from .sources import GaussianPulse, Sinusoid, Source, line_source, point_source
+
+__all__ = [
+    "C0", "EPS0", "ETA0", "MU0",
+    "KroneckerSystem",
+    "LAYOUTS", "Layout", "disk_layout", "jitter", "line_layout", "make_layout", "poisson_layout",
+    "staggered_layout", "yee_layout",
+    "FORMS", "cross_gradient", "cross_pairs",
+    "PML", "sigma_max",
+    "DEFAULT_H_RATIO", "Line1DSolver", "TMzSolver", "cfl_number",
+    "GaussianPulse", "Sinusoid", "Source", "line_source", "point_source",
+]

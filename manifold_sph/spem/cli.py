@@ -1,0 +1,176 @@
+"""``manifold-sph spem CASE``: run a SPEM validation case and print its errors.
+
+The main CLI (``manifold_sph/cli.py``) registers this subcommand with
+:func:`add_parser` and dispatches to :func:`run`; :func:`main` runs it
+standalone (``python -m manifold_sph.spem.cli``).
+
+Examples
+--------
+>>> main(["waveguide", "--ppw", "20", "--json"])  # doctest: +ELLIPSIS
+{"case": "waveguide", ...
+0
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+
+__all__ = ["add_parser", "run", "main"]
+
+
+def _positive(kind):
+    def conv(text):
+        try:
+            v = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a {kind.__name__}, got {text!r}") from None
+        if not v > 0:
+            raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+        return v
+
+    return conv
+
+
+def add_parser(subparsers) -> argparse.ArgumentParser:
+    """Add the ``spem`` subcommand to an ``argparse`` subparsers object and return it."""
+    from .cases import CASES
+    from .layouts import LAYOUTS
+    from .operators import FORMS
+
+    p = subparsers.add_parser("spem", help="SPEM time-domain Maxwell cases (line1d, cavity, waveguide, planewave, pml)",
+                              description="Run a SPEM validation case against its exact solution.")
+    p.add_argument("case", choices=CASES)
+    p.add_argument("--layout", default="yee", choices=LAYOUTS, help="particle layout (default yee)")
+    p.add_argument("--form", default="fpm", choices=FORMS, help="derivative system (default fpm)")
+    p.add_argument("--kernel", default="cubic", help="kernel (default cubic)")
+    p.add_argument("--h-ratio", type=_positive(float), default=None, help="h / dr (default 0.7)")
+    p.add_argument("--coupling", default="direct", choices=["direct", "adjoint"])
+    p.add_argument("--ppw", type=_positive(float), default=None, help="particles per wavelength (planewave, waveguide)")
+    p.add_argument("--n-radial", type=_positive(int), default=None, help="cavity: particles along the radius (default 40)")
+    p.add_argument("--r0", type=_positive(float), default=None, help="cavity radius (default 0.1 m)")
+    p.add_argument("--eps-r", type=_positive(float), default=None, help="cavity permittivity (default 10)")
+    p.add_argument("--spectrum-periods", type=_positive(float), default=None,
+                   help="cavity: periods recorded for the resonance spectrum")
+    p.add_argument("--size", type=_positive(float), default=None, help="planewave: square side (default 0.5 m)")
+    p.add_argument("--freq", type=_positive(float), default=None, help="line1d/planewave frequency (Hz)")
+    p.add_argument("--pml-cells", type=_positive(int), default=None, help="PML thickness in spacings")
+    p.add_argument("--png", default=None, help="write the final field to this PNG")
+    p.add_argument("--gif", default=None, help="write an animation of the field to this GIF")
+    p.add_argument("--frames", type=_positive(int), default=24, help="GIF frames (default 24)")
+    p.add_argument("--overwrite", action="store_true", help="allow replacing existing picture files")
+    p.add_argument("--progress", action="store_true", help="show a progress bar")
+    p.add_argument("--json", action="store_true", help="print JSON")
+    return p
+
+
+_OPTION_CASES = {
+    "ppw": ("planewave", "waveguide"), "n_radial": ("cavity",), "r0": ("cavity",), "eps_r": ("cavity",),
+    "spectrum_periods": ("cavity",), "size": ("planewave",), "freq": ("line1d", "planewave"),
+    "pml_cells": ("planewave", "pml"), "layout": ("cavity", "waveguide", "planewave", "pml"),
+    "coupling": ("cavity", "waveguide", "planewave", "pml"), "h_ratio": ("cavity", "waveguide", "planewave", "pml"),
+}
+
+
+def _kwargs(args) -> dict:
+    kw = {"form": args.form, "kernel": args.kernel, "progress": args.progress}
+    for name, cases in _OPTION_CASES.items():
+        v = getattr(args, name)
+        if v is None or (name in ("layout", "coupling") and v == {"layout": "yee", "coupling": "direct"}[name]):
+            continue
+        if args.case not in cases:
+            raise ValueError(f"--{name.replace('_', '-')} does not apply to case {args.case!r} (only {', '.join(cases)})")
+        kw[name] = v
+    if args.case == "cavity" and args.layout not in ("yee", "staggered"):
+        raise ValueError(f"--layout for the cavity must be yee or staggered, got {args.layout!r}")
+    if args.png or args.gif:
+        if args.case == "pml":
+            raise ValueError("pictures are not available for the pml case (it compares probe series)")
+        kw["frames"] = args.frames if args.gif else 1
+    return kw
+
+
+def _check_target(path, overwrite):
+    if path and os.path.exists(path) and not overwrite:
+        raise ValueError(f"{path} exists; pass --overwrite to replace it")
+
+
+def _draw(ax, points, values, vmax):
+    if points.shape[1] == 1:
+        ax.plot(points[:, 0], values, ".", ms=2)
+        ax.set_ylim(-1.1 * vmax, 1.1 * vmax)
+        ax.set_xlabel("z (m)")
+        return
+    ax.scatter(points[:, 0], points[:, 1], c=values, s=2, cmap="RdBu_r", vmin=-vmax, vmax=vmax)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+
+
+def _pictures(result, args):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    pts = result["_points"]
+    snaps = result["_snapshots"]
+    vmax = max(float(abs(f).max()) for _, f in snaps) or 1.0
+    if args.png:
+        fig, ax = plt.subplots(figsize=(5, 4.5))
+        t, f = snaps[-1]
+        _draw(ax, pts, f, vmax)
+        ax.set_title(f"{result['case']}: E at t = {t * 1e9:.3f} ns")
+        fig.savefig(args.png, dpi=110, bbox_inches="tight")
+        plt.close(fig)
+    if args.gif:
+        from matplotlib.animation import FuncAnimation, PillowWriter
+
+        fig, ax = plt.subplots(figsize=(5, 4.5))
+
+        def frame(k):
+            ax.clear()
+            t, f = snaps[k]
+            _draw(ax, pts, f, vmax)
+            ax.set_title(f"{result['case']}: E at t = {t * 1e9:.3f} ns")
+
+        FuncAnimation(fig, frame, frames=len(snaps)).save(args.gif, writer=PillowWriter(fps=8))
+        plt.close(fig)
+
+
+def run(args) -> int:
+    """Run the ``spem`` subcommand; 0 on success, 2 on a user mistake (one line on stderr)."""
+    from .cases import run_case
+
+    try:
+        kw = _kwargs(args)
+        _check_target(args.png, args.overwrite)
+        _check_target(args.gif, args.overwrite)
+        result = run_case(args.case, **kw)
+    except (ValueError, TypeError) as exc:
+        print(f"manifold-sph spem: error: {exc}", file=sys.stderr)
+        return 2
+    if args.png or args.gif:
+        _pictures(result, args)
+    public = {k: v for k, v in result.items() if not k.startswith("_")}
+    if args.json:
+        print(json.dumps(public))
+    else:
+        for k, v in public.items():
+            print(f"{k:>28s}  {v:.6g}" if isinstance(v, float) else f"{k:>28s}  {v}")
+    return 0
+
+
+def main(argv=None) -> int:
+    """Standalone entry point: ``python -m manifold_sph.spem.cli CASE [options]``."""
+    parser = argparse.ArgumentParser(prog="manifold-sph")
+    sub = parser.add_subparsers(dest="command", required=True)
+    add_parser(sub)
+    args = parser.parse_args(["spem", *(sys.argv[1:] if argv is None else argv)])
+    return run(args)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,254 @@
+"""Particle layouts for SPEM: an E set (Ez) and H sets (Hx, Hy).
+
+``staggered``
+    The source's layout (seed 2, fig. 3.1): Ez on the lattice ``(i, j) dr``,
+    Hx and Hy *sharing* particles at the cell centres ``(i+1/2, j+1/2) dr``
+    (the "B-grid"; its row-alternating and checkerboard null modes are why
+    the source's free-space plane wave failed, METHOD.md section 7).
+``yee``
+    Hx and Hy on separate sets offset by ``(0, 1/2)`` and ``(1/2, 0)``.
+``jittered``
+    Any layout with every free particle moved by a uniform random offset of
+    at most ``amplitude * dr`` per coordinate (seeded).
+``poisson``
+    Independent near-uniform random (Poisson-disk-like) sets for E and H,
+    plus E particles on the walls.
+
+E particles on the outer walls are flagged ``e_fixed`` (held at Ez = 0):
+with no particles beyond the wall this is the perfect electric conductor.
+
+Examples
+--------
+>>> lay = yee_layout((0.0, 1.0, 0.0, 1.0), 0.25)
+>>> lay.e.shape, lay.hx.shape, lay.hy.shape, int(lay.e_fixed.sum())
+((25, 2), (20, 2), (20, 2), 16)
+>>> staggered_layout((0.0, 1.0, 0.0, 1.0), 0.25).shared
+True
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .._validation import as_points, check_in, check_int, check_positive
+
+__all__ = ["Layout", "LAYOUTS", "staggered_layout", "yee_layout", "poisson_layout", "jitter", "make_layout",
+           "disk_layout", "line_layout"]
+
+LAYOUTS = ("staggered", "yee", "jittered", "poisson")
+
+
+@dataclass
+class Layout:
+    """Positions of the E and H particle sets.
+
+    Attributes
+    ----------
+    e : (Ne, 2) array
+        Ez particles.
+    hx, hy : (Nhx, 2), (Nhy, 2) arrays
+        Hx and Hy particles (the same array object when they share particles).
+    dr : float
+        Nominal particle spacing.
+    name : str
+    e_fixed : (Ne,) bool array
+        E particles held at Ez = 0 (PEC walls).
+    bounds : tuple
+        ``(xmin, xmax, ymin, ymax)`` of the domain.
+    """
+
+    e: np.ndarray
+    hx: np.ndarray
+    hy: np.ndarray
+    dr: float
+    name: str = "custom"
+    e_fixed: np.ndarray | None = None
+    bounds: tuple = field(default=(0.0, 0.0, 0.0, 0.0))
+
+    def __post_init__(self):
+        self.dr = check_positive("dr", self.dr)
+        shared = self.hx is self.hy
+        self.e = _nonempty("E particles", self.e)
+        self.hx = _nonempty("Hx particles", self.hx)
+        self.hy = self.hx if shared else _nonempty("Hy particles", self.hy)
+        if self.e_fixed is None:
+            self.e_fixed = np.zeros(len(self.e), dtype=bool)
+        self.e_fixed = np.asarray(self.e_fixed, dtype=bool)
+        if self.e_fixed.shape != (len(self.e),):
+            raise ValueError(f"e_fixed must have shape ({len(self.e)},), got {self.e_fixed.shape}")
+
+    @property
+    def shared(self) -> bool:
+        """True when Hx and Hy live on the same particles."""
+        return self.hx is self.hy
+
+    @property
+    def n_particles(self) -> int:
+        """Number of distinct particles (E plus H)."""
+        return len(self.e) + len(self.hx) + (0 if self.shared else len(self.hy))
+
+
+def _nonempty(name, a):
+    a = as_points(name, a, dim=2)
+    if len(a) == 0:
+        raise ValueError(f"{name} is empty: a layout needs at least one particle in each set")
+    return a
+
+
+def _grid(x0, x1, y0, y1, dr, ox, oy):
+    """Lattice points ``(x0 + (i + ox) dr, y0 + (j + oy) dr)`` inside the closed box."""
+    nx = int(np.floor((x1 - x0) / dr + 1e-9 - ox)) + 1
+    ny = int(np.floor((y1 - y0) / dr + 1e-9 - oy)) + 1
+    gx = x0 + (np.arange(nx) + ox) * dr
+    gy = y0 + (np.arange(ny) + oy) * dr
+    X, Y = np.meshgrid(gx, gy, indexing="xy")
+    return np.column_stack([X.ravel(), Y.ravel()])
+
+
+def _check_bounds(bounds, dr):
+    b = np.asarray(bounds, dtype=np.float64)
+    if b.shape != (4,) or not np.all(np.isfinite(b)) or b[1] <= b[0] or b[3] <= b[2]:
+        raise ValueError(f"bounds must be (xmin, xmax, ymin, ymax) with xmin < xmax and ymin < ymax, got {bounds!r}")
+    dr = check_positive("dr", dr)
+    if min(b[1] - b[0], b[3] - b[2]) < 2 * dr:
+        raise ValueError(f"dr = {dr} is too large for bounds {tuple(float(v) for v in b)}: need at least two spacings per side")
+    return tuple(float(v) for v in b), dr
+
+
+def _walls(points, bounds, dr):
+    x0, x1, y0, y1 = bounds
+    tol = 1e-6 * dr
+    x, y = points[:, 0], points[:, 1]
+    return (np.abs(x - x0) < tol) | (np.abs(x - x1) < tol) | (np.abs(y - y0) < tol) | (np.abs(y - y1) < tol)
+
+
+def staggered_layout(bounds, dr) -> Layout:
+    """The source's layout: Ez at ``(i, j) dr``, Hx and Hy shared at the cell centres.
+
+    Parameters
+    ----------
+    bounds : (xmin, xmax, ymin, ymax)
+        The E lattice starts at ``(xmin, ymin)``; the sides should be
+        multiples of ``dr``.
+    dr : float
+        Spacing of each set.
+    """
+    b, dr = _check_bounds(bounds, dr)
+    e = _grid(*b, dr, 0.0, 0.0)
+    h = _grid(*b, dr, 0.5, 0.5)
+    return Layout(e, h, h, dr, "staggered", _walls(e, b, dr), b)
+
+
+def yee_layout(bounds, dr) -> Layout:
+    """Yee-style layout: Ez at ``(i, j)``, Hx at ``(i, j+1/2)``, Hy at ``(i+1/2, j)`` (times dr)."""
+    b, dr = _check_bounds(bounds, dr)
+    e = _grid(*b, dr, 0.0, 0.0)
+    return Layout(e, _grid(*b, dr, 0.0, 0.5), _grid(*b, dr, 0.5, 0.0), dr, "yee", _walls(e, b, dr), b)
+
+
+def jitter(layout: Layout, amplitude: float = 0.2, seed=0) -> Layout:
+    """Move every free particle by a uniform random offset in ``[-a, a] dr`` per coordinate.
+
+    Fixed (wall) E particles keep their positions so the PEC walls stay
+    straight; moved particles are clipped into the domain bounds.
+    """
+    amplitude = check_positive("amplitude", amplitude, allow_zero=True)
+    if amplitude >= 0.5:
+        raise ValueError(f"amplitude must be below 0.5 (particles would cross), got {amplitude}")
+    rng = np.random.default_rng(seed)
+    x0, x1, y0, y1 = layout.bounds
+    lo, hi = np.array([x0, y0]), np.array([x1, y1])
+
+    def move(p, frozen=None):
+        q = p + amplitude * layout.dr * rng.uniform(-1.0, 1.0, p.shape)
+        if frozen is not None:
+            q[frozen] = p[frozen]
+        return np.clip(q, lo, hi)
+
+    e = move(layout.e, layout.e_fixed)
+    hx = move(layout.hx)
+    hy = hx if layout.shared else move(layout.hy)
+    return Layout(e, hx, hy, layout.dr, f"jittered-{layout.name}", layout.e_fixed.copy(), layout.bounds)
+
+
+def poisson_layout(bounds, dr, seed=0) -> Layout:
+    """Independent near-uniform random E and H sets with mean spacing ``dr`` and E on the walls.
+
+    The free particles come from :func:`manifold_sph.sampling.square` (a
+    relaxed, Poisson-disk-like sampling); Hx and Hy share the H set.
+    """
+    from ..sampling import square
+
+    b, dr = _check_bounds(bounds, dr)
+    x0, x1, y0, y1 = b
+    wall = _grid(*b, dr, 0.0, 0.0)
+    wall = wall[_walls(wall, b, dr)]
+    area = (x1 - x0) * (y1 - y0)
+    n = max(10, int(round(area / dr**2)))
+    rng = np.random.default_rng(seed)
+    inner = (x0 + 0.5 * dr, x1 - 0.5 * dr, y0 + 0.5 * dr, y1 - 0.5 * dr)
+    n_inner = max(10, int(round((x1 - x0 - dr) * (y1 - y0 - dr) / dr**2)))
+    e_in = square(n_inner, bounds=inner, sampling="poisson", seed=rng)
+    h = square(n, bounds=b, sampling="poisson", seed=rng)
+    e = np.vstack([e_in, wall])
+    fixed = np.r_[np.zeros(len(e_in), bool), np.ones(len(wall), bool)]
+    return Layout(e, h, h, dr, "poisson", fixed, b)
+
+
+def make_layout(name: str, bounds, dr, *, seed=0, amplitude: float = 0.2) -> Layout:
+    """Build a layout by name: ``staggered``, ``yee``, ``jittered`` (a jittered Yee layout) or ``poisson``."""
+    check_in("layout", name, LAYOUTS)
+    if name == "staggered":
+        return staggered_layout(bounds, dr)
+    if name == "yee":
+        return yee_layout(bounds, dr)
+    if name == "jittered":
+        return jitter(yee_layout(bounds, dr), amplitude, seed)
+    return poisson_layout(bounds, dr, seed)
+
+
+def disk_layout(center, radius, dr, kind: str = "yee") -> Layout:
+    """A circular PEC cavity: a lattice clipped to the disk plus E particles on the circle.
+
+    The wall particles (spacing about ``dr`` along the circle) are fixed at
+    Ez = 0; lattice E particles closer than ``0.5 dr`` to the wall are dropped,
+    H particles are kept strictly inside the circle.
+    """
+    check_in("kind", kind, ("yee", "staggered"))
+    radius = check_positive("radius", radius)
+    c = np.asarray(center, dtype=np.float64).reshape(2)
+    b = (c[0] - radius, c[0] + radius, c[1] - radius, c[1] + radius)
+    lay = (yee_layout if kind == "yee" else staggered_layout)(b, dr)
+    # centre the lattice on the disk centre
+    shift = c - (np.round((c - np.array([b[0], b[2]])) / dr) * dr + np.array([b[0], b[2]]))
+    def inside(p, margin):
+        return np.hypot(p[:, 0] - c[0], p[:, 1] - c[1]) < radius - margin
+    e = lay.e + shift
+    e = e[inside(e, 0.5 * dr)]
+    m = max(8, int(np.ceil(2 * np.pi * radius / dr)))
+    th = 2 * np.pi * (np.arange(m) + 0.5) / m
+    wall = c + radius * np.column_stack([np.cos(th), np.sin(th)])
+    hx = lay.hx + shift
+    hx = hx[inside(hx, 0.0)]
+    hy = hx if lay.shared else (lay.hy + shift)[inside(lay.hy + shift, 0.0)]
+    e_all = np.vstack([e, wall])
+    fixed = np.r_[np.zeros(len(e), bool), np.ones(m, bool)]
+    return Layout(e_all, hx, hy, dr, f"disk-{kind}", fixed, b)
+
+
+def line_layout(z0: float, z1: float, dr: float):
+    """1D staggered line: E (Ex) at ``z0 + i dr`` and H (Hy) at ``z0 + (i+1/2) dr``.
+
+    Returns
+    -------
+    e, h : (Ne, 1) and (Nh, 1) arrays
+    """
+    dr = check_positive("dr", dr)
+    if not z1 - z0 >= 2 * dr:
+        raise ValueError(f"the line [{z0}, {z1}] must be at least 2 dr = {2 * dr} long")
+    n = int(np.floor((z1 - z0) / dr + 1e-9))
+    e = z0 + dr * np.arange(n + 1)
+    h = z0 + dr * (np.arange(n) + 0.5)
+    return e[:, None], h[:, None]
