@@ -266,8 +266,9 @@ def heat(
     solver : {"auto", "direct", "iterative"}
         Implicit steps: one sparse LU reused for all steps ("direct"), or Jacobi-
         preconditioned BiCGSTAB started from the current state, to 1e-10 relative
-        residual ("iterative"; LU fill-in makes the direct solve slow beyond
-        ~50,000 particles). "auto" picks "direct" up to 20,000 particles.
+        residual, with ILU-GMRES and then LU as fallbacks for stiff steps
+        ("iterative"; LU fill-in makes the direct solve slow beyond ~50,000
+        particles). "auto" picks "direct" up to 50,000 particles.
 
     Returns
     -------
@@ -334,20 +335,32 @@ def heat(
 
 
 def _implicit_solver(A: sp.csr_matrix, solver: str) -> Callable:
-    """``solve(rhs, guess)`` for the implicit step matrix ``A``, factorised or iterative."""
+    """``solve(rhs, guess)`` for the implicit step matrix ``A``, factorised or iterative.
+
+    The iterative path is Jacobi-preconditioned BiCGSTAB; if it fails (stiff steps),
+    ILU-preconditioned GMRES; if that fails too, a sparse LU, kept for later steps.
+    """
     n = A.shape[0]
-    if solver == "direct" or (solver == "auto" and n <= 20000):
+    if solver == "direct" or (solver == "auto" and n <= 50000):
         lu = spla.splu(A.tocsc())
         return lambda rhs, guess: lu.solve(rhs)
-    M = sp.diags(1.0 / A.diagonal())
+    jacobi = sp.diags(1.0 / A.diagonal())
+    state = {}
 
     def solve(rhs, guess):
-        x, info = spla.bicgstab(A, rhs, x0=guess, rtol=1e-10, atol=0.0, M=M, maxiter=5000)
-        if info != 0:
-            raise RuntimeError(
-                f"heat: the iterative implicit solve did not converge (info {info}); use solver='direct' or a smaller dt"
-            )
-        return x
+        if "lu" in state:
+            return state["lu"].solve(rhs)
+        x, info = spla.bicgstab(A, rhs, x0=guess, rtol=1e-10, atol=0.0, M=jacobi, maxiter=2000)
+        if info == 0 and np.all(np.isfinite(x)):
+            return x
+        if "ilu" not in state:
+            ilu = spla.spilu(A.tocsc(), drop_tol=1e-5, fill_factor=10)
+            state["ilu"] = spla.LinearOperator(A.shape, ilu.solve)
+        x, info = spla.gmres(A, rhs, x0=guess, rtol=1e-10, atol=0.0, M=state["ilu"], restart=50, maxiter=200)
+        if info == 0 and np.all(np.isfinite(x)):
+            return x
+        state["lu"] = spla.splu(A.tocsc())
+        return state["lu"].solve(rhs)
 
     return solve
 
