@@ -182,7 +182,7 @@ def bench_size(n, repeat, mem, peers, pc):
     # the steps of the cspm pipeline
     t_h, _ = timed(lambda: smoothing_length_for_count(pts, k27, sup, tree=tree), repeat)
     add("h (smoothing length)", t_h, e_cspm, traced_peak(lambda: smoothing_length_for_count(pts, k27, sup, tree=tree), mem), f"k-NN k={int(np.ceil(2 * k27)) + 2}")
-    nbf = lambda: find_neighbors(pts, nrm, h=h, support=sup, tree=tree)  # noqa: E731
+    nbf = lambda: find_neighbors(pts, nrm, h=h, support=sup, tree=tree)
     t_nb, _ = timed(nbf, repeat)
     add("neighbours", t_nb, e_cspm, traced_peak(nbf, mem), f"{nb.indices.size} pairs")
 
@@ -196,7 +196,7 @@ def bench_size(n, repeat, mem, peers, pc):
 
     area_t = {}
     for m in ("shepard", "numerical"):
-        fn = lambda m=m: area_elements(m, nb, xy, kernel)  # noqa: E731
+        fn = lambda m=m: area_elements(m, nb, xy, kernel)
         area_t[m], _ = timed(fn, repeat)
         ops = assemble(nb, xy, areas[m].dV[nb.indices], kernel, get_scheme("cspm"), n_cols=n)
         add(f"area {m}", area_t[m], lap_err(ops.lap @ f, lap_ex), traced_peak(fn, mem), f"error: cspm with these dV, {areas[m].n_negative} negative")
@@ -227,7 +227,7 @@ def bench_size(n, repeat, mem, peers, pc):
     nbytes = L.data.nbytes + L.indices.nbytes + L.indptr.nbytes
     t_mv, _ = timed(lambda: L @ f, max(repeat, 3), min_time=0.05)
     add("matvec L @ f", t_mv, e_cspm, traced_peak(lambda: L @ f, mem), f"nnz {L.nnz}, {nbytes / 2**20:.1f} MB CSR")
-    stream = lambda: (float(np.sum(L.data)), int(np.max(L.indices)), int(np.max(L.indptr)))  # noqa: E731
+    stream = lambda: (float(np.sum(L.data)), int(np.max(L.indices)), int(np.max(L.indptr)))
     t_st, _ = timed(stream, max(repeat, 3), min_time=0.05)
     add("stream matrix bytes", t_st, None, None, f"{nbytes / t_st / 1e9:.1f} GB/s; matvec/stream x{t_mv / t_st:.2f}")
     t_cp, _ = timed(lambda: (L.data.copy(), L.indices.copy()), max(repeat, 3), min_time=0.05)
@@ -238,7 +238,7 @@ def bench_size(n, repeat, mem, peers, pc):
     exact_inc = z / (1 + 2 * HEAT_DT) - z
     heat_t = {}
     for solver in (("direct", "iterative") if n <= DIRECT_MAX else ("iterative",)):
-        fn = lambda solver=solver: heat(s, z, dt=HEAT_DT, steps=1, method="implicit", solver=solver)  # noqa: E731
+        fn = lambda solver=solver: heat(s, z, dt=HEAT_DT, steps=1, method="implicit", solver=solver)
         heat_t[solver], u1 = timed(fn, repeat)
         add(f"heat implicit 1 step {solver}", heat_t[solver], lap_err(u1 - z, exact_inc), traced_peak(fn, mem),
             "error of the increment (u0 = z)" + (", includes LU" if solver == "direct" else ", BiCGSTAB 1e-10"))
@@ -248,7 +248,7 @@ def bench_size(n, repeat, mem, peers, pc):
         "e2e_msph4": t_m4, "e2e_msph4_err": e_m4, "matvec": t_mv, "stream": t_st, "peak_e2e_mb": p_e2e,
         "assembly": asm_t, "assembly_err": asm_err, "heat": heat_t,
     }
-    del s, L
+    s = L = None  # free the matrices before the peers run
     gc.collect()
     if peers:
         res["peers"] = bench_peers(cloud, f, lap_ex, repeat, pc, add)

@@ -87,6 +87,14 @@ class OperatorSet:
         self._columns = nb.indices if columns is None else columns
         self._column_normals = column_normals
         self.area: AreaElements = area_elements(area, nb, xy, self.kernel, total_area=total_area, columns=columns)
+        if self.area.n_negative and self.scheme.uses_area:
+            warnings.warn(
+                f"area='numerical': {self.area.n_negative} of {nb.n_rows} area elements are negative "
+                "(irregular, noisy or bounded cloud); the corrected schemes tolerate a few, but time "
+                "stepping may grow: consider area='shepard'",
+                RuntimeWarning,
+                stacklevel=3,
+            )
         dV = self.area.dV[self._columns]
         self._ops: Assembled = assemble(
             nb, xy, dV, self.kernel, self.scheme, columns=columns, n_cols=nb.n_rows, max_condition=self.max_condition

@@ -111,6 +111,8 @@ class Scheme:
     #: Mean neighbour count used when the caller gives none (27: the seeds' choice for
     #: second-order schemes with the quintic spline).
     default_neighbors: int = 27
+    #: Whether the weights depend on the area elements dV.
+    uses_area: bool = True
 
     def weights(self, pairs: LocalPairs, max_condition: float) -> SchemeWeights:  # pragma: no cover - interface
         raise NotImplementedError

@@ -124,6 +124,8 @@ class HighOrderCorrected(Scheme):
     docstring for the system.
     """
 
+    uses_area = False  # the moment rows carry no area elements
+
     #: Highest total degree of the Taylor terms.
     degree: int = 4
 
