@@ -98,6 +98,26 @@ def _fixed(fixed, fixed_values, n: int, u0: np.ndarray) -> tuple[np.ndarray, np.
     return mask, values
 
 
+class _Recorder:
+    """Per-step bookkeeping shared by the time steppers: finiteness, callback, snapshots."""
+
+    def __init__(self, name, u0, dt, steps, every, callback):
+        self.name, self.dt, self.steps, self.every, self.callback = name, dt, steps, every, callback
+        self.saved, self.times = ([u0.copy()], [0.0]) if every else (None, None)
+
+    def __call__(self, step, u):
+        if not np.all(np.isfinite(u)):
+            raise FloatingPointError(f"{self.name}: the solution stopped being finite at step {step}")
+        if self.callback is not None:
+            self.callback(step, step * self.dt, u)
+        if self.every and (step % self.every == 0 or step == self.steps):
+            self.saved.append(u.copy())
+            self.times.append(step * self.dt)
+
+    def result(self, u):
+        return Snapshots(np.array(self.saved), np.array(self.times)) if self.every else u
+
+
 def _check_steps(dt, steps, every):
     dt = check_positive("dt", dt)
     steps = check_int("steps", steps, minimum=1)
@@ -312,7 +332,7 @@ def heat(
         A = (sp.identity(int(free.sum()), format="csr") - theta * a * Lff).tocsr()
         solve = _implicit_solver(A, solver)
         rhs_fixed = theta * a * (L[free][:, mask] @ values) if mask.any() else 0.0
-    saved, times = ([u.copy()], [0.0]) if every else (None, None)
+    record = _Recorder("heat", u, dt, steps, every, callback)
     for step in range(1, steps + 1):
         Lu = L @ u
         if theta == 0:
@@ -322,16 +342,8 @@ def heat(
             new[free] = solve(u[free] + (1 - theta) * a * Lu[free] + rhs_fixed, u[free])
             u = new
         u[mask] = values
-        if not np.all(np.isfinite(u)):
-            raise FloatingPointError(f"heat: the solution stopped being finite at step {step}")
-        if callback is not None:
-            callback(step, step * dt, u)
-        if every and (step % every == 0 or step == steps):
-            saved.append(u.copy())
-            times.append(step * dt)
-    if every:
-        return Snapshots(np.array(saved), np.array(times))
-    return u
+        record(step, u)
+    return record.result(u)
 
 
 def _implicit_solver(A: sp.csr_matrix, solver: str) -> Callable:
@@ -429,21 +441,13 @@ def wave(
     prev = u
     u = prev + dt * v + 0.5 * b * (L @ prev)
     u[mask] = values
-    saved, times = ([prev.copy()], [0.0]) if every else (None, None)
+    record = _Recorder("wave", prev, dt, steps, every, callback)
     for step in range(1, steps + 1):
         if step > 1:
             prev, u = u, 2 * u - prev + b * (L @ u)
             u[mask] = values
-        if not np.all(np.isfinite(u)):
-            raise FloatingPointError(f"wave: the solution stopped being finite at step {step}")
-        if callback is not None:
-            callback(step, step * dt, u)
-        if every and (step % every == 0 or step == steps):
-            saved.append(u.copy())
-            times.append(step * dt)
-    if every:
-        return Snapshots(np.array(saved), np.array(times))
-    return u
+        record(step, u)
+    return record.result(u)
 
 
 def wave_energy(surface, u_prev, u_next, dt: float, c: float = 1.0, laplacian=None) -> float:
