@@ -9,6 +9,8 @@ all weights go into one COO -> CSR conversion per operator.
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -159,6 +161,7 @@ def assemble(
     columns=None,
     n_cols: int | None = None,
     max_condition: float = 1e8,
+    workers: int = -1,
 ) -> Assembled:
     """Build the derivative and Laplacian matrices of ``scheme``.
 
@@ -177,6 +180,8 @@ def assemble(
         Number of columns (default N).
     max_condition : float
         Local systems above this condition number fall back.
+    workers : int
+        Threads over row chunks (-1: one per core).
     """
     n = nb.n_rows
     gx = np.empty(xy.shape[0])
@@ -184,7 +189,8 @@ def assemble(
     lp = np.empty(xy.shape[0])
     condition = np.empty(n)
     used = np.empty(n, dtype=object)
-    for lo in range(0, n, CHUNK_ROWS):
+
+    def chunk(lo):  # writes disjoint slices: safe to run chunks in threads
         hi = min(lo + CHUNK_ROWS, n)
         pairs = _local_pairs(lo, hi, nb, xy, dV_pairs, kernel)
         grad, lap, cond, u = _weights_with_fallback(pairs, scheme, max_condition)
@@ -195,6 +201,15 @@ def assemble(
         lp[p0:p1] = lap / h_rows**2
         condition[lo:hi] = cond
         used[lo:hi] = u
+
+    starts = range(0, n, CHUNK_ROWS)
+    nthreads = min(len(starts), os.cpu_count() or 1) if workers == -1 else max(1, int(workers))
+    if nthreads > 1 and len(starts) > 1:
+        with ThreadPoolExecutor(max_workers=nthreads) as pool:  # numpy releases the GIL in the heavy parts
+            list(pool.map(chunk, starts))
+    else:
+        for lo in starts:
+            chunk(lo)
     rows = nb.rows
     cols = nb.indices if columns is None else columns
     shape = (n, n if n_cols is None else n_cols)

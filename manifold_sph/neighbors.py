@@ -75,7 +75,9 @@ def _knn(tree: cKDTree, query: np.ndarray, k: int, radius: float, workers: int):
     return dist, idx
 
 
-def smoothing_length_for_count(points, target: float = 27, support: float = 3.0, *, tree=None, workers: int = -1) -> float:
+def smoothing_length_for_count(
+    points, target: float = 27, support: float = 3.0, *, tree=None, workers: int = -1, return_knn: bool = False
+):
     """Uniform ``h`` such that the mean number of particles inside ``support * h`` is ``target``.
 
     The particle itself is counted (METHOD.md section 2.1).
@@ -109,14 +111,15 @@ def smoothing_length_for_count(points, target: float = 27, support: float = 3.0,
     tree = cKDTree(pts) if tree is None else tree
     k = int(np.ceil(2 * target)) + 2
     while True:
-        dist, _ = _knn(tree, pts, k, np.inf, workers)
+        dist, idx = _knn(tree, pts, k, np.inf, workers)
         flat = dist.ravel()
         m = int(round(target * n))  # the m-th smallest distance closes the mean count
         part = np.partition(flat, [m - 1, m])
         radius = 0.5 * (part[m - 1] + part[m])
         # every particle must have had its full count inside ``radius`` within k
         if k >= n or np.all(dist[:, -1] >= radius):
-            return float(radius / support)
+            h = float(radius / support)
+            return (h, (dist, idx)) if return_knn else h
         k = min(2 * k, n)
 
 
@@ -151,6 +154,7 @@ def find_neighbors(
     candidate_normals=None,
     tree=None,
     workers: int = -1,
+    knn=None,
 ) -> Neighborhood:
     """Radius search with the normal dot-product filter.
 
@@ -171,6 +175,10 @@ def find_neighbors(
         ``points`` themselves (extra rows are ghosts, e.g. for mirroring).
     candidate_normals : ndarray, shape (M, d), optional
         Normals of the candidates (default: ``normals``).
+    knn : (dist, idx), optional
+        A nearest-neighbour query of ``points`` among the candidates, sorted by
+        distance, that already holds every neighbour inside the support (as
+        returned by :func:`smoothing_length_for_count`); saves a second query.
 
     Returns
     -------
@@ -202,13 +210,19 @@ def find_neighbors(
     radii = support * hv
     rmax = float(radii.max())
     # the expected count in a disc of radius rmax bounds the number of columns needed
-    k = 32
-    while True:
-        dist, idx = _knn(tree, pts, k, rmax, workers)
-        full = np.isfinite(dist[:, -1]) & (dist[:, -1] < radii)
-        if not full.any() or k >= tree.n:
-            break
-        k = min(2 * k, tree.n)
+    if knn is not None and np.all(knn[0][:, -1] >= radii):
+        dist, idx = knn
+    else:
+        k = 32
+        while True:
+            dist, idx = _knn(tree, pts, k, rmax, workers)
+            full = np.isfinite(dist[:, -1]) & (dist[:, -1] < radii)
+            if not full.any() or k >= tree.n:
+                break
+            k = min(2 * k, tree.n)
+    # keep only the columns some row needs
+    kmax = int((dist < radii[:, None]).sum(axis=1).max())
+    dist, idx = dist[:, :kmax], idx[:, :kmax]
     mask = dist < radii[:, None]
     n_filtered = 0
     if normals is not None:

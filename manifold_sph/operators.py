@@ -58,7 +58,8 @@ class OperatorSet:
             raise ValueError(f"neighbors must be smaller than the number of points {n}, got {self.neighbors}")
         support = self.kernel.support
         if h is None:
-            return smoothing_length_for_count(points, self.neighbors, support, tree=tree)
+            h, self._knn = smoothing_length_for_count(points, self.neighbors, support, tree=tree, return_knn=True)
+            return h
         if isinstance(h, str):
             if h != "adaptive":
                 raise ValueError(f"h must be None, 'adaptive', a positive number or an array of shape ({n},), got {h!r}")

@@ -110,7 +110,11 @@ class Surface(OperatorSet):
         pts, nrm = cloud.points, cloud.normals
         tree = cKDTree(pts)
         hv = self._smoothing_length(h, pts, tree)
-        nb = find_neighbors(pts, nrm, h=hv, support=self.kernel.support, normal_threshold=normal_threshold, tree=tree)
+        nb = find_neighbors(
+            pts, nrm, h=hv, support=self.kernel.support, normal_threshold=normal_threshold, tree=tree,
+            knn=getattr(self, "_knn", None),
+        )
+        self._knn = None
         self._check_isolated(nb, "increase neighbors or h, or remove outliers")
         self.normal_threshold = float(normal_threshold)
         self.u, self.v = tangent_frames(nrm)

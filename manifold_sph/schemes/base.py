@@ -64,15 +64,27 @@ class LocalPairs:
         """Sum per-pair values (P, ...) over each row -> (n, ...)."""
         return np.add.reduceat(values, self.indptr[:-1], axis=0)
 
+    def _padding(self):
+        """Positions of each row's pairs in an (n, K) grid (K the largest count) and its mask."""
+        if getattr(self, "_pad", None) is None:
+            counts = np.diff(self.indptr)
+            k = int(counts.max()) if counts.size else 0
+            slot = np.arange(k)
+            valid = slot[None, :] < counts[:, None]
+            pos = np.where(valid, self.indptr[:-1, None] + slot[None, :], 0)
+            self._pad = (pos, valid)
+        return self._pad
+
     def moments(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
         """Per-particle moment matrices ``M[i, a, c] = sum_j rows[p, a] cols[p, c]``.
 
-        ``rows`` (P, A) and ``cols`` (P, C) -> (n, A, C).
+        ``rows`` (P, A) and ``cols`` (P, C) -> (n, A, C), as one batched matrix
+        product over rows padded to the largest neighbour count.
         """
-        prod = rows[:, :, None] * cols[:, None, :]
-        flat = prod.reshape(prod.shape[0], -1)
-        sums = np.add.reduceat(flat, self.indptr[:-1], axis=0)
-        return sums.reshape(self.n, rows.shape[1], cols.shape[1])
+        pos, valid = self._padding()
+        r = np.where(valid[:, :, None], rows[pos], 0.0)  # (n, K, A)
+        c = cols[pos]  # (n, K, C); padded slots meet zero rows
+        return np.matmul(r.transpose(0, 2, 1), c)
 
 
 @dataclass
