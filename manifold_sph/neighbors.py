@@ -109,7 +109,7 @@ def smoothing_length_for_count(
         raise ValueError(f"target (mean neighbour count) must be in [2, {n}) for {n} points, got {target}")
     check_positive("support", support)
     tree = cKDTree(pts) if tree is None else tree
-    k = int(np.ceil(2 * target)) + 2
+    k = int(np.ceil(1.5 * target)) + 4  # doubled below if some particle needs more
     while True:
         dist, idx = _knn(tree, pts, k, np.inf, workers)
         flat = dist.ravel()
