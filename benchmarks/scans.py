@@ -110,7 +110,7 @@ def scan_pipeline(path: Path, *, mesh_reference: bool, dt: float, steps: int, pi
     if not all_schemes:
         return
     for name in SCHEMES[1:]:
-        with warnings.catch_warnings(record=True) as caught:
+        with warnings.catch_warnings(record=True):
             warnings.simplefilter("always")
             t0 = time.perf_counter()
             Sc = Surface(pts, nrm, scheme=name, area="shepard", h="adaptive")

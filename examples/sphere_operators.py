@@ -7,7 +7,6 @@ f = cos(xz - sin y) and the tangent field F = grad_S(xyz) on the unit sphere
 operator and, for CSPM, the panels f | exact | SPH | error and the gradient arrows.
 """
 
-import numpy as np
 
 from _common import can_render, parse, report
 from manifold_sph import Surface, functions, shapes

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from manifold_sph import PointCloud, shapes
+from manifold_sph import shapes
 from manifold_sph import io
 from manifold_sph.io import ReadError, read, read_mesh, write
 

@@ -7,12 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from manifold_sph.spem import (C0, EPS0, MU0, PML, Layout, Line1DSolver, Sinusoid, Source, TMzSolver,
-                               cross_gradient, jitter, line_layout, make_layout, point_source, sigma_max,
-                               staggered_layout, yee_layout)
+from manifold_sph.spem import (C0, EPS0, Layout, Sinusoid, Source, TMzSolver,
+                               cross_gradient, jitter, make_layout, point_source, sigma_max,
+                               yee_layout)
 from manifold_sph.spem.analysis import (measured_phase_velocity, null_mode_response, phase_velocity,
                                         ppw_for_phase_error, yee_fdtd_phase_velocity)
-from manifold_sph.spem.cases import (cavity_exact, cavity_frequency, peak_frequency, relative_error, run_cavity,
+from manifold_sph.spem.cases import (cavity_exact, cavity_frequency, peak_frequency, run_cavity,
                                      run_line1d)
 from manifold_sph.spem.cases2d import guided_exact, run_planewave, run_pml, run_waveguide
 

@@ -21,10 +21,9 @@ from scipy.special import j0, j1, jn_zeros
 
 from .._validation import check_in, check_int, check_positive
 from .constants import C0, EPS0, MU0
-from .layouts import disk_layout, line_layout, make_layout
-from .pml import PML
+from .layouts import disk_layout, line_layout
 from .solver import DEFAULT_H_RATIO, Line1DSolver, TMzSolver
-from .sources import Sinusoid, Source, line_source, point_source
+from .sources import Sinusoid, Source, point_source
 
 __all__ = ["CASES", "relative_error", "cavity_exact", "cavity_frequency", "peak_frequency", "run_line1d",
            "run_cavity", "run_case"]

@@ -21,12 +21,12 @@ import math
 import numpy as np
 
 from .._validation import check_in, check_int, check_positive
-from .cases import _every, _fields, _fit_dt, _fitted, _timed, relative_error
+from .cases import _every, _fields, _fitted, _timed, relative_error
 from .constants import C0
 from .layouts import Layout, make_layout
 from .pml import PML
 from .solver import DEFAULT_H_RATIO, TMzSolver
-from .sources import GaussianPulse, Sinusoid, Source, line_source, point_source
+from .sources import GaussianPulse, Sinusoid, Source, point_source
 
 __all__ = ["guided_exact", "adjacent_line_difference", "alternating_amplitude", "run_planewave", "run_waveguide", "run_pml"]
 

@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._validation import as_points, check_in, check_int, check_positive
+from .._validation import as_points, check_in, check_positive
 
 __all__ = ["Layout", "LAYOUTS", "staggered_layout", "yee_layout", "poisson_layout", "jitter", "make_layout",
            "disk_layout", "line_layout"]
