@@ -75,7 +75,7 @@ def scan_pipeline(path: Path, *, mesh_reference: bool, dt: float, steps: int, pi
     rep = detect_boundary(pts, nrm)
     print(f"   boundary: {rep.report}  [{time.perf_counter() - t0:.2f} s]")
     source = int(np.argmax(pts[:, 1]))  # the top of the scan
-    with warnings.catch_warnings(record=True) as caught:
+    with warnings.catch_warnings(record=True):
         warnings.simplefilter("always")
         t0 = time.perf_counter()
         S = Surface(pts, nrm, scheme="standard", area="shepard", h="adaptive")
