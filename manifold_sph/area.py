@@ -17,13 +17,25 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .assembly import kernel_matrix
 from .kernels import Kernel
 from .neighbors import Neighborhood
 
-__all__ = ["AREA_METHODS", "AreaElements", "area_elements"]
+__all__ = ["AREA_METHODS", "AreaElements", "area_elements", "kernel_matrix"]
 
 AREA_METHODS = ("geometric", "numerical", "shepard")
+
+
+def kernel_matrix(nb: Neighborhood, xy: np.ndarray, kernel: Kernel, columns=None, n_cols=None) -> sp.csr_matrix:
+    """Sparse matrix of kernel values ``W_ij = W_{h_i}(x_ij)`` (d = 2) on the neighbour pairs."""
+    rows = nb.rows
+    hr = nb.h[rows]
+    R = np.hypot(xy[:, 0], xy[:, 1]) / hr
+    vals = kernel.alpha(2) * kernel.w(R) / hr**2
+    n = nb.n_rows
+    shape = (n, n if n_cols is None else n_cols)
+    if columns is None:
+        return sp.csr_matrix((vals, nb.indices, nb.indptr), shape=shape)
+    return sp.coo_matrix((vals, (rows, columns)), shape=shape).tocsr()
 
 
 @dataclass(frozen=True)

@@ -21,7 +21,7 @@ from .neighbors import Neighborhood
 from .schemes import Scheme, get_scheme
 from .schemes.base import LocalPairs
 
-__all__ = ["Assembled", "assemble", "pair_kernel_data", "kernel_matrix"]
+__all__ = ["Assembled", "assemble", "pair_kernel_data"]
 
 #: Rows per chunk: bounds the temporary per-pair arrays.
 CHUNK_ROWS = 16384
@@ -71,19 +71,6 @@ def pair_kernel_data(kernel: Kernel, xy: np.ndarray, h_rows: np.ndarray):
     x, y = xi[:, 0], xi[:, 1]
     d2W = np.stack([q + t * x * x, t * x * y, q + t * y * y], axis=1)
     return xi, W, dW, d2W, q
-
-
-def kernel_matrix(nb: Neighborhood, xy: np.ndarray, kernel: Kernel, columns=None, n_cols=None) -> sp.csr_matrix:
-    """Sparse matrix of kernel values ``W_ij = W_{h_i}(x_ij)`` (d = 2) on the neighbour pairs."""
-    rows = nb.rows
-    hr = nb.h[rows]
-    R = np.hypot(xy[:, 0], xy[:, 1]) / hr
-    vals = kernel.alpha(2) * kernel.w(R) / hr**2
-    n = nb.n_rows
-    shape = (n, n if n_cols is None else n_cols)
-    if columns is None:
-        return sp.csr_matrix((vals, nb.indices, nb.indptr), shape=shape)
-    return sp.coo_matrix((vals, (rows, columns)), shape=shape).tocsr()
 
 
 def _local_pairs(lo, hi, nb, xy, dV_pairs, kernel) -> LocalPairs:
