@@ -162,3 +162,13 @@ def test_operators_from_file(tmp_path, capsys):
     assert row["n"] == 1002 and row["lap_l2"] < 0.05
     assert main(["operators", "--file", str(src), "--shape", "torus"]) == 2
     assert "do not lie on the default torus" in capsys.readouterr().err
+
+
+def test_spem_subcommand_through_the_main_cli(capsys):
+    import json as _json
+
+    from manifold_sph.cli import main as cli_main
+
+    assert cli_main(["spem", "cavity", "--n-radial", "10", "--json"]) == 0
+    out = _json.loads(capsys.readouterr().out)
+    assert out["case"] == "cavity" and out["particles"] > 0 and 0 < out["error"] < 0.05
