@@ -20,7 +20,7 @@ import scipy.sparse.linalg as spla
 from .kernels import Kernel
 from .neighbors import Neighborhood
 
-__all__ = ["AREA_METHODS", "AreaElements", "area_elements", "kernel_matrix"]
+__all__ = ["AREA_METHODS", "AreaElements", "area_elements", "check_area_method", "kernel_matrix"]
 
 AREA_METHODS = ("geometric", "numerical", "shepard")
 
@@ -64,6 +64,17 @@ class AreaElements:
         return float(self.dV.sum())
 
 
+def check_area_method(method, total_area=None) -> None:
+    """Raise ValueError for an unknown method, or ``"geometric"`` without a positive total area."""
+    if method not in AREA_METHODS:
+        raise ValueError(f"area must be one of {list(AREA_METHODS)}, got {method!r}")
+    if method == "geometric" and (total_area is None or not np.isfinite(total_area) or total_area <= 0):
+        raise ValueError(
+            f"area='geometric' needs the total surface area (total_area > 0), got {total_area!r}; "
+            "use area='numerical' or 'shepard' for clouds of unknown area"
+        )
+
+
 def area_elements(
     method: str,
     nb: Neighborhood,
@@ -88,15 +99,9 @@ def area_elements(
         Owner column of every pair (ghosts of a mirrored domain).
     """
     n = nb.n_rows
-    if method not in AREA_METHODS:
-        raise ValueError(f"area must be one of {list(AREA_METHODS)}, got {method!r}")
+    check_area_method(method, total_area)
     A = kernel_matrix(nb, xy, kernel, columns=columns, n_cols=n)
     if method == "geometric":
-        if total_area is None or not np.isfinite(total_area) or total_area <= 0:
-            raise ValueError(
-                f"area='geometric' needs the total surface area (total_area > 0), got {total_area!r}; "
-                "use area='numerical' or 'shepard' for clouds of unknown area"
-            )
         dV = np.full(n, float(total_area) / n)
     elif method == "shepard":
         dV = 1.0 / np.asarray(A.sum(axis=1)).ravel()

@@ -149,5 +149,5 @@ class Domain2D(OperatorSet):
     def __repr__(self) -> str:
         return (
             f"Domain2D(n_points={self.n_points}, scheme={self.scheme.name!r}, kernel={self.kernel.name!r}, "
-            f"mirror={self.mirror}, area={self.area.method!r})"
+            f"mirror={self.mirror}, area={self._area_args[0]!r})"
         )

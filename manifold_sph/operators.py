@@ -20,7 +20,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ._validation import as_field, check_positive
-from .area import AreaElements, area_elements
+from .area import AreaElements, area_elements, check_area_method
 from .assembly import Assembled, assemble
 from .kernels import get_kernel
 from .neighbors import Neighborhood, adaptive_smoothing_length, smoothing_length_for_count
@@ -81,22 +81,31 @@ class OperatorSet:
             )
 
     def _setup(self, nb, xy, frames, area, total_area, columns=None, column_normals=None):
-        """Area elements and assembly. ``frames`` (N, 2, D) maps tangent-plane components to ambient ones."""
+        """Area elements and assembly. ``frames`` (N, 2, D) maps tangent-plane components to ambient ones.
+
+        Area elements are computed here when the scheme's weights use them, and
+        on first access otherwise.
+        """
         self.neighborhood = nb
         self._xy = xy
         self._frames = frames
         self._columns = nb.indices if columns is None else columns
         self._column_normals = column_normals
-        self.area: AreaElements = area_elements(area, nb, xy, self.kernel, total_area=total_area, columns=columns)
-        if self.area.n_negative and self.scheme.uses_area:
-            warnings.warn(
-                f"area='numerical': {self.area.n_negative} of {nb.n_rows} area elements are negative "
-                "(irregular, noisy or bounded cloud); the corrected schemes tolerate a few, but time "
-                "stepping may grow: consider area='shepard'",
-                RuntimeWarning,
-                stacklevel=3,
-            )
-        dV = self.area.dV[self._columns]
+        check_area_method(area, total_area)
+        self._area_args = (area, total_area, columns)
+        self._area = None
+        if self.scheme.uses_area:
+            if self.area.n_negative:
+                warnings.warn(
+                    f"area='numerical': {self.area.n_negative} of {nb.n_rows} area elements are negative "
+                    "(irregular, noisy or bounded cloud); the corrected schemes tolerate a few, but time "
+                    "stepping may grow: consider area='shepard'",
+                    RuntimeWarning,
+                    stacklevel=3,
+                )
+            dV = self.area.dV[self._columns]
+        else:  # the weights do not use area elements: compute them only when asked
+            dV = np.ones(self._columns.size)
         self._ops: Assembled = assemble(
             nb, xy, dV, self.kernel, self.scheme, columns=columns, n_cols=nb.n_rows, max_condition=self.max_condition
         )
@@ -114,6 +123,14 @@ class OperatorSet:
         self._cache = {}
 
     # ------------------------------------------------------------ properties
+    @property
+    def area(self) -> AreaElements:
+        """Area elements (``.dV``, ``.n_negative``, ``.method``), computed once."""
+        if self._area is None:
+            method, total_area, columns = self._area_args
+            self._area = area_elements(method, self.neighborhood, self._xy, self.kernel, total_area=total_area, columns=columns)
+        return self._area
+
     @property
     def n_points(self) -> int:
         return self.neighborhood.n_rows

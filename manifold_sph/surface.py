@@ -142,5 +142,5 @@ class Surface(OperatorSet):
     def __repr__(self) -> str:
         return (
             f"Surface(n_points={self.n_points}, scheme={self.scheme.name!r}, kernel={self.kernel.name!r}, "
-            f"mean neighbours={self.neighborhood.counts.mean():.1f}, area={self.area.method!r})"
+            f"mean neighbours={self.neighborhood.counts.mean():.1f}, area={self._area_args[0]!r})"
         )

@@ -172,27 +172,34 @@ class HighOrderCorrected(Scheme):
         d = np.where(finite[:, None], 1.0 / np.sqrt(np.where(diag > 0, diag, 1.0)), 0.0)
         As = np.where(finite[:, None, None], A * d[:, :, None] * d[:, None, :], 0.0)
         As[~finite] = np.eye(K)
-        ev = np.linalg.eigvalsh(As)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            cond = np.where(ev[:, 0] > 0, ev[:, -1] / ev[:, 0], np.inf)
-        cond = np.where(finite, cond, np.inf)
+        # 1-norm condition number of the equilibrated matrix, from its inverse
+        try:
+            with np.errstate(all="ignore"):
+                Asinv = np.linalg.inv(As)
+        except np.linalg.LinAlgError:  # an exactly singular matrix: go one by one (rare)
+            Asinv = np.full_like(As, np.nan)
+            for i in range(n):
+                try:
+                    Asinv[i] = np.linalg.inv(As[i])
+                except np.linalg.LinAlgError:
+                    pass
+        with np.errstate(all="ignore"):
+            cond = np.abs(As).sum(axis=1).max(axis=1) * np.abs(Asinv).sum(axis=1).max(axis=1)
+        cond = np.where(finite & np.isfinite(cond), cond, np.inf)
         failed = ~(cond <= max_condition)
-        # Y = S A^-1 = S D As^-1 D; solve As Z = D S^T for the good particles.
-        Y = np.zeros((n, 3, K))
+        # Y = S A^-1 = S D As^-1 D (rows of A^-1 picked by S), zero for failed particles
         good = ~failed
-        if good.any():
-            rhs = d[good][:, :, None] * self.select.T[None, :, :]  # (g, K, 3)
-            Z = np.linalg.solve(As[good], rhs)
-            Y[good] = np.transpose(Z * d[good][:, :, None], (0, 2, 1))
-        # Per-pair weights on f_j - f_i: c[p, s] = sum_a Y[row, s, a] omega_p m_a(x_p).
+        Y = np.einsum("sa,nab->nsb", self.select * 1.0, d[:, :, None] * Asinv * d[:, None, :])
+        Y[~good] = 0.0
+        # Per-pair weights on f_j - f_i: c[p, s] = sum_a Y[row, s, a] omega_p m_a(x_p),
+        # as one batched product over rows padded to the largest neighbour count.
         px = _powers(pairs.xy[:, 0], self.degree)
         py = _powers(pairs.xy[:, 1], self.degree)
         mw = np.empty((pairs.xy.shape[0], K))
         for a, (pa, qa) in enumerate(self.exponents):
             np.multiply(omega * self.scale[a], px[pa] * py[qa], out=mw[:, a])
-        c = np.empty((pairs.xy.shape[0], 3))
-        for s in range(3):
-            c[:, s] = np.einsum("pa,pa->p", np.ascontiguousarray(Y[:, s, :])[pairs.row], mw)
+        pos, valid = pairs._padding()
+        c = np.matmul(mw[pos], Y.transpose(0, 2, 1))[valid]  # (P, 3) in pair order
         return corrected_weights(pairs, c[:, :2], c[:, 2], failed, cond)
 
 
