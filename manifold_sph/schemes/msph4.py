@@ -90,7 +90,7 @@ from math import factorial
 
 import numpy as np
 
-from .base import LocalPairs, Scheme, SchemeWeights, corrected_weights
+from .base import batched_inverse, LocalPairs, Scheme, SchemeWeights, corrected_weights
 
 __all__ = ["MSPH3", "MSPH4", "MSPH5", "HighOrderCorrected", "taylor_exponents"]
 
@@ -163,7 +163,7 @@ class HighOrderCorrected(Scheme):
         return A
 
     def weights(self, pairs: LocalPairs, max_condition: float) -> SchemeWeights:
-        n, K = pairs.n, self.n_unknowns
+        K = self.n_unknowns
         omega = pairs.W
         A = self._moment_matrices(pairs, omega)
         # Equilibrate (Jacobi): As = D A D with D = diag(A)^(-1/2).
@@ -171,26 +171,11 @@ class HighOrderCorrected(Scheme):
         finite = np.all(np.isfinite(A), axis=(1, 2)) & np.all(diag > 0, axis=1)
         d = np.where(finite[:, None], 1.0 / np.sqrt(np.where(diag > 0, diag, 1.0)), 0.0)
         As = np.where(finite[:, None, None], A * d[:, :, None] * d[:, None, :], 0.0)
-        As[~finite] = np.eye(K)
+        As[~finite] = np.nan  # batched_inverse fails these
         # 1-norm condition number of the equilibrated matrix, from its inverse
-        try:
-            with np.errstate(all="ignore"):
-                Asinv = np.linalg.inv(As)
-        except np.linalg.LinAlgError:  # an exactly singular matrix: go one by one (rare)
-            Asinv = np.full_like(As, np.nan)
-            for i in range(n):
-                try:
-                    Asinv[i] = np.linalg.inv(As[i])
-                except np.linalg.LinAlgError:
-                    pass
-        with np.errstate(all="ignore"):
-            cond = np.abs(As).sum(axis=1).max(axis=1) * np.abs(Asinv).sum(axis=1).max(axis=1)
-        cond = np.where(finite & np.isfinite(cond), cond, np.inf)
-        failed = ~(cond <= max_condition)
-        # Y = S A^-1 = S D As^-1 D (rows of A^-1 picked by S), zero for failed particles
-        good = ~failed
+        Asinv, cond, failed = batched_inverse(As, max_condition)
+        # Y = S A^-1 = S D As^-1 D (rows of A^-1 picked by S); zero for failed particles
         Y = np.einsum("sa,nab->nsb", self.select * 1.0, d[:, :, None] * Asinv * d[:, None, :])
-        Y[~good] = 0.0
         # Per-pair weights on f_j - f_i: c[p, s] = sum_a Y[row, s, a] omega_p m_a(x_p),
         # as one batched product over rows padded to the largest neighbour count.
         px = _powers(pairs.xy[:, 0], self.degree)
