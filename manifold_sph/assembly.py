@@ -23,8 +23,8 @@ from .schemes.base import LocalPairs
 
 __all__ = ["Assembled", "assemble", "pair_kernel_data"]
 
-#: Rows per chunk: bounds the temporary per-pair arrays.
-CHUNK_ROWS = 16384
+#: Rows per chunk: bounds the temporary per-pair arrays and keeps them in cache.
+CHUNK_ROWS = 2048
 
 
 @dataclass
@@ -56,69 +56,47 @@ class Assembled:
 
 
 def pair_kernel_data(kernel: Kernel, xy: np.ndarray, h_rows: np.ndarray):
-    """Kernel data for pairs with offsets ``xy`` (P, 2) and row smoothing lengths ``h_rows`` (P,).
+    """Kernel data for offsets ``xy`` (..., 2) and row smoothing lengths ``h_rows`` (...).
 
-    Returns normalised ``(xi, W, dW, d2W, dw_over_r)`` as in :class:`LocalPairs` (h = 1 units).
+    Returns normalised ``(xi, W, dW, d2W, dw_over_r)`` as in :class:`LocalPairs` (h = 1 units):
+    shapes (..., 2), (...), (..., 2), (..., 3), (...).
     """
-    xi = xy / h_rows[:, None]
-    R = np.hypot(xi[:, 0], xi[:, 1])
+    xi = xy / h_rows[..., None]
+    x, y = xi[..., 0], xi[..., 1]
+    R = np.sqrt(x * x + y * y)
+    w, q, t = kernel.radial_terms(R)
     a = kernel.alpha(2)
-    W = a * kernel.w(R)
-    q = a * kernel.dw_over_R(R)  # alpha w'(R) / R, finite at R = 0
-    dW = -q[:, None] * xi  # gradient of W(x_i - x_j) with respect to x_i
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = np.where(R > 0, (a * kernel.d2w(R) - q) / (R * R), 0.0)
-    x, y = xi[:, 0], xi[:, 1]
-    d2W = np.stack([q + t * x * x, t * x * y, q + t * y * y], axis=1)
-    return xi, W, dW, d2W, q
+    q *= a  # alpha w'(R) / R, finite at R = 0
+    t *= a
+    dW = xi * -q[..., None]  # gradient of W(x_i - x_j) with respect to x_i
+    tx = t * x
+    d2W = np.stack([q + tx * x, tx * y, q + t * y * y], axis=-1)
+    return xi, a * w, dW, d2W, q
 
 
 def _local_pairs(lo, hi, nb, xy, dV_pairs, kernel) -> LocalPairs:
-    p0, p1 = nb.indptr[lo], nb.indptr[hi]
-    counts = np.diff(nb.indptr[lo : hi + 1])
-    row = np.repeat(np.arange(hi - lo), counts)
-    h_rows = nb.h[lo:hi][row]
-    xi, W, dW, d2W, q = pair_kernel_data(kernel, xy[p0:p1], h_rows)
-    is_self = np.zeros(p1 - p0, dtype=bool)
-    is_self[nb.indptr[lo:hi] - p0] = True  # the particle itself is first in its row
-    return LocalPairs(
-        indptr=nb.indptr[lo : hi + 1] - p0,
-        row=row,
-        is_self=is_self,
-        xy=xi,
-        dV=dV_pairs[p0:p1] / h_rows**2,
-        W=W,
-        dW=dW,
-        d2W=d2W,
-        dw_over_r=q,
-    )
-
-
-def _subset(pairs: LocalPairs, rows: np.ndarray) -> tuple[LocalPairs, np.ndarray]:
-    """Pairs of a subset of rows (indices into the chunk), and their positions."""
-    counts = np.diff(pairs.indptr)[rows]
-    starts = pairs.indptr[rows]
-    pos = np.repeat(starts - np.cumsum(counts) + counts, counts) + np.arange(counts.sum())
-    indptr = np.zeros(rows.size + 1, dtype=np.int64)
-    np.cumsum(counts, out=indptr[1:])
-    sub = LocalPairs(
-        indptr=indptr,
-        row=np.repeat(np.arange(rows.size), counts),
-        is_self=pairs.is_self[pos],
-        xy=pairs.xy[pos],
-        dV=pairs.dV[pos],
-        W=pairs.W[pos],
-        dW=pairs.dW[pos],
-        d2W=pairs.d2W[pos],
-        dw_over_r=pairs.dw_over_r[pos],
-    )
-    return sub, pos
+    """Padded pair data of rows ``lo:hi``; unused slots get R = support (zero kernel) and dV = 0."""
+    starts = nb.indptr[lo:hi]
+    counts = nb.indptr[lo + 1 : hi + 1] - starts
+    k = int(counts.max())
+    slot = np.arange(k)
+    valid = slot[None, :] < counts[:, None]
+    pos = np.where(valid, starts[:, None] + slot[None, :], 0)
+    h = nb.h[lo:hi]
+    far = kernel.support * h[:, None]  # outside the support: every kernel factor vanishes
+    off = np.empty((hi - lo, k, 2))
+    off[..., 0] = np.where(valid, xy[pos, 0], far)
+    off[..., 1] = np.where(valid, xy[pos, 1], 0.0)
+    xi, W, dW, d2W, q = pair_kernel_data(kernel, off, np.broadcast_to(h[:, None], valid.shape))
+    xi[~valid] = 0.0
+    dV = np.where(valid, dV_pairs[pos], 0.0) / (h * h)[:, None]
+    return LocalPairs(valid=valid, xy=xi, dV=dV, W=W, dW=dW, d2W=d2W, dw_over_r=q)
 
 
 def _weights_with_fallback(pairs: LocalPairs, scheme: Scheme, max_condition: float):
     """Weights of ``scheme`` with failed particles recomputed down its fallback chain."""
     n = pairs.n
-    counts = np.diff(pairs.indptr)
+    counts = pairs.counts
     res = scheme.weights(pairs, max_condition)
     grad, lap = res.grad, res.lap
     failed = res.failed | (counts < scheme.min_neighbors)
@@ -127,13 +105,12 @@ def _weights_with_fallback(pairs: LocalPairs, scheme: Scheme, max_condition: flo
     current = scheme
     while todo.size and current.fallback is not None:
         current = get_scheme(current.fallback)
-        sub, pos = _subset(pairs, todo)
-        r = current.weights(sub, max_condition)
-        sub_failed = r.failed | (np.diff(sub.indptr) < current.min_neighbors)
-        ok_pairs = ~sub_failed[sub.row]
-        grad[pos[ok_pairs]] = r.grad[ok_pairs]
-        lap[pos[ok_pairs]] = r.lap[ok_pairs]
-        used[todo[~sub_failed]] = current.name
+        r = current.weights(pairs.take(todo), max_condition)
+        sub_failed = r.failed | (counts[todo] < current.min_neighbors)
+        ok = todo[~sub_failed]
+        grad[ok] = r.grad[~sub_failed]
+        lap[ok] = r.lap[~sub_failed]
+        used[ok] = current.name
         todo = todo[sub_failed]
     return grad, lap, res.condition, used
 
@@ -182,10 +159,11 @@ def assemble(
         pairs = _local_pairs(lo, hi, nb, xy, dV_pairs, kernel)
         grad, lap, cond, u = _weights_with_fallback(pairs, scheme, max_condition)
         p0, p1 = nb.indptr[lo], nb.indptr[hi]
-        h_rows = nb.h[lo:hi][pairs.row]
-        gx[p0:p1] = grad[:, 0] / h_rows
-        gy[p0:p1] = grad[:, 1] / h_rows
-        lp[p0:p1] = lap / h_rows**2
+        valid = pairs.valid
+        h = nb.h[lo:hi][:, None]
+        gx[p0:p1] = (grad[..., 0] / h)[valid]  # row-major compress: CSR pair order
+        gy[p0:p1] = (grad[..., 1] / h)[valid]
+        lp[p0:p1] = (lap / (h * h))[valid]
         condition[lo:hi] = cond
         used[lo:hi] = u
 

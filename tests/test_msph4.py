@@ -90,8 +90,12 @@ def test_exact_on_polynomials_of_its_degree(domains, pts, scheme):
     f, g, lap = polynomial(pts, HIGH[scheme], seed=HIGH[scheme])
     assert rel(d.gradient(f), g) < 1e-9
     assert rel(d.laplacian(f), lap) < 1e-9
-    assert np.abs(d.laplacian(f) - lap).max() < 1e-9 * np.abs(lap).max()
-    assert np.abs(d.gradient(f) - g).max() < 1e-9 * np.abs(g).max()
+    # Max error: round-off times the local condition number. msph5's corner rows reach
+    # cond ~ 8e7 (20 unknowns, a quarter of the support), where 1e-9 is below
+    # eps * cond = 1.7e-8; measured 3.9e-9 there, 1.8e-11 for msph4.
+    tol = 1e-8 if scheme == "msph5" else 1e-9
+    assert np.abs(d.laplacian(f) - lap).max() < tol * np.abs(lap).max()
+    assert np.abs(d.gradient(f) - g).max() < tol * np.abs(g).max()
 
 
 def test_exact_with_default_neighbours_where_not_fallen_back(pts):
@@ -135,8 +139,8 @@ def test_scheme_weights_scale_free():
 
     def pairs(scale):
         P = len(xy)
-        return LocalPairs(
-            indptr=np.array([0, P]), row=np.zeros(P, int), is_self=np.arange(P) == 0, xy=xy * scale,
+        return LocalPairs.from_flat(
+            indptr=np.array([0, P]), xy=xy * scale,
             dV=np.ones(P), W=W, dW=np.zeros((P, 2)), d2W=np.zeros((P, 3)), dw_over_r=np.zeros(P),
         )
 
@@ -153,8 +157,8 @@ def test_collinear_neighbourhood_fails():
     P = 30
     xy = np.zeros((P, 2))
     xy[1:, 0] = np.linspace(-2.0, 2.0, P - 1)  # the particle at the origin, neighbours on the x axis
-    pairs = LocalPairs(
-        indptr=np.array([0, P]), row=np.zeros(P, int), is_self=np.arange(P) == 0, xy=xy,
+    pairs = LocalPairs.from_flat(
+        indptr=np.array([0, P]), xy=xy,
         dV=np.ones(P), W=np.maximum(3.0 - np.abs(xy[:, 0]), 0.0) ** 5, dW=np.zeros((P, 2)),
         d2W=np.zeros((P, 3)), dw_over_r=np.zeros(P),
     )

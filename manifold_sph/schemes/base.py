@@ -1,14 +1,22 @@
 """The scheme interface: local 2D pair data in, per-pair weights out.
 
-Every scheme works on a chunk of particles in *normalised* units: offsets and
-kernel derivatives are expressed with ``h_i = 1`` (offsets divided by ``h_i``,
-area elements by ``h_i^2``). The assembly rescales first derivatives by
-``1 / h_i`` and second derivatives by ``1 / h_i^2``. This keeps the local
+Every scheme works on a chunk of ``n`` particles in *normalised* units: offsets
+and kernel derivatives are expressed with ``h_i = 1`` (offsets divided by
+``h_i``, area elements by ``h_i^2``). The assembly rescales first derivatives
+by ``1 / h_i`` and second derivatives by ``1 / h_i^2``. This keeps the local
 systems dimensionless, so one condition-number threshold fits every ``h``.
 
-A scheme returns weights ``w`` such that, for the row particle ``i``,
-``d f / d x (i) = sum_p w_grad[p, 0] f[col[p]]`` over the pairs ``p`` of row ``i``
-(the particle itself included), likewise for ``d/dy`` and the Laplacian.
+Pair data are *padded*: particle ``i``'s neighbours occupy slots
+``0 .. counts[i] - 1`` of an ``(n, K)`` grid (``K`` the largest count in the
+chunk), the particle itself in slot 0. Every kernel quantity and area element
+is zero in the unused slots, so moment sums are plain batched matrix products
+(``(n, A, K) @ (n, K, C)``) with no gathers, and a subset of particles is a
+slice of the first axis.
+
+A scheme returns weights ``w`` such that, for the particle ``i``,
+``d f / d x (i) = sum_k w_grad[i, k, 0] f[neighbour k of i]`` over its slots
+(itself included), likewise for ``d/dy`` and the Laplacian; unused slots carry
+zero weight.
 """
 
 from __future__ import annotations
@@ -17,38 +25,40 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["LocalPairs", "SchemeWeights", "Scheme", "batched_inverse", "difference_to_weights"]
+__all__ = [
+    "LocalPairs",
+    "SchemeWeights",
+    "Scheme",
+    "batched_inverse",
+    "difference_to_weights",
+    "corrected_weights",
+    "quadratic_columns",
+]
 
 
 @dataclass
 class LocalPairs:
-    """Pair data of a chunk of ``n`` row particles, in units of ``h_i``.
+    """Pair data of a chunk of ``n`` particles, in units of ``h_i``, padded to ``K`` slots.
 
     Attributes
     ----------
-    indptr : ndarray, shape (n + 1,)
-        Chunk-local row offsets.
-    row : ndarray, shape (P,)
-        Chunk-local row of each pair.
-    is_self : ndarray, shape (P,)
-        True for the pair (i, i).
-    xy : ndarray, shape (P, 2)
-        Offsets ``x_j - x_i`` in the tangent plane of ``i``, divided by ``h_i``.
-    dV : ndarray, shape (P,)
-        Area element of ``j`` divided by ``h_i^2``.
-    W : ndarray, shape (P,)
+    valid : ndarray of bool, shape (n, K)
+        True for the slots holding a neighbour; slot 0 is the particle itself.
+    xy : ndarray, shape (n, K, 2)
+        Offsets ``x_j - x_i`` in the tangent plane of ``i``, divided by ``h_i`` (0 in unused slots).
+    dV : ndarray, shape (n, K)
+        Area element of ``j`` divided by ``h_i^2`` (0 in unused slots).
+    W : ndarray, shape (n, K)
         Kernel ``W(x_i - x_j)`` with ``h = 1`` in ``d = 2``.
-    dW : ndarray, shape (P, 2)
+    dW : ndarray, shape (n, K, 2)
         Its gradient with respect to ``x_i``.
-    d2W : ndarray, shape (P, 3)
+    d2W : ndarray, shape (n, K, 3)
         Its second derivatives ``(W_xx, W_xy, W_yy)``.
-    dw_over_r : ndarray, shape (P,)
+    dw_over_r : ndarray, shape (n, K)
         ``alpha_2 w'(R) / R`` (the Taylor Laplacian's factor), finite at ``R = 0``.
     """
 
-    indptr: np.ndarray
-    row: np.ndarray
-    is_self: np.ndarray
+    valid: np.ndarray
     xy: np.ndarray
     dV: np.ndarray
     W: np.ndarray
@@ -58,33 +68,43 @@ class LocalPairs:
 
     @property
     def n(self) -> int:
-        return self.indptr.size - 1
+        return self.valid.shape[0]
 
-    def row_sum(self, values: np.ndarray) -> np.ndarray:
-        """Sum per-pair values (P, ...) over each row -> (n, ...)."""
-        return np.add.reduceat(values, self.indptr[:-1], axis=0)
+    @property
+    def counts(self) -> np.ndarray:
+        """(n,) number of neighbours of each particle, itself included."""
+        return self.valid.sum(axis=1)
 
-    def _padding(self):
-        """Positions of each row's pairs in an (n, K) grid (K the largest count) and its mask."""
-        if getattr(self, "_pad", None) is None:
-            counts = np.diff(self.indptr)
-            k = int(counts.max()) if counts.size else 0
-            slot = np.arange(k)
-            valid = slot[None, :] < counts[:, None]
-            pos = np.where(valid, self.indptr[:-1, None] + slot[None, :], 0)
-            self._pad = (pos, valid)
-        return self._pad
+    def take(self, rows: np.ndarray) -> "LocalPairs":
+        """The pair data of a subset of the particles (indices into the chunk)."""
+        return LocalPairs(**{name: getattr(self, name)[rows] for name in self.__dataclass_fields__})
 
-    def moments(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
-        """Per-particle moment matrices ``M[i, a, c] = sum_j rows[p, a] cols[p, c]``.
+    @staticmethod
+    def moments(rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """Per-particle moment matrices ``M[i, a, c] = sum_k rows[i, k, a] cols[i, k, c]``.
 
-        ``rows`` (P, A) and ``cols`` (P, C) -> (n, A, C), as one batched matrix
-        product over rows padded to the largest neighbour count.
+        ``rows`` (n, K, A), zero in unused slots, and ``cols`` (n, K, C) -> (n, A, C).
         """
-        pos, valid = self._padding()
-        r = np.where(valid[:, :, None], rows[pos], 0.0)  # (n, K, A)
-        c = cols[pos]  # (n, K, C); padded slots meet zero rows
-        return np.matmul(r.transpose(0, 2, 1), c)
+        return np.matmul(rows.transpose(0, 2, 1), cols)
+
+    @classmethod
+    def from_flat(cls, indptr, xy, dV, W, dW, d2W, dw_over_r) -> "LocalPairs":
+        """Pad flat CSR-ordered pair arrays (P, ...) with row offsets ``indptr`` (n + 1,).
+
+        Each row's first pair must be the particle itself. Mainly for tests and
+        hand-built neighbourhoods; the assembly pads its chunks directly.
+        """
+        indptr = np.asarray(indptr)
+        counts = np.diff(indptr)
+        k = int(counts.max()) if counts.size else 0
+        valid = np.arange(k)[None, :] < counts[:, None]
+        pos = np.where(valid, indptr[:-1, None] + np.arange(k)[None, :], 0)
+
+        def pad(a):
+            a = np.asarray(a, dtype=np.float64)
+            return np.where(valid.reshape(valid.shape + (1,) * (a.ndim - 1)), a[pos], 0.0)
+
+        return cls(valid=valid, xy=pad(xy), dV=pad(dV), W=pad(W), dW=pad(dW), d2W=pad(d2W), dw_over_r=pad(dw_over_r))
 
 
 @dataclass
@@ -93,15 +113,15 @@ class SchemeWeights:
 
     Attributes
     ----------
-    grad : ndarray, shape (P, 2)
+    grad : ndarray, shape (n, K, 2)
         Weights of ``(d/dx, d/dy)`` on ``f_j``.
-    lap : ndarray, shape (P,)
+    lap : ndarray, shape (n, K)
         Weights of the Laplacian on ``f_j``.
     failed : ndarray, shape (n,)
         Particles whose local system was singular or ill-conditioned; their
         weights are zero and the assembly recomputes them with the fallback.
     condition : ndarray, shape (n,)
-        Largest 2-norm condition number of the local systems of each particle
+        Largest 1-norm condition number of the local systems of each particle
         (1 for schemes without systems).
     """
 
@@ -133,6 +153,25 @@ class Scheme:
         return f"<scheme {self.name!r}>"
 
 
+def _small_inverse(A: np.ndarray) -> np.ndarray:
+    """Closed-form inverses of a stack of 2x2 or 3x3 matrices (adjugate over determinant)."""
+    if A.shape[-1] == 2:
+        a, b, c, d = A[:, 0, 0], A[:, 0, 1], A[:, 1, 0], A[:, 1, 1]
+        det = a * d - b * c
+        inv = np.stack([d, -b, -c, a], axis=1).reshape(-1, 2, 2)
+    else:
+        a, b, c = A[:, 0, 0], A[:, 0, 1], A[:, 0, 2]
+        d, e, f = A[:, 1, 0], A[:, 1, 1], A[:, 1, 2]
+        g, h, k = A[:, 2, 0], A[:, 2, 1], A[:, 2, 2]
+        c0, c1, c2 = e * k - f * h, f * g - d * k, d * h - e * g
+        det = a * c0 + b * c1 + c * c2
+        inv = np.stack(
+            [c0, c * h - b * k, b * f - c * e, c1, a * k - c * g, c * d - a * f, c2, b * g - a * h, a * e - b * d], axis=1
+        ).reshape(-1, 3, 3)
+    with np.errstate(all="ignore"):
+        return inv / det[:, None, None]
+
+
 def batched_inverse(A: np.ndarray, max_condition: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Invert a stack of small matrices, flagging the ill-conditioned ones.
 
@@ -149,22 +188,32 @@ def batched_inverse(A: np.ndarray, max_condition: float) -> tuple[np.ndarray, np
         Inverses, zero where the matrix failed.
     cond : ndarray, shape (n,)
     failed : ndarray of bool, shape (n,)
+
+    Examples
+    --------
+    >>> A = np.array([[[2.0, 0.0], [0.0, 4.0]], [[1.0, 1.0], [1.0, 1.0]]])
+    >>> inv, cond, failed = batched_inverse(A, 1e8)
+    >>> (inv[0] + 0.0).tolist(), cond.tolist(), failed.tolist()   # + 0.0 turns -0.0 into 0.0
+    ([[0.5, 0.0], [0.0, 0.25]], [2.0, inf], [False, True])
     """
     n, k, _ = A.shape
     if n == 0:
         return np.zeros_like(A), np.zeros(0), np.zeros(0, dtype=bool)
     finite = np.all(np.isfinite(A), axis=(1, 2))
     A = np.where(finite[:, None, None], A, np.eye(k))
-    try:
-        with np.errstate(all="ignore"):
-            inv = np.linalg.inv(A)
-    except np.linalg.LinAlgError:  # an exactly singular matrix: invert one by one
-        inv = np.full_like(A, np.nan)
-        for i in np.flatnonzero(finite):  # rare path; n is one chunk
-            try:
-                inv[i] = np.linalg.inv(A[i])
-            except np.linalg.LinAlgError:
-                pass
+    if k <= 3:
+        inv = _small_inverse(A) if k > 1 else 1.0 / A
+    else:
+        try:
+            with np.errstate(all="ignore"):
+                inv = np.linalg.inv(A)
+        except np.linalg.LinAlgError:  # an exactly singular matrix: invert one by one
+            inv = np.full_like(A, np.nan)
+            for i in np.flatnonzero(finite):  # rare path; n is one chunk
+                try:
+                    inv[i] = np.linalg.inv(A[i])
+                except np.linalg.LinAlgError:
+                    pass
     with np.errstate(all="ignore"):
         cond = np.abs(A).sum(axis=1).max(axis=1) * np.abs(inv).sum(axis=1).max(axis=1)
     cond = np.where(finite & np.isfinite(cond), cond, np.inf)
@@ -173,21 +222,26 @@ def batched_inverse(A: np.ndarray, max_condition: float) -> tuple[np.ndarray, np
     return inv, cond, failed
 
 
-def difference_to_weights(pairs: LocalPairs, c: np.ndarray) -> np.ndarray:
-    """Turn weights on ``f_j - f_i`` into weights on ``f_j`` (the self pair takes minus the row sum).
+def quadratic_columns(xy: np.ndarray) -> np.ndarray:
+    """(..., 3) Taylor columns ``x^2/2, xy, y^2/2`` of offsets (..., 2)."""
+    x, y = xy[..., 0], xy[..., 1]
+    return np.stack([0.5 * x * x, x * y, 0.5 * y * y], axis=-1)
 
-    ``c`` has shape (P,) or (P, m); returns the same shape.
+
+def difference_to_weights(c: np.ndarray) -> np.ndarray:
+    """Turn weights on ``f_j - f_i`` into weights on ``f_j``: slot 0 (the particle itself) takes minus the row sum.
+
+    ``c`` has shape (n, K) or (n, K, m), zero in unused slots; returns a new array of the same shape.
     """
-    w = np.where(pairs.is_self.reshape((-1,) + (1,) * (c.ndim - 1)), 0.0, c)
-    sums = np.add.reduceat(w, pairs.indptr[:-1], axis=0)
-    w[pairs.is_self] -= sums  # exactly one self pair per row, in row order
+    w = c.copy()
+    w[:, 0] = -c[:, 1:].sum(axis=1)
     return w
 
 
-def corrected_weights(pairs: LocalPairs, grad_c: np.ndarray, lap_c: np.ndarray, failed: np.ndarray, condition) -> SchemeWeights:
+def corrected_weights(grad_c: np.ndarray, lap_c: np.ndarray, failed: np.ndarray, condition) -> SchemeWeights:
     """Weights of a corrected scheme from its weights on ``f_j - f_i``; failed particles get zeros."""
-    grad = difference_to_weights(pairs, grad_c)
-    lap = difference_to_weights(pairs, lap_c)
-    grad[failed[pairs.row]] = 0.0
-    lap[failed[pairs.row]] = 0.0
+    grad = difference_to_weights(grad_c)
+    lap = difference_to_weights(lap_c)
+    grad[failed] = 0.0
+    lap[failed] = 0.0
     return SchemeWeights(grad=grad, lap=lap, failed=failed, condition=condition)

@@ -11,34 +11,29 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import LocalPairs, Scheme, SchemeWeights, batched_inverse, corrected_weights
+from .base import LocalPairs, Scheme, SchemeWeights, batched_inverse, corrected_weights, quadratic_columns
+
+__all__ = ["CSPM", "first_derivative_weights", "quadratic_columns"]
 
 #: Selects f_xx + f_yy from H = (f_xx, f_xy, f_yy).
 LAPLACE_ROW = np.array([1.0, 0.0, 1.0])
 
 
-def quadratic_columns(xy: np.ndarray) -> np.ndarray:
-    """(P, 3) Taylor columns ``x^2/2, xy, y^2/2``."""
-    x, y = xy[:, 0], xy[:, 1]
-    return np.stack([0.5 * x * x, x * y, 0.5 * y * y], axis=1)
-
-
 def first_derivative_weights(pairs: LocalPairs, max_condition: float):
-    """CSPM weights ``c`` (P, 2) on ``f_j - f_i`` for ``(f_x, f_y)``, with ``M1`` data."""
-    rows = pairs.dW * pairs.dV[:, None]
+    """CSPM weights ``c`` (n, K, 2) on ``f_j - f_i`` for ``(f_x, f_y)``, with ``M1^-1``, condition and failures."""
+    rows = pairs.dW * pairs.dV[..., None]
     M1 = pairs.moments(rows, pairs.xy)
     M1inv, cond, failed = batched_inverse(M1, max_condition)
-    c = np.einsum("pac,pc->pa", M1inv[pairs.row], rows)
+    c = np.matmul(rows, M1inv.transpose(0, 2, 1))  # c[i, k] = M1^-1 rows[i, k]
     return c, M1inv, cond, failed
 
 
-def second_derivative_weights(pairs, K, N1, c, max_condition):
+def second_derivative_weights(rows2, K, N1, c, max_condition):
     """Laplacian weights on ``f_j - f_i`` from ``K H = b2 - N1 g`` (g with weights ``c``)."""
     Kinv, cond, failed = batched_inverse(K, max_condition)
-    y = np.einsum("nca,c->na", Kinv, LAPLACE_ROW)  # y = K^-T e
-    z = np.einsum("nra,nr->na", N1, y)  # N1^T y
-    rows2 = pairs.d2W * pairs.dV[:, None]
-    lap = np.einsum("pa,pa->p", rows2, y[pairs.row]) - np.einsum("pa,pa->p", c, z[pairs.row])
+    y = Kinv[:, 0, :] + Kinv[:, 2, :]  # y = K^-T e, e = LAPLACE_ROW
+    z = np.matmul(N1.transpose(0, 2, 1), y[:, :, None])  # N1^T y, (n, 2, 1)
+    lap = np.matmul(rows2, y[:, :, None])[..., 0] - np.matmul(c, z)[..., 0]
     return lap, cond, failed
 
 
@@ -49,8 +44,8 @@ class CSPM(Scheme):
 
     def weights(self, pairs: LocalPairs, max_condition: float) -> SchemeWeights:
         c, _, cond1, failed1 = first_derivative_weights(pairs, max_condition)
-        rows2 = pairs.d2W * pairs.dV[:, None]
+        rows2 = pairs.d2W * pairs.dV[..., None]
         N2 = pairs.moments(rows2, quadratic_columns(pairs.xy))
         N1 = pairs.moments(rows2, pairs.xy)
-        lap, cond2, failed2 = second_derivative_weights(pairs, N2, N1, c, max_condition)
-        return corrected_weights(pairs, c, lap, failed1 | failed2, np.maximum(cond1, cond2))
+        lap, cond2, failed2 = second_derivative_weights(rows2, N2, N1, c, max_condition)
+        return corrected_weights(c, lap, failed1 | failed2, np.maximum(cond1, cond2))

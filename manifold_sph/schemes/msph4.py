@@ -10,7 +10,7 @@ coordinates ``(x, y)`` of particle ``i`` (the Monge chart of the projection in
     f_j - f_i = \\sum_{1 \\le a + b \\le q} \\frac{x_j^a y_j^b}{a!\\,b!}\\,
     \\partial_x^a \\partial_y^b f(i) + O(r^{q+1}),
 
-with ``K = (q + 1)(q + 2)/2 - 1`` unknown derivatives (9 for ``q = 3``, 14 for
+with ``U = (q + 1)(q + 2)/2 - 1`` unknown derivatives (9 for ``q = 3``, 14 for
 ``q = 4``). As in the finite particle method, the rows of the local system are
 this expansion multiplied by the kernel times each monomial and summed over the
 neighbours (the moment form):
@@ -21,7 +21,7 @@ neighbours (the moment form):
     = \\sum_j W_{ij}\\, m_a(x_j)\\, (f_j - f_i),
 
 where ``m_c`` are the scaled monomials ``x^a y^b / (a! b!)`` in units of ``h_i``
-and ``D_c f`` the matching partial derivatives. The ``K x K`` moment matrix is
+and ``D_c f`` the matching partial derivatives. The ``U x U`` moment matrix is
 symmetric positive semi-definite (it is the normal matrix of a kernel-weighted
 polynomial fit); it is equilibrated by its diagonal before the condition test
 and the solve, so the test measures the geometry of the neighbourhood, not the
@@ -77,11 +77,11 @@ sharp edges), or when the matrix is not finite. The chain is
 
 Memory
 ------
-Moments are accumulated one monomial at a time (``(q + 1)(2q + 1) - 3`` sums
-of (P,) arrays, never a (P, K, K) array); the largest temporaries are two (P, K)
-arrays (the weighted monomials and one row of ``A^-1`` gathered per pair) and
-(n, K, K) for the ``n`` rows of a chunk: about 120 MB for the assembly's
-16384-row chunks with 30 neighbours and K = 14.
+The moment matrices are one batched product of the weighted monomials
+(n, K, U) with the monomials over each chunk's padded neighbour slots; the
+largest temporaries are these two arrays and the (n, U, U) matrices of the
+``n`` rows of a chunk (U = 14 unknowns): about 20 MB for the assembly's
+2048-row chunks with 30 neighbours, never a per-pair (P, U, U) array.
 """
 
 from __future__ import annotations
@@ -90,7 +90,7 @@ from math import factorial
 
 import numpy as np
 
-from .base import batched_inverse, LocalPairs, Scheme, SchemeWeights, corrected_weights
+from .base import LocalPairs, Scheme, SchemeWeights, batched_inverse, corrected_weights
 
 __all__ = ["MSPH3", "MSPH4", "MSPH5", "HighOrderCorrected", "taylor_exponents"]
 
@@ -142,30 +142,20 @@ class HighOrderCorrected(Scheme):
         sel[2, exps.index((0, 2))] = 1.0
         self.select = sel
 
-    def _moment_matrices(self, pairs: LocalPairs, omega: np.ndarray) -> np.ndarray:
-        """(n, K, K) ``sum_j omega_j m_a m_c`` from the raw moments ``sum_j omega x^p y^q``."""
-        q = self.degree
-        px = _powers(pairs.xy[:, 0], 2 * q)
-        py = _powers(pairs.xy[:, 1], 2 * q)
-        starts = pairs.indptr[:-1]
-        raw = {}
-        for p in range(2 * q + 1):
-            wx = omega * px[p]
-            for r in range(2 * q + 1 - p):
-                if 2 <= p + r:
-                    raw[p, r] = np.add.reduceat(wx * py[r], starts)
-        K = self.n_unknowns
-        A = np.empty((pairs.n, K, K))
+    def monomials(self, xy: np.ndarray) -> np.ndarray:
+        """(n, K, U) scaled monomials ``x^a y^b / (a! b!)`` of padded offsets (n, K, 2)."""
+        px = _powers(xy[..., 0], self.degree)
+        py = _powers(xy[..., 1], self.degree)
+        m = np.empty(xy.shape[:-1] + (self.n_unknowns,))
         for a, (pa, qa) in enumerate(self.exponents):
-            for c in range(a, K):
-                pc, qc = self.exponents[c]
-                A[:, a, c] = A[:, c, a] = self.scale[a] * self.scale[c] * raw[pa + pc, qa + qc]
-        return A
+            np.multiply(px[pa], py[qa], out=m[..., a])
+        m *= self.scale
+        return m
 
     def weights(self, pairs: LocalPairs, max_condition: float) -> SchemeWeights:
-        K = self.n_unknowns
-        omega = pairs.W
-        A = self._moment_matrices(pairs, omega)
+        m = self.monomials(pairs.xy)
+        mw = m * pairs.W[..., None]  # zero in unused slots
+        A = pairs.moments(mw, m)  # (n, U, U) = sum_j W_ij m_a m_c
         # Equilibrate (Jacobi): As = D A D with D = diag(A)^(-1/2).
         diag = np.einsum("nkk->nk", A)
         finite = np.all(np.isfinite(A), axis=(1, 2)) & np.all(diag > 0, axis=1)
@@ -175,17 +165,10 @@ class HighOrderCorrected(Scheme):
         # 1-norm condition number of the equilibrated matrix, from its inverse
         Asinv, cond, failed = batched_inverse(As, max_condition)
         # Y = S A^-1 = S D As^-1 D (rows of A^-1 picked by S); zero for failed particles
-        Y = np.einsum("sa,nab->nsb", self.select * 1.0, d[:, :, None] * Asinv * d[:, None, :])
-        # Per-pair weights on f_j - f_i: c[p, s] = sum_a Y[row, s, a] omega_p m_a(x_p),
-        # as one batched product over rows padded to the largest neighbour count.
-        px = _powers(pairs.xy[:, 0], self.degree)
-        py = _powers(pairs.xy[:, 1], self.degree)
-        mw = np.empty((pairs.xy.shape[0], K))
-        for a, (pa, qa) in enumerate(self.exponents):
-            np.multiply(omega * self.scale[a], px[pa] * py[qa], out=mw[:, a])
-        pos, valid = pairs._padding()
-        c = np.matmul(mw[pos], Y.transpose(0, 2, 1))[valid]  # (P, 3) in pair order
-        return corrected_weights(pairs, c[:, :2], c[:, 2], failed, cond)
+        Y = np.matmul(self.select, d[:, :, None] * Asinv * d[:, None, :])  # (n, 3, U)
+        # weights on f_j - f_i: c[i, k, s] = sum_a Y[i, s, a] W_ik m_a(x_ik)
+        c = np.matmul(mw, Y.transpose(0, 2, 1))  # (n, K, 3)
+        return corrected_weights(c[..., :2], c[..., 2], failed, cond)
 
 
 class MSPH3(HighOrderCorrected):

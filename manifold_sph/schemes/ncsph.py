@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import LocalPairs, Scheme, SchemeWeights, batched_inverse, corrected_weights
-from .cspm import first_derivative_weights, quadratic_columns
+from .base import LocalPairs, Scheme, SchemeWeights, batched_inverse, corrected_weights, quadratic_columns
+from .cspm import first_derivative_weights
 
 #: Selects H_xx + H_yy from (g_x, g_y, H_xx, H_xy, H_yy).
 LAPLACE_ROW = np.array([0.0, 0.0, 1.0, 0.0, 1.0])
@@ -28,10 +28,10 @@ class NCSPH(Scheme):
 
     def weights(self, pairs: LocalPairs, max_condition: float) -> SchemeWeights:
         c, _, cond1, failed1 = first_derivative_weights(pairs, max_condition)
-        rows = np.concatenate([pairs.dW, pairs.d2W], axis=1) * pairs.dV[:, None]
-        cols = np.concatenate([pairs.xy, quadratic_columns(pairs.xy)], axis=1)
+        rows = np.concatenate([pairs.dW, pairs.d2W], axis=-1) * pairs.dV[..., None]
+        cols = np.concatenate([pairs.xy, quadratic_columns(pairs.xy)], axis=-1)
         A = pairs.moments(rows, cols)
         Ainv, cond2, failed2 = batched_inverse(A, max_condition)
-        y = np.einsum("nca,c->na", Ainv, LAPLACE_ROW)  # y = A^-T e
-        lap = np.einsum("pa,pa->p", rows, y[pairs.row])
-        return corrected_weights(pairs, c, lap, failed1 | failed2, np.maximum(cond1, cond2))
+        y = Ainv[:, 2, :] + Ainv[:, 4, :]  # y = A^-T e, e = LAPLACE_ROW
+        lap = np.matmul(rows, y[:, :, None])[..., 0]
+        return corrected_weights(c, lap, failed1 | failed2, np.maximum(cond1, cond2))
