@@ -18,7 +18,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from .kernels import Kernel
-from .neighbors import Neighborhood
+from .neighbors import Neighborhood, _run_chunks
 
 __all__ = ["AREA_METHODS", "AreaElements", "area_elements", "check_area_method", "kernel_matrix"]
 
@@ -27,15 +27,28 @@ AREA_METHODS = ("geometric", "numerical", "shepard")
 
 def kernel_matrix(nb: Neighborhood, xy: np.ndarray, kernel: Kernel, columns=None, n_cols=None) -> sp.csr_matrix:
     """Sparse matrix of kernel values ``W_ij = W_{h_i}(x_ij)`` (d = 2) on the neighbour pairs."""
-    rows = nb.rows
-    hr = nb.h[rows]
-    R = np.hypot(xy[:, 0], xy[:, 1]) / hr
-    vals = kernel.alpha(2) * kernel.w(R) / hr**2
     n = nb.n_rows
+    vals = np.empty(xy.shape[0])
+    a = kernel.alpha(2)
+    starts = list(range(0, n, _ROWS))
+
+    def chunk(c):  # rows lo:hi, disjoint slices of ``vals``
+        lo = starts[c]
+        hi = min(lo + _ROWS, n)
+        p0, p1 = nb.indptr[lo], nb.indptr[hi]
+        h = np.repeat(nb.h[lo:hi], np.diff(nb.indptr[lo : hi + 1]))
+        x, y = xy[p0:p1, 0], xy[p0:p1, 1]
+        vals[p0:p1] = kernel.profile(np.sqrt(x * x + y * y) / h) * (a / (h * h))
+
+    _run_chunks(chunk, len(starts), -1)
     shape = (n, n if n_cols is None else n_cols)
     if columns is None:
         return sp.csr_matrix((vals, nb.indices, nb.indptr), shape=shape)
-    return sp.coo_matrix((vals, (rows, columns)), shape=shape).tocsr()
+    return sp.coo_matrix((vals, (nb.rows, columns)), shape=shape).tocsr()
+
+
+#: Rows per chunk of :func:`kernel_matrix`.
+_ROWS = 8192
 
 
 @dataclass(frozen=True)

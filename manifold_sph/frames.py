@@ -9,9 +9,12 @@ Any orthonormal frame gives the same operators; this one is only a convention.
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 
-__all__ = ["tangent_frames", "check_frames", "project_pairs"]
+__all__ = ["tangent_frames", "check_frames", "project_pairs", "project_neighborhood"]
 
 #: Below this value of sqrt(n_x^2 + n_z^2) the normal counts as parallel to e_y.
 PARALLEL_TOL = 0.1
@@ -84,3 +87,64 @@ def project_pairs(points, u, v, rows, cols, candidates=None) -> np.ndarray:
     cand = points if candidates is None else candidates
     d = cand[cols] - points[rows]
     return np.stack([np.einsum("ij,ij->i", d, u[rows]), np.einsum("ij,ij->i", d, v[rows])], axis=1)
+
+
+#: Rows per chunk of :func:`project_neighborhood`.
+_PROJECT_ROWS = 4096
+
+
+def project_neighborhood(points, u, v, indptr, indices, candidates=None, workers: int = -1) -> np.ndarray:
+    """:func:`project_pairs` for CSR neighbour lists, in row chunks on threads.
+
+    Same result as ``project_pairs(points, u, v, rows, indices, candidates)``
+    with ``rows`` the row of every pair, without any (P, 3) temporaries: each
+    chunk works on its rows' neighbour slots.
+
+    Parameters
+    ----------
+    points : ndarray, shape (N, 3)
+    u, v : ndarray, shape (N, 3)
+    indptr : ndarray, shape (N + 1,)
+    indices : ndarray, shape (P,)
+        Column (index into ``candidates``) of every pair, row by row.
+    candidates : ndarray, shape (M, 3), optional
+    workers : int
+        Threads (-1: one per core).
+
+    Returns
+    -------
+    ndarray, shape (P, 2)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> p = np.array([[0.0, 0.0, 0.0], [1.0, 2.0, 3.0]])
+    >>> u, v = tangent_frames(np.array([[0.0, 0.0, 1.0]] * 2))
+    >>> project_neighborhood(p, u, v, np.array([0, 2, 3]), np.array([0, 1, 1])).tolist()
+    [[0.0, 0.0], [1.0, 2.0], [0.0, 0.0]]
+    """
+    cand = points if candidates is None else candidates
+    n = indptr.size - 1
+    out = np.empty((indices.size, 2))
+    starts = list(range(0, n, _PROJECT_ROWS))
+
+    def chunk(lo):
+        hi = min(lo + _PROJECT_ROWS, n)
+        first = indptr[lo:hi]
+        counts = indptr[lo + 1 : hi + 1] - first
+        k = int(counts.max()) if counts.size else 0
+        valid = np.arange(k)[None, :] < counts[:, None]
+        pos = np.where(valid, first[:, None] + np.arange(k)[None, :], 0)
+        d = cand[indices[pos]] - points[lo:hi, None, :]
+        p0, p1 = indptr[lo], indptr[hi]
+        out[p0:p1, 0] = np.einsum("nkd,nd->nk", d, u[lo:hi])[valid]
+        out[p0:p1, 1] = np.einsum("nkd,nd->nk", d, v[lo:hi])[valid]
+
+    nthreads = min(len(starts), (os.cpu_count() or 1) if workers == -1 else max(1, int(workers)))
+    if nthreads > 1:
+        with ThreadPoolExecutor(max_workers=nthreads) as pool:
+            list(pool.map(chunk, starts))
+    else:
+        for lo in starts:
+            chunk(lo)
+    return out

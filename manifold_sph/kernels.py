@@ -206,6 +206,16 @@ class Kernel:
         """
         return self._mask(R, self._dw_over_R)
 
+    def profile(self, R: np.ndarray) -> np.ndarray:
+        """:meth:`w` without validation, for arrays of non-negative ``R`` (the assembly's inner loop).
+
+        Examples
+        --------
+        >>> QuinticSpline().profile(np.array([0.0, 3.5])).tolist()
+        [66.0, 0.0]
+        """
+        return self.w(R)
+
     def radial_terms(self, R: np.ndarray):
         """``(w, w'/R, (w'' - w'/R) / R^2)`` at non-negative scaled distances, in one pass.
 
@@ -459,6 +469,13 @@ class QuinticSpline(Kernel):
         inner = -120.0 + 120.0 * R**2 - 50.0 * R**3
         safe = np.where(R >= 1.0, R, 1.0)
         return np.where(R < 1.0, inner, self._dw(safe) / safe)
+
+    def profile(self, R: np.ndarray) -> np.ndarray:
+        a = np.maximum(3.0 - R, 0.0)
+        b = np.maximum(2.0 - R, 0.0)
+        c = np.maximum(1.0 - R, 0.0)
+        a2, b2, c2 = a * a, b * b, c * c
+        return a2 * a2 * a - 6.0 * (b2 * b2 * b) + 15.0 * (c2 * c2 * c)
 
     def radial_terms(self, R: np.ndarray):
         # Fused: one set of powers of (3-R)_+, (2-R)_+, (1-R)_+ for all three factors.

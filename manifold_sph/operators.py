@@ -59,7 +59,7 @@ class OperatorSet:
         support = self.kernel.support
         if h is None:
             h, self._knn = smoothing_length_for_count(points, self.neighbors, support, tree=tree, return_knn=True)
-            return h
+            return h  # the k-NN query is reused by the neighbour search (None for large clouds)
         if isinstance(h, str):
             if h != "adaptive":
                 raise ValueError(f"h must be None, 'adaptive', a positive number or an array of shape ({n},), got {h!r}")
@@ -81,7 +81,8 @@ class OperatorSet:
             )
 
     def _setup(self, nb, xy, frames, area, total_area, columns=None, column_normals=None):
-        """Area elements and assembly. ``frames`` (N, 2, D) maps tangent-plane components to ambient ones.
+        """Area elements and assembly. ``frames`` (N, 2, D) maps tangent-plane components to ambient ones;
+        ``column_normals`` (N, D), when given, are the normals the divergence projects each column's vector on.
 
         Area elements are computed here when the scheme's weights use them, and
         on first access otherwise.
@@ -197,7 +198,7 @@ class OperatorSet:
             D, n = self._dim, self.n_points
             rows, c = self._pair_coefficients()
             if self._column_normals is not None:
-                nj = self._column_normals
+                nj = self._column_normals[self._columns]
                 c = c - np.einsum("pd,pd->p", c, nj)[:, None] * nj  # (I - n_j n_j^T) c
             r = np.repeat(rows, D)
             cols = (D * self._columns[:, None] + np.arange(D)).ravel()

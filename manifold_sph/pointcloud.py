@@ -89,11 +89,24 @@ class PointCloud:
 
 
 def _check_duplicates(pts: np.ndarray) -> None:
-    """Raise ValueError if two rows of ``pts`` are identical, reporting how many."""
-    _, inverse, counts = np.unique(pts, axis=0, return_inverse=True, return_counts=True)
+    """Raise ValueError if two rows of ``pts`` are identical, reporting how many.
+
+    Rows are hashed to one 64-bit key each (a sort of N integers); only rows
+    whose keys collide are compared exactly.
+    """
+    bits = np.ascontiguousarray(pts + 0.0).view(np.uint64)  # + 0.0: -0.0 and 0.0 are the same point
+    key = np.zeros(bits.shape[0], dtype=np.uint64)
+    for c in range(bits.shape[1]):
+        key = (key * np.uint64(0x9E3779B97F4A7C15)) ^ bits[:, c] ^ (bits[:, c] >> np.uint64(29))
+    order = np.argsort(key, kind="stable")
+    same = key[order[1:]] == key[order[:-1]]
+    if not same.any():
+        return
+    cand = np.unique(np.concatenate([order[1:][same], order[:-1][same]]))
+    _, inverse, counts = np.unique(pts[cand] + 0.0, axis=0, return_inverse=True, return_counts=True)
     extra = int((counts - 1).sum())
     if extra:
-        first = np.flatnonzero(counts[inverse.ravel()] > 1)[:6]
+        first = cand[np.flatnonzero(counts[inverse.ravel()] > 1)[:6]]
         raise ValueError(
             f"points must be distinct, but {extra} point(s) duplicate others "
             f"(indices involved include {first.tolist()}); merge duplicates first"

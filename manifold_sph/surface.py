@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .frames import check_frames, project_pairs, tangent_frames
+from .frames import check_frames, project_neighborhood, tangent_frames
 from .neighbors import find_neighbors
 from .operators import OperatorSet
 from .pointcloud import PointCloud
@@ -119,11 +119,11 @@ class Surface(OperatorSet):
         self.normal_threshold = float(normal_threshold)
         self.u, self.v = tangent_frames(nrm)
         check_frames(nrm, self.u, self.v)
-        xy = project_pairs(pts, self.u, self.v, nb.rows, nb.indices)
+        xy = project_neighborhood(pts, self.u, self.v, nb.indptr, nb.indices)
         if total_area is None and cloud.shape is not None:
             total_area = getattr(cloud.shape, "area", None)
         frames = np.stack([self.u, self.v], axis=1)
-        self._setup(nb, xy, frames, area, total_area, column_normals=nrm[nb.indices])
+        self._setup(nb, xy, frames, area, total_area, column_normals=nrm)
 
     @property
     def points(self) -> np.ndarray:
