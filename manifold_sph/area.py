@@ -17,16 +17,17 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from ._sparse import RowBlocks
 from .kernels import Kernel
 from .neighbors import Neighborhood, _run_chunks
 
-__all__ = ["AREA_METHODS", "AreaElements", "area_elements", "check_area_method", "kernel_matrix"]
+__all__ = ["AREA_METHODS", "AreaElements", "area_elements", "check_area_method", "kernel_matrix", "kernel_values"]
 
 AREA_METHODS = ("geometric", "numerical", "shepard")
 
 
-def kernel_matrix(nb: Neighborhood, xy: np.ndarray, kernel: Kernel, columns=None, n_cols=None) -> sp.csr_matrix:
-    """Sparse matrix of kernel values ``W_ij = W_{h_i}(x_ij)`` (d = 2) on the neighbour pairs."""
+def kernel_values(nb: Neighborhood, xy: np.ndarray, kernel: Kernel) -> np.ndarray:
+    """Kernel values ``W_ij = W_{h_i}(x_ij)`` (d = 2) of the neighbour pairs, shape (P,), in row chunks on threads."""
     n = nb.n_rows
     vals = np.empty(xy.shape[0])
     a = kernel.alpha(2)
@@ -41,9 +42,19 @@ def kernel_matrix(nb: Neighborhood, xy: np.ndarray, kernel: Kernel, columns=None
         vals[p0:p1] = kernel.profile(np.sqrt(x * x + y * y) / h) * (a / (h * h))
 
     _run_chunks(chunk, len(starts), -1)
+    return vals
+
+
+def kernel_matrix(nb: Neighborhood, xy: np.ndarray, kernel: Kernel, columns=None, n_cols=None, *, _share=False) -> sp.csr_matrix:
+    """Sparse matrix of kernel values ``W_ij = W_{h_i}(x_ij)`` (d = 2) on the neighbour pairs.
+
+    ``columns`` (P,) maps pairs to matrix columns (ghosts to their owners; duplicates are summed).
+    """
+    vals = kernel_values(nb, xy, kernel)
+    n = nb.n_rows
     shape = (n, n if n_cols is None else n_cols)
-    if columns is None:
-        return sp.csr_matrix((vals, nb.indices, nb.indptr), shape=shape)
+    if columns is None:  # ``_share``: the matrix may use the neighbourhood's index arrays (internal use)
+        return sp.csr_matrix((vals, nb.indices, nb.indptr), shape=shape, copy=not _share)
     return sp.coo_matrix((vals, (nb.rows, columns)), shape=shape).tocsr()
 
 
@@ -113,7 +124,7 @@ def area_elements(
     """
     n = nb.n_rows
     check_area_method(method, total_area)
-    A = kernel_matrix(nb, xy, kernel, columns=columns, n_cols=n)
+    A = kernel_matrix(nb, xy, kernel, columns=columns, n_cols=n, _share=True)  # A never leaves this function
     if method == "geometric":
         dV = np.full(n, float(total_area) / n)
     elif method == "shepard":
@@ -131,12 +142,17 @@ def area_elements(
 
 def _solve_partition_of_unity(A: sp.csr_matrix, rtol: float = 1e-15):
     """Solve ``A dV = 1``: BiCGSTAB with the Shepard (row-sum) preconditioner, started
-    from the Shepard elements; sparse LU if the iteration does not converge."""
+    from the Shepard elements, to a relative residual of ``rtol``; sparse LU if
+    the iteration does not converge. Round-off level (1e-15) keeps the operators
+    invariant under rotation, translation and scaling to ~1e-11: at 1e-12 the
+    elements' residual, amplified by ill-conditioned boundary systems (cond ~3e4),
+    showed as 2e-8 differences (measured, planar ncsph), for ~25 % fewer iterations."""
     n = A.shape[0]
     ones = np.ones(n)
     rowsum = np.asarray(A.sum(axis=1)).ravel()
     if np.all(rowsum > 0):
-        dV, info = spla.bicgstab(A, ones, x0=1.0 / rowsum, rtol=rtol, atol=0.0, M=sp.diags(1.0 / rowsum), maxiter=2000)
+        op = spla.LinearOperator(A.shape, matvec=RowBlocks(A).matvec, dtype=A.dtype)  # threaded products
+        dV, info = spla.bicgstab(op, ones, x0=1.0 / rowsum, rtol=rtol, atol=0.0, M=sp.diags(1.0 / rowsum), maxiter=2000)
         if info == 0 and np.all(np.isfinite(dV)) and np.abs(A @ dV - 1.0).max() < 1e-9:
             return dV
     with np.errstate(all="ignore"):

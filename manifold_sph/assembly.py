@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import os
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
@@ -27,32 +26,67 @@ __all__ = ["Assembled", "assemble", "pair_kernel_data"]
 CHUNK_ROWS = 2048
 
 
-@dataclass
 class Assembled:
     """Operator matrices of one scheme, and what the robustness checks found.
 
     Attributes
     ----------
-    dx, dy, lap : scipy.sparse.csr_matrix, shape (N, M)
-        Tangent-plane derivative and Laplacian weights (M columns: particles).
+    lap : scipy.sparse.csr_matrix, shape (N, M)
+        Laplacian weights (M columns: particles).
+    dx, dy : scipy.sparse.csr_matrix, shape (N, M)
+        Tangent-plane derivative weights, built from ``pair_dx``/``pair_dy`` on first access.
+    pair_dx, pair_dy, pair_lap : ndarray, shape (P,)
+        The weights per neighbour pair (before duplicate columns are summed).
     condition : ndarray, shape (N,)
         Largest condition number among the local systems of the scheme first tried.
-    scheme_used : ndarray of str, shape (N,)
-        The scheme that produced each particle's row.
+    used_code : ndarray of int8, shape (N,)
+        Index into ``used_names`` of the scheme that produced each particle's row.
+    used_names : tuple of str
+        The scheme first tried, then its fallback chain.
     fallback : dict
         ``{scheme name: indices}`` of particles that fell back *to* that scheme.
-    pair_dx, pair_dy : ndarray, shape (P,)
-        The derivative weights per neighbour pair (before duplicate columns are summed).
     """
 
-    dx: sp.csr_matrix
-    dy: sp.csr_matrix
-    lap: sp.csr_matrix
-    condition: np.ndarray
-    scheme_used: np.ndarray
-    fallback: dict = field(default_factory=dict)
-    pair_dx: np.ndarray | None = None
-    pair_dy: np.ndarray | None = None
+    def __init__(self, pair_dx, pair_dy, pair_lap, make_csr, condition, used_code, used_names, fallback):
+        self.pair_dx, self.pair_dy, self.pair_lap = pair_dx, pair_dy, pair_lap
+        self._make_csr = make_csr
+        self.condition = condition
+        self.used_code = used_code
+        self.used_names = used_names
+        self.fallback = fallback
+        self._matrices = {}
+
+    def _matrix(self, name: str) -> sp.csr_matrix:
+        if name not in self._matrices:
+            self._matrices[name] = self._make_csr(getattr(self, "pair_" + name))
+        return self._matrices[name]
+
+    @property
+    def dx(self) -> sp.csr_matrix:
+        return self._matrix("dx")
+
+    @property
+    def dy(self) -> sp.csr_matrix:
+        return self._matrix("dy")
+
+    @property
+    def lap(self) -> sp.csr_matrix:
+        return self._matrix("lap")
+
+    @property
+    def scheme_used(self) -> np.ndarray:
+        """(N,) name of the scheme that produced each particle's row."""
+        return np.asarray(self.used_names)[self.used_code]
+
+
+def _chain(scheme: Scheme) -> tuple:
+    """Names of ``scheme`` and its fallbacks, in order."""
+    names = [scheme.name]
+    current = scheme
+    while current.fallback is not None:
+        current = get_scheme(current.fallback)
+        names.append(current.name)
+    return tuple(names)
 
 
 def pair_kernel_data(kernel: Kernel, xy: np.ndarray, h_rows: np.ndarray):
@@ -94,23 +128,29 @@ def _local_pairs(lo, hi, nb, xy, dV_pairs, kernel) -> LocalPairs:
 
 
 def _weights_with_fallback(pairs: LocalPairs, scheme: Scheme, max_condition: float):
-    """Weights of ``scheme`` with failed particles recomputed down its fallback chain."""
+    """Weights of ``scheme`` with failed particles recomputed down its fallback chain.
+
+    Returns ``grad, lap, condition, used`` with ``used`` (n,) int8 the position
+    in the chain (:func:`_chain`) of the scheme each particle got.
+    """
     n = pairs.n
     counts = pairs.counts
     res = scheme.weights(pairs, max_condition)
     grad, lap = res.grad, res.lap
     failed = res.failed | (counts < scheme.min_neighbors)
-    used = np.full(n, scheme.name, dtype=object)
+    used = np.zeros(n, dtype=np.int8)
     todo = np.flatnonzero(failed)
     current = scheme
+    level = 0
     while todo.size and current.fallback is not None:
         current = get_scheme(current.fallback)
+        level += 1
         r = current.weights(pairs.take(todo), max_condition)
         sub_failed = r.failed | (counts[todo] < current.min_neighbors)
         ok = todo[~sub_failed]
         grad[ok] = r.grad[~sub_failed]
         lap[ok] = r.lap[~sub_failed]
-        used[ok] = current.name
+        used[ok] = level
         todo = todo[sub_failed]
     return grad, lap, res.condition, used
 
@@ -152,7 +192,7 @@ def assemble(
     gy = np.empty(xy.shape[0])
     lp = np.empty(xy.shape[0])
     condition = np.empty(n)
-    used = np.empty(n, dtype=object)
+    used = np.empty(n, dtype=np.int8)
 
     def chunk(lo):  # writes disjoint slices: safe to run chunks in threads
         hi = min(lo + CHUNK_ROWS, n)
@@ -175,18 +215,21 @@ def assemble(
     else:
         for lo in starts:
             chunk(lo)
-    rows = nb.rows
-    cols = nb.indices if columns is None else columns
     shape = (n, n if n_cols is None else n_cols)
+    if columns is None:  # pairs are already in CSR order, one entry per (row, column)
 
-    def csr(data):
-        if columns is None:  # pairs are already in CSR order, one entry per (row, column)
-            return sp.csr_matrix((data, nb.indices, nb.indptr), shape=shape)
-        return sp.coo_matrix((data, (rows, cols)), shape=shape).tocsr()  # ghosts: sum duplicates
+        def csr(data):
+            # each matrix owns its index arrays (in-place scipy methods must not touch the neighbourhood)
+            m = sp.csr_matrix((data, nb.indices.copy(), nb.indptr.copy()), shape=shape, copy=False)
+            m.has_sorted_indices = False  # neighbours are ordered by distance, not column
+            return m
 
-    used = used.astype(str)
-    fallback = {str(name): np.flatnonzero(used == name) for name in np.unique(used) if name != scheme.name}
-    return Assembled(
-        dx=csr(gx), dy=csr(gy), lap=csr(lp), condition=condition, scheme_used=used, fallback=fallback,
-        pair_dx=gx, pair_dy=gy,
-    )
+    else:
+        rows = nb.rows
+
+        def csr(data):
+            return sp.coo_matrix((data, (rows, columns)), shape=shape).tocsr()  # ghosts: sum duplicates
+
+    names = _chain(scheme)
+    fallback = {names[c]: np.flatnonzero(used == c) for c in range(1, len(names)) if np.any(used == c)}
+    return Assembled(gx, gy, lp, csr, condition, used, names, fallback)

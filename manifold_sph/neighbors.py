@@ -33,9 +33,10 @@ class Neighborhood:
     Attributes
     ----------
     indptr : ndarray, shape (N + 1,)
-        Row offsets into ``indices``.
+        Row offsets into ``indices`` (int32 when the counts allow, else int64).
     indices : ndarray, shape (P,)
-        Neighbour index of every pair, the particle itself first in its row.
+        Neighbour index of every pair, the particle itself first in its row
+        (same integer type as ``indptr``).
     h : ndarray, shape (N,)
         Smoothing length of each row particle (the support radius is ``support * h``).
     support : float
@@ -247,9 +248,6 @@ def find_neighbors(
         dist, idx = knn
     else:
         dist, idx = _radius_knn(tree, pts, radii, workers)
-    # keep only the columns some row needs
-    kmax = int((dist < radii[:, None]).sum(axis=1).max())
-    dist, idx = dist[:, :kmax], idx[:, :kmax]
     nr = None if normals is None else np.asarray(normals, dtype=np.float64)
     cn = None if normals is None else np.asarray(cnorm, dtype=np.float64)
     counts = np.empty(n, dtype=np.int64)
@@ -267,12 +265,14 @@ def find_neighbors(
             n_filtered[lo:hi] = (mask & ~keep).sum(axis=1)
             mask &= keep
         counts[lo:hi] = mask.sum(axis=1)
-        parts[c] = idx[lo:hi][mask]
+        parts[c] = idx[lo:hi][mask].astype(index_dtype, copy=False)
 
+    # int32 indices when they fit: scipy's sparse matrices then take them without conversion
+    index_dtype = np.int32 if max(dist.size, cand.shape[0]) < 2**31 - 1 else np.int64
     _run_chunks(chunk, len(starts), workers)
-    indptr = np.zeros(n + 1, dtype=np.int64)
+    indptr = np.zeros(n + 1, dtype=index_dtype)
     np.cumsum(counts, out=indptr[1:])
-    indices = (np.concatenate(parts) if parts else np.zeros(0)).astype(np.int64)
+    indices = np.concatenate(parts) if parts else np.zeros(0, dtype=index_dtype)
     return Neighborhood(indptr=indptr, indices=indices, h=hv, support=float(support), n_filtered=int(n_filtered.sum()))
 
 
@@ -296,7 +296,7 @@ def _radius_knn(tree: cKDTree, pts: np.ndarray, radii: np.ndarray, workers: int)
     """Nearest-neighbour query holding every candidate within ``radii`` of each point.
 
     The number of neighbours asked for comes from a small strided subsample
-    (its largest count, plus a margin); rows that come back full are asked
+    (its largest count, plus 2); rows that come back full are asked
     again with twice as many, until none is full.
     """
     n, m = pts.shape[0], tree.n
@@ -309,7 +309,7 @@ def _radius_knn(tree: cKDTree, pts: np.ndarray, radii: np.ndarray, workers: int)
         if k >= m or cnt.max() < k:
             break
         k = min(2 * k, m)
-    k = min(m, int(1.15 * cnt.max()) + 4)
+    k = min(m, int(cnt.max()) + 2)  # rows that need more are asked again below
     dist, idx = _knn(tree, pts, k, rmax, workers)
     full = np.flatnonzero(dist[:, -1] < radii)
     while full.size and k < m:

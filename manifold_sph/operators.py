@@ -19,6 +19,7 @@ import warnings
 import numpy as np
 import scipy.sparse as sp
 
+from ._sparse import RowBlocks
 from ._validation import as_field, check_positive
 from .area import AreaElements, area_elements, check_area_method
 from .assembly import Assembled, assemble
@@ -110,8 +111,8 @@ class OperatorSet:
         self._ops: Assembled = assemble(
             nb, xy, dV, self.kernel, self.scheme, columns=columns, n_cols=nb.n_rows, max_condition=self.max_condition
         )
-        for name, m in (("dx", self._ops.dx), ("dy", self._ops.dy), ("lap", self._ops.lap)):
-            if not np.all(np.isfinite(m.data)):  # pragma: no cover - guarded by the fallbacks
+        for name in ("dx", "dy", "lap"):
+            if not np.all(np.isfinite(getattr(self._ops, "pair_" + name))):  # pragma: no cover - guarded by the fallbacks
                 raise FloatingPointError(f"operator {name} has non-finite weights; please report this cloud")
         if self._ops.fallback:
             parts = ", ".join(f"{idx.size} to {name!r}" for name, idx in self._ops.fallback.items())
@@ -206,6 +207,13 @@ class OperatorSet:
         return self._cache["div"]
 
     # ------------------------------------------------------------ operators
+    def _blocks(self, name: str) -> RowBlocks:
+        """The matrix ``dx``, ``dy`` or ``lap`` split for threaded products (built once)."""
+        key = ("blocks", name)
+        if key not in self._cache:
+            self._cache[key] = RowBlocks(getattr(self._ops, name))
+        return self._cache[key]
+
     def _tangential(self, F: np.ndarray) -> np.ndarray:
         return F
 
@@ -222,7 +230,7 @@ class OperatorSet:
         """
         f = as_field("f", f, self.n_points)
         e = self._frames
-        return (self._ops.dx @ f)[:, None] * e[:, 0] + (self._ops.dy @ f)[:, None] * e[:, 1]
+        return (self._blocks("dx") @ f)[:, None] * e[:, 0] + (self._blocks("dy") @ f)[:, None] * e[:, 1]
 
     def divergence(self, F) -> np.ndarray:
         """Divergence of (the tangential part of) a vector field.
@@ -237,7 +245,7 @@ class OperatorSet:
         """
         F = self._tangential(as_field("F", F, self.n_points, self._dim))
         e = self._frames
-        dx, dy = self._ops.dx, self._ops.dy
+        dx, dy = self._blocks("dx"), self._blocks("dy")
         return np.einsum("nk,nk->n", e[:, 0], dx @ F) + np.einsum("nk,nk->n", e[:, 1], dy @ F)
 
     def laplacian(self, f) -> np.ndarray:
@@ -251,5 +259,5 @@ class OperatorSet:
         -------
         ndarray, shape (N,)
         """
-        return self._ops.lap @ as_field("f", f, self.n_points)
+        return self._blocks("lap") @ as_field("f", f, self.n_points)
 

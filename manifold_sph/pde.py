@@ -23,6 +23,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from ._sparse import RowBlocks
 from ._validation import as_field, check_in, check_int, check_positive
 from .operators import OperatorSet
 
@@ -333,8 +334,9 @@ def heat(
         solve = _implicit_solver(A, solver)
         rhs_fixed = theta * a * (L[free][:, mask] @ values) if mask.any() else 0.0
     record = _Recorder("heat", u, dt, steps, every, callback)
+    Lb = RowBlocks(L)  # threaded products
     for step in range(1, steps + 1):
-        Lu = L @ u
+        Lu = Lb @ u
         if theta == 0:
             u = u + a * Lu
         else:
@@ -442,9 +444,10 @@ def wave(
     u = prev + dt * v + 0.5 * b * (L @ prev)
     u[mask] = values
     record = _Recorder("wave", prev, dt, steps, every, callback)
+    Lb = RowBlocks(L)  # threaded products
     for step in range(1, steps + 1):
         if step > 1:
-            prev, u = u, 2 * u - prev + b * (L @ u)
+            prev, u = u, 2 * u - prev + b * (Lb @ u)
             u[mask] = values
         record(step, u)
     return record.result(u)
