@@ -89,23 +89,35 @@ def _chain(scheme: Scheme) -> tuple:
     return tuple(names)
 
 
-def pair_kernel_data(kernel: Kernel, xy: np.ndarray, h_rows: np.ndarray):
-    """Kernel data for offsets ``xy`` (..., 2) and row smoothing lengths ``h_rows`` (...).
+def pair_kernel_data(kernel: Kernel, x: np.ndarray, y: np.ndarray, h: np.ndarray):
+    """Kernel data for padded offsets ``x``, ``y`` (n, K) of rows with smoothing lengths ``h`` (n,).
 
     Returns normalised ``(xi, W, dW, d2W, dw_over_r)`` as in :class:`LocalPairs` (h = 1 units):
-    shapes (..., 2), (...), (..., 2), (..., 3), (...).
+    shapes (n, 2, K), (n, K), (n, 2, K), (n, 3, K), (n, K).
     """
-    xi = xy / h_rows[..., None]
-    x, y = xi[..., 0], xi[..., 1]
-    R = np.sqrt(x * x + y * y)
+    n, k = x.shape
+    xi = np.empty((n, 2, k))
+    inv_h = (1.0 / h)[:, None]
+    X = np.multiply(x, inv_h, out=xi[:, 0])
+    Y = np.multiply(y, inv_h, out=xi[:, 1])
+    R = np.sqrt(X * X + Y * Y)
     w, q, t = kernel.radial_terms(R)
     a = kernel.alpha(2)
     q *= a  # alpha w'(R) / R, finite at R = 0
     t *= a
-    dW = xi * -q[..., None]  # gradient of W(x_i - x_j) with respect to x_i
-    tx = t * x
-    d2W = np.stack([q + tx * x, tx * y, q + t * y * y], axis=-1)
-    return xi, a * w, dW, d2W, q
+    w *= a
+    dW = np.empty((n, 2, k))
+    np.multiply(X, q, out=dW[:, 0])  # gradient of W(x_i - x_j) with respect to x_i: -q xi
+    np.multiply(Y, q, out=dW[:, 1])
+    np.negative(dW, out=dW)
+    d2W = np.empty((n, 3, k))
+    tx = t * X
+    np.multiply(tx, X, out=d2W[:, 0])
+    d2W[:, 0] += q
+    np.multiply(tx, Y, out=d2W[:, 1])
+    np.multiply(t * Y, Y, out=d2W[:, 2])
+    d2W[:, 2] += q
+    return xi, w, dW, d2W, q
 
 
 def _local_pairs(lo, hi, nb, xy, dV_pairs, kernel) -> LocalPairs:
@@ -118,11 +130,10 @@ def _local_pairs(lo, hi, nb, xy, dV_pairs, kernel) -> LocalPairs:
     pos = np.where(valid, starts[:, None] + slot[None, :], 0)
     h = nb.h[lo:hi]
     far = kernel.support * h[:, None]  # outside the support: every kernel factor vanishes
-    off = np.empty((hi - lo, k, 2))
-    off[..., 0] = np.where(valid, xy[pos, 0], far)
-    off[..., 1] = np.where(valid, xy[pos, 1], 0.0)
-    xi, W, dW, d2W, q = pair_kernel_data(kernel, off, np.broadcast_to(h[:, None], valid.shape))
-    xi[~valid] = 0.0
+    x = np.where(valid, xy[pos, 0], far)
+    y = np.where(valid, xy[pos, 1], 0.0)
+    xi, W, dW, d2W, q = pair_kernel_data(kernel, x, y, h)
+    xi[:, 0][~valid] = 0.0
     dV = np.where(valid, dV_pairs[pos], 0.0) / (h * h)[:, None]
     return LocalPairs(valid=valid, xy=xi, dV=dV, W=W, dW=dW, d2W=d2W, dw_over_r=q)
 
@@ -201,8 +212,8 @@ def assemble(
         p0, p1 = nb.indptr[lo], nb.indptr[hi]
         valid = pairs.valid
         h = nb.h[lo:hi][:, None]
-        gx[p0:p1] = (grad[..., 0] / h)[valid]  # row-major compress: CSR pair order
-        gy[p0:p1] = (grad[..., 1] / h)[valid]
+        gx[p0:p1] = (grad[:, 0] / h)[valid]  # row-major compress: CSR pair order
+        gy[p0:p1] = (grad[:, 1] / h)[valid]
         lp[p0:p1] = (lap / (h * h))[valid]
         condition[lo:hi] = cond
         used[lo:hi] = u

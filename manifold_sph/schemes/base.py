@@ -6,15 +6,17 @@ and kernel derivatives are expressed with ``h_i = 1`` (offsets divided by
 by ``1 / h_i`` and second derivatives by ``1 / h_i^2``. This keeps the local
 systems dimensionless, so one condition-number threshold fits every ``h``.
 
-Pair data are *padded*: particle ``i``'s neighbours occupy slots
-``0 .. counts[i] - 1`` of an ``(n, K)`` grid (``K`` the largest count in the
-chunk), the particle itself in slot 0. Every kernel quantity and area element
-is zero in the unused slots, so moment sums are plain batched matrix products
-(``(n, A, K) @ (n, K, C)``) with no gathers, and a subset of particles is a
+Pair data are *padded* and *component-major*: particle ``i``'s neighbours
+occupy slots ``0 .. counts[i] - 1`` of an ``(n, K)`` grid (``K`` the largest
+count in the chunk), the particle itself in slot 0, and vector quantities are
+``(n, components, K)``. Every kernel quantity and area element is zero in the
+unused slots, so moment sums are batched matrix products
+``(n, A, K) @ (n, K, C)`` of contiguous operands with no gathers, the weights
+``M^-1 rows`` are ``(n, A, A) @ (n, A, K)``, and a subset of particles is a
 slice of the first axis.
 
 A scheme returns weights ``w`` such that, for the particle ``i``,
-``d f / d x (i) = sum_k w_grad[i, k, 0] f[neighbour k of i]`` over its slots
+``d f / d x (i) = sum_k w_grad[i, 0, k] f[neighbour k of i]`` over its slots
 (itself included), likewise for ``d/dy`` and the Laplacian; unused slots carry
 zero weight.
 """
@@ -44,15 +46,15 @@ class LocalPairs:
     ----------
     valid : ndarray of bool, shape (n, K)
         True for the slots holding a neighbour; slot 0 is the particle itself.
-    xy : ndarray, shape (n, K, 2)
+    xy : ndarray, shape (n, 2, K)
         Offsets ``x_j - x_i`` in the tangent plane of ``i``, divided by ``h_i`` (0 in unused slots).
     dV : ndarray, shape (n, K)
         Area element of ``j`` divided by ``h_i^2`` (0 in unused slots).
     W : ndarray, shape (n, K)
         Kernel ``W(x_i - x_j)`` with ``h = 1`` in ``d = 2``.
-    dW : ndarray, shape (n, K, 2)
+    dW : ndarray, shape (n, 2, K)
         Its gradient with respect to ``x_i``.
-    d2W : ndarray, shape (n, K, 3)
+    d2W : ndarray, shape (n, 3, K)
         Its second derivatives ``(W_xx, W_xy, W_yy)``.
     dw_over_r : ndarray, shape (n, K)
         ``alpha_2 w'(R) / R`` (the Taylor Laplacian's factor), finite at ``R = 0``.
@@ -81,11 +83,12 @@ class LocalPairs:
 
     @staticmethod
     def moments(rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
-        """Per-particle moment matrices ``M[i, a, c] = sum_k rows[i, k, a] cols[i, k, c]``.
+        """Per-particle moment matrices ``M[i, a, c] = sum_k rows[i, a, k] cols[i, k, c]``.
 
-        ``rows`` (n, K, A), zero in unused slots, and ``cols`` (n, K, C) -> (n, A, C).
+        ``rows`` (n, A, K), zero in unused slots, and ``cols`` (n, K, C) -> (n, A, C):
+        one batched product (fastest with both operands contiguous).
         """
-        return np.matmul(rows.transpose(0, 2, 1), cols)
+        return np.matmul(rows, cols)
 
     @classmethod
     def from_flat(cls, indptr, xy, dV, W, dW, d2W, dw_over_r) -> "LocalPairs":
@@ -100,9 +103,10 @@ class LocalPairs:
         valid = np.arange(k)[None, :] < counts[:, None]
         pos = np.where(valid, indptr[:-1, None] + np.arange(k)[None, :], 0)
 
-        def pad(a):
+        def pad(a):  # (P, ...) -> (n, ..., K)
             a = np.asarray(a, dtype=np.float64)
-            return np.where(valid.reshape(valid.shape + (1,) * (a.ndim - 1)), a[pos], 0.0)
+            out = np.where(valid.reshape(valid.shape + (1,) * (a.ndim - 1)), a[pos], 0.0)
+            return np.ascontiguousarray(np.moveaxis(out, 1, -1))
 
         return cls(valid=valid, xy=pad(xy), dV=pad(dV), W=pad(W), dW=pad(dW), d2W=pad(d2W), dw_over_r=pad(dw_over_r))
 
@@ -113,7 +117,7 @@ class SchemeWeights:
 
     Attributes
     ----------
-    grad : ndarray, shape (n, K, 2)
+    grad : ndarray, shape (n, 2, K)
         Weights of ``(d/dx, d/dy)`` on ``f_j``.
     lap : ndarray, shape (n, K)
         Weights of the Laplacian on ``f_j``.
@@ -172,6 +176,14 @@ def _small_inverse(A: np.ndarray) -> np.ndarray:
         return inv / det[:, None, None]
 
 
+def _norm1(A: np.ndarray) -> np.ndarray:
+    """1-norms (largest absolute column sum) of a stack (n, k, k), summing rows one by one (fast for small k)."""
+    s = np.abs(A[:, 0, :])
+    for i in range(1, A.shape[1]):
+        s += np.abs(A[:, i, :])
+    return s.max(axis=1)
+
+
 def batched_inverse(A: np.ndarray, max_condition: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Invert a stack of small matrices, flagging the ill-conditioned ones.
 
@@ -215,7 +227,7 @@ def batched_inverse(A: np.ndarray, max_condition: float) -> tuple[np.ndarray, np
                 except np.linalg.LinAlgError:
                     pass
     with np.errstate(all="ignore"):
-        cond = np.abs(A).sum(axis=1).max(axis=1) * np.abs(inv).sum(axis=1).max(axis=1)
+        cond = _norm1(A) * _norm1(inv)
     cond = np.where(finite & np.isfinite(cond), cond, np.inf)
     failed = ~(cond <= max_condition)
     inv[failed] = 0.0
@@ -223,18 +235,18 @@ def batched_inverse(A: np.ndarray, max_condition: float) -> tuple[np.ndarray, np
 
 
 def quadratic_columns(xy: np.ndarray) -> np.ndarray:
-    """(..., 3) Taylor columns ``x^2/2, xy, y^2/2`` of offsets (..., 2)."""
-    x, y = xy[..., 0], xy[..., 1]
+    """(n, K, 3) Taylor columns ``x^2/2, xy, y^2/2`` of offsets (n, 2, K)."""
+    x, y = xy[:, 0], xy[:, 1]
     return np.stack([0.5 * x * x, x * y, 0.5 * y * y], axis=-1)
 
 
 def difference_to_weights(c: np.ndarray) -> np.ndarray:
     """Turn weights on ``f_j - f_i`` into weights on ``f_j``: slot 0 (the particle itself) takes minus the row sum.
 
-    ``c`` has shape (n, K) or (n, K, m), zero in unused slots; returns a new array of the same shape.
+    ``c`` has shape (n, K) or (n, m, K), zero in unused slots; returns a new array of the same shape.
     """
     w = c.copy()
-    w[:, 0] = -c[:, 1:].sum(axis=1)
+    w[..., 0] = -c[..., 1:].sum(axis=-1)
     return w
 
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import LocalPairs, Scheme, SchemeWeights, batched_inverse, quadratic_columns
+from .base import LocalPairs, Scheme, SchemeWeights, batched_inverse
 
 #: Rows of the unknown vector picking f_x, f_y and f_xx + f_yy.
 SELECT = np.array(
@@ -27,10 +27,11 @@ class MSPH(Scheme):
     min_neighbors = 6
 
     def weights(self, pairs: LocalPairs, max_condition: float) -> SchemeWeights:
-        rows = np.concatenate([pairs.W[..., None], pairs.dW, pairs.d2W], axis=-1) * pairs.dV[..., None]
-        cols = np.concatenate([np.ones(pairs.xy.shape[:-1] + (1,)), pairs.xy, quadratic_columns(pairs.xy)], axis=-1)
+        rows = np.concatenate([pairs.W[:, None, :], pairs.dW, pairs.d2W], axis=1) * pairs.dV[:, None, :]  # (n, 6, K)
+        x, y = pairs.xy[:, 0], pairs.xy[:, 1]
+        cols = np.stack([np.ones_like(x), x, y, 0.5 * x * x, x * y, 0.5 * y * y], axis=-1)  # (n, K, 6)
         A = pairs.moments(rows, cols)
         Ainv, cond, failed = batched_inverse(A, max_condition)
         Y = np.matmul(SELECT, Ainv)  # (n, 3, 6): rows of A^-1 picked by SELECT
-        w = np.matmul(rows, Y.transpose(0, 2, 1))  # (n, K, 3)
-        return SchemeWeights(grad=w[..., :2].copy(), lap=w[..., 2].copy(), failed=failed, condition=cond)
+        w = np.matmul(Y, rows)  # (n, 3, K)
+        return SchemeWeights(grad=w[:, :2], lap=w[:, 2], failed=failed, condition=cond)

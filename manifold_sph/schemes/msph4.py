@@ -78,7 +78,7 @@ sharp edges), or when the matrix is not finite. The chain is
 Memory
 ------
 The moment matrices are one batched product of the weighted monomials
-(n, K, U) with the monomials over each chunk's padded neighbour slots; the
+(n, U, K) with the monomials over each chunk's padded neighbour slots; the
 largest temporaries are these two arrays and the (n, U, U) matrices of the
 ``n`` rows of a chunk (U = 14 unknowns): about 20 MB for the assembly's
 2048-row chunks with 30 neighbours, never a per-pair (P, U, U) array.
@@ -143,19 +143,20 @@ class HighOrderCorrected(Scheme):
         self.select = sel
 
     def monomials(self, xy: np.ndarray) -> np.ndarray:
-        """(n, K, U) scaled monomials ``x^a y^b / (a! b!)`` of padded offsets (n, K, 2)."""
-        px = _powers(xy[..., 0], self.degree)
-        py = _powers(xy[..., 1], self.degree)
-        m = np.empty(xy.shape[:-1] + (self.n_unknowns,))
+        """(n, U, K) scaled monomials ``x^a y^b / (a! b!)`` of padded offsets (n, 2, K)."""
+        px = _powers(xy[:, 0], self.degree)
+        py = _powers(xy[:, 1], self.degree)
+        n, _, k = xy.shape
+        m = np.empty((n, self.n_unknowns, k))
         for a, (pa, qa) in enumerate(self.exponents):
-            np.multiply(px[pa], py[qa], out=m[..., a])
-        m *= self.scale
+            np.multiply(px[pa], py[qa], out=m[:, a])
+            m[:, a] *= self.scale[a]
         return m
 
     def weights(self, pairs: LocalPairs, max_condition: float) -> SchemeWeights:
         m = self.monomials(pairs.xy)
-        mw = m * pairs.W[..., None]  # zero in unused slots
-        A = pairs.moments(mw, m)  # (n, U, U) = sum_j W_ij m_a m_c
+        mw = m * pairs.W[:, None, :]  # (n, U, K), zero in unused slots
+        A = pairs.moments(mw, np.ascontiguousarray(m.transpose(0, 2, 1)))  # (n, U, U) = sum_j W_ij m_a m_c
         # Equilibrate (Jacobi): As = D A D with D = diag(A)^(-1/2).
         diag = np.einsum("nkk->nk", A)
         finite = np.all(np.isfinite(A), axis=(1, 2)) & np.all(diag > 0, axis=1)
@@ -166,9 +167,9 @@ class HighOrderCorrected(Scheme):
         Asinv, cond, failed = batched_inverse(As, max_condition)
         # Y = S A^-1 = S D As^-1 D (rows of A^-1 picked by S); zero for failed particles
         Y = np.matmul(self.select, d[:, :, None] * Asinv * d[:, None, :])  # (n, 3, U)
-        # weights on f_j - f_i: c[i, k, s] = sum_a Y[i, s, a] W_ik m_a(x_ik)
-        c = np.matmul(mw, Y.transpose(0, 2, 1))  # (n, K, 3)
-        return corrected_weights(c[..., :2], c[..., 2], failed, cond)
+        # weights on f_j - f_i: c[i, s, k] = sum_a Y[i, s, a] W_ik m_a(x_ik)
+        c = np.matmul(Y, mw)  # (n, 3, K)
+        return corrected_weights(c[:, :2], c[:, 2], failed, cond)
 
 
 class MSPH3(HighOrderCorrected):

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import LocalPairs, Scheme, SchemeWeights, batched_inverse, corrected_weights, quadratic_columns
+from .base import LocalPairs, Scheme, SchemeWeights, batched_inverse, corrected_weights
 from .cspm import first_derivative_weights
 
 #: Selects H_xx + H_yy from (g_x, g_y, H_xx, H_xy, H_yy).
@@ -28,10 +28,11 @@ class NCSPH(Scheme):
 
     def weights(self, pairs: LocalPairs, max_condition: float) -> SchemeWeights:
         c, _, cond1, failed1 = first_derivative_weights(pairs, max_condition)
-        rows = np.concatenate([pairs.dW, pairs.d2W], axis=-1) * pairs.dV[..., None]
-        cols = np.concatenate([pairs.xy, quadratic_columns(pairs.xy)], axis=-1)
+        rows = np.concatenate([pairs.dW, pairs.d2W], axis=1) * pairs.dV[:, None, :]  # (n, 5, K)
+        x, y = pairs.xy[:, 0], pairs.xy[:, 1]
+        cols = np.stack([x, y, 0.5 * x * x, x * y, 0.5 * y * y], axis=-1)  # (n, K, 5)
         A = pairs.moments(rows, cols)
         Ainv, cond2, failed2 = batched_inverse(A, max_condition)
-        y = Ainv[:, 2, :] + Ainv[:, 4, :]  # y = A^-T e, e = LAPLACE_ROW
-        lap = np.matmul(rows, y[:, :, None])[..., 0]
+        yv = Ainv[:, 2, :] + Ainv[:, 4, :]  # A^-T e, e = LAPLACE_ROW
+        lap = np.matmul(yv[:, None, :], rows)[:, 0]
         return corrected_weights(c, lap, failed1 | failed2, np.maximum(cond1, cond2))

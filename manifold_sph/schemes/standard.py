@@ -19,7 +19,7 @@ class Standard(Scheme):
     min_neighbors = 2
 
     def weights(self, pairs: LocalPairs, max_condition: float) -> SchemeWeights:
-        grad = difference_to_weights(pairs.dW * pairs.dV[..., None])
+        grad = difference_to_weights(pairs.dW * pairs.dV[:, None, :])
         lap = difference_to_weights(-2.0 * pairs.dw_over_r * pairs.dV)
         n = pairs.n
         return SchemeWeights(grad=grad, lap=lap, failed=np.zeros(n, dtype=bool), condition=np.ones(n))
