@@ -34,6 +34,11 @@ import sys
 import time
 import warnings
 
+# pycompadre's Kokkos/OpenMP threads spin while idle by default and would steal the
+# second core from our threaded steps run between its calls; let them sleep instead.
+# Set before any OpenMP runtime loads; an explicit user setting wins.
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
 import numpy as np
 
 from manifold_sph import Surface, shapes

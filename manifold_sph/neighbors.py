@@ -79,7 +79,7 @@ def _knn(tree: cKDTree, query: np.ndarray, k: int, radius: float, workers: int):
 
 
 #: Above this many points the uniform ``h`` is fitted on an evenly strided subsample.
-H_SAMPLE = 20000
+H_SAMPLE = 10000
 
 
 def _sample(n: int, size: int) -> np.ndarray:
