@@ -9,7 +9,8 @@ from .surface import Surface
 from .domain import Domain2D
 from .io import read, write
 from .normals import estimate_normals
+from .threads import get_num_threads, set_num_threads
 
 __version__ = "0.1.0"
 
-__all__ = ["PointCloud", "Surface", "Domain2D", "read", "write", "estimate_normals", "__version__"]
+__all__ = ["PointCloud", "Surface", "Domain2D", "read", "write", "estimate_normals", "get_num_threads", "set_num_threads", "__version__"]

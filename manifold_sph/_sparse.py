@@ -13,6 +13,8 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import scipy.sparse as sp
 
+from .threads import get_num_threads
+
 __all__ = ["RowBlocks"]
 
 #: Below this many stored entries one thread is faster than two.
@@ -51,7 +53,7 @@ class RowBlocks:
         self.shape = A.shape
         self.dtype = A.dtype
         if n_blocks is None:
-            n_blocks = (os.cpu_count() or 1) if A.nnz >= MIN_THREADED_NNZ else 1
+            n_blocks = get_num_threads() if A.nnz >= MIN_THREADED_NNZ else 1
         n_blocks = max(1, min(int(n_blocks), A.shape[0]))
         # split by stored entries, not rows, so the threads get equal work
         cuts = np.searchsorted(A.indptr, np.linspace(0, A.nnz, n_blocks + 1)[1:-1])
@@ -61,6 +63,8 @@ class RowBlocks:
     def __matmul__(self, x: np.ndarray) -> np.ndarray:
         if len(self.blocks) == 1:
             return self.blocks[0] @ x
+        if get_num_threads() == 1:  # the blocks were cut for more threads than are now allowed
+            return np.concatenate([b @ x for b in self.blocks])
         out = np.empty((self.shape[0],) + x.shape[1:], dtype=np.result_type(self.dtype, x.dtype))
 
         def job(b):

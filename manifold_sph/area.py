@@ -19,7 +19,8 @@ import scipy.sparse.linalg as spla
 
 from ._sparse import RowBlocks
 from .kernels import Kernel
-from .neighbors import Neighborhood, _run_chunks
+from .neighbors import Neighborhood
+from .threads import run_chunks
 
 __all__ = ["AREA_METHODS", "AreaElements", "area_elements", "check_area_method", "kernel_matrix", "kernel_values"]
 
@@ -41,7 +42,7 @@ def kernel_values(nb: Neighborhood, xy: np.ndarray, kernel: Kernel) -> np.ndarra
         x, y = xy[p0:p1, 0], xy[p0:p1, 1]
         vals[p0:p1] = kernel.profile(np.sqrt(x * x + y * y) / h) * (a / (h * h))
 
-    _run_chunks(chunk, len(starts), -1)
+    run_chunks(chunk, len(starts))
     return vals
 
 

@@ -9,8 +9,6 @@ all weights go into one COO -> CSR conversion per operator.
 
 from __future__ import annotations
 
-import os
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import scipy.sparse as sp
@@ -19,6 +17,7 @@ from .kernels import Kernel
 from .neighbors import Neighborhood
 from .schemes import Scheme, get_scheme
 from .schemes.base import LocalPairs
+from .threads import run_chunks
 
 __all__ = ["Assembled", "assemble", "pair_kernel_data"]
 
@@ -196,7 +195,7 @@ def assemble(
     max_condition : float
         Local systems above this condition number fall back.
     workers : int
-        Threads over row chunks (-1: one per core).
+        Threads over row chunks (-1: :func:`manifold_sph.threads.get_num_threads`).
     """
     n = nb.n_rows
     gx = np.empty(xy.shape[0])
@@ -219,13 +218,7 @@ def assemble(
         used[lo:hi] = u
 
     starts = range(0, n, CHUNK_ROWS)
-    nthreads = min(len(starts), os.cpu_count() or 1) if workers == -1 else max(1, int(workers))
-    if nthreads > 1 and len(starts) > 1:
-        with ThreadPoolExecutor(max_workers=nthreads) as pool:  # numpy releases the GIL in the heavy parts
-            list(pool.map(chunk, starts))
-    else:
-        for lo in starts:
-            chunk(lo)
+    run_chunks(lambda c: chunk(starts[c]), len(starts), workers)  # numpy releases the GIL in the heavy parts
     shape = (n, n if n_cols is None else n_cols)
     if columns is None:  # pairs are already in CSR order, one entry per (row, column)
 

@@ -47,6 +47,7 @@ from scipy.spatial import cKDTree
 from ._validation import as_points, check_int, check_positive
 from .frames import project_pairs, tangent_frames
 from .pointcloud import PointCloud
+from .threads import get_num_threads
 
 __all__ = ["BoundaryReport", "detect_boundary", "angular_gaps"]
 
@@ -211,7 +212,7 @@ def detect_boundary(
         elif nrm.shape != pts.shape:
             raise ValueError(f"normals must have shape {pts.shape} to match points, got shape {nrm.shape}")
         nrm = nrm / np.linalg.norm(nrm, axis=1, keepdims=True)
-        _, idx = cKDTree(pts).query(pts, k=k, workers=-1)
+        _, idx = cKDTree(pts).query(pts, k=k, workers=get_num_threads())
         keep = np.einsum("nd,nkd->nk", nrm, nrm[idx]) > normal_threshold
         counts = keep.sum(axis=1)
         indptr = np.zeros(n + 1, dtype=np.int64)

@@ -16,6 +16,7 @@ from scipy.spatial import cKDTree
 
 from ._validation import as_points, check_int, check_positive
 from .pointcloud import PointCloud
+from .threads import get_num_threads
 
 __all__ = ["CleanResult", "merge_duplicates", "remove_outliers", "voxel_downsample", "clean"]
 
@@ -182,7 +183,7 @@ def remove_outliers(points, normals=None, *, k: int = 16, std_ratio: float = 3.0
     if k >= n:
         raise ValueError(f"k must be smaller than the number of points {n}, got {k}")
     ratio = check_positive("std_ratio", std_ratio)
-    dist, _ = cKDTree(pts).query(pts, k=k + 1, workers=-1)
+    dist, _ = cKDTree(pts).query(pts, k=k + 1, workers=get_num_threads())
     md = dist[:, 1:].mean(axis=1)
     centre = md.mean()
     spread = md.std()

@@ -9,10 +9,10 @@ Any orthonormal frame gives the same operators; this one is only a convention.
 
 from __future__ import annotations
 
-import os
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
+
+from .threads import run_chunks
 
 __all__ = ["tangent_frames", "check_frames", "project_pairs", "project_neighborhood"]
 
@@ -109,7 +109,7 @@ def project_neighborhood(points, u, v, indptr, indices, candidates=None, workers
         Column (index into ``candidates``) of every pair, row by row.
     candidates : ndarray, shape (M, 3), optional
     workers : int
-        Threads (-1: one per core).
+        Threads (-1: :func:`manifold_sph.threads.get_num_threads`).
 
     Returns
     -------
@@ -140,11 +140,5 @@ def project_neighborhood(points, u, v, indptr, indices, candidates=None, workers
         out[p0:p1, 0] = np.einsum("nkd,nd->nk", d, u[lo:hi])[valid]
         out[p0:p1, 1] = np.einsum("nkd,nd->nk", d, v[lo:hi])[valid]
 
-    nthreads = min(len(starts), (os.cpu_count() or 1) if workers == -1 else max(1, int(workers)))
-    if nthreads > 1:
-        with ThreadPoolExecutor(max_workers=nthreads) as pool:
-            list(pool.map(chunk, starts))
-    else:
-        for lo in starts:
-            chunk(lo)
+    run_chunks(lambda c: chunk(starts[c]), len(starts), workers)
     return out

@@ -9,14 +9,13 @@ first. ``j`` belongs to particle ``i``'s neighbourhood iff
 
 from __future__ import annotations
 
-import os
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from ._validation import check_int, check_positive
+from .threads import resolve_workers, run_chunks
 
 __all__ = [
     "Neighborhood",
@@ -72,7 +71,7 @@ class Neighborhood:
 
 def _knn(tree: cKDTree, query: np.ndarray, k: int, radius: float, workers: int):
     k = min(k, tree.n)
-    dist, idx = tree.query(query, k=k, distance_upper_bound=radius, workers=workers)
+    dist, idx = tree.query(query, k=k, distance_upper_bound=radius, workers=resolve_workers(workers))
     if k == 1:
         dist, idx = dist[:, None], idx[:, None]
     return dist, idx
@@ -269,7 +268,7 @@ def find_neighbors(
 
     # int32 indices when they fit: scipy's sparse matrices then take them without conversion
     index_dtype = np.int32 if max(dist.size, cand.shape[0]) < 2**31 - 1 else np.int64
-    _run_chunks(chunk, len(starts), workers)
+    run_chunks(chunk, len(starts), workers)
     indptr = np.zeros(n + 1, dtype=index_dtype)
     np.cumsum(counts, out=indptr[1:])
     indices = np.concatenate(parts) if parts else np.zeros(0, dtype=index_dtype)
@@ -278,18 +277,6 @@ def find_neighbors(
 
 #: Rows per chunk of the neighbour filter.
 _FILTER_ROWS = 8192
-
-
-def _run_chunks(job, n_chunks: int, workers: int) -> None:
-    """Run ``job(c)`` for every chunk, on threads when there are several (numpy releases the GIL)."""
-    nthreads = (os.cpu_count() or 1) if workers == -1 else max(1, int(workers))
-    nthreads = min(nthreads, n_chunks)
-    if nthreads > 1:
-        with ThreadPoolExecutor(max_workers=nthreads) as pool:
-            list(pool.map(job, range(n_chunks)))
-    else:
-        for c in range(n_chunks):
-            job(c)
 
 
 def _radius_knn(tree: cKDTree, pts: np.ndarray, radii: np.ndarray, workers: int):

@@ -33,6 +33,7 @@ from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
 from ._validation import as_points, check_int
+from .threads import get_num_threads
 
 __all__ = ["estimate_normals", "pca_normals", "orient_normals", "ORIENTATIONS", "DEFAULT_K"]
 
@@ -45,7 +46,7 @@ DEFAULT_K = 16
 
 def _knn(points: np.ndarray, k: int, tree: cKDTree | None = None):
     tree = cKDTree(points) if tree is None else tree
-    dist, idx = tree.query(points, k=k, workers=-1)
+    dist, idx = tree.query(points, k=k, workers=get_num_threads())
     return dist, idx
 
 

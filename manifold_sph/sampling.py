@@ -34,6 +34,7 @@ from scipy.spatial import cKDTree
 
 from ._validation import as_points, check_finite, check_in, check_int, check_positive
 from .pointcloud import MIN_POINTS
+from .threads import get_num_threads
 
 __all__ = [
     "SURFACE_SAMPLINGS",
@@ -179,7 +180,7 @@ def _relax(P, spacing, move, n_iter, ghosts=None):
         else:
             A, sa = P, s
         tree = cKDTree(A, balanced_tree=False, compact_nodes=False)
-        d, j = tree.query(P, _K + 1, workers=-1, distance_upper_bound=_BETA * float(sa.max()))
+        d, j = tree.query(P, _K + 1, workers=get_num_threads(), distance_upper_bound=_BETA * float(sa.max()))
         d, j = d[:, 1:], j[:, 1:]
         missing = j >= len(A)  # fewer than _K neighbours within reach
         j[missing] = 0

@@ -100,3 +100,88 @@ def test_neighbor_search_equals_brute_force():
     for i in range(0, 1500, 37):
         got = np.sort(nb.indices[nb.indptr[i] : nb.indptr[i + 1]])
         np.testing.assert_array_equal(got, np.flatnonzero(keep[i]))
+
+
+# ----------------------------------------------------------------------------- threads
+def test_one_thread_and_all_threads_build_the_same_operators():
+    from manifold_sph import Surface, threads
+
+    cloud = shapes.sphere(6000)
+    f = cloud.points[:, 0] * cloud.points[:, 1] + np.cos(cloud.points[:, 2])
+    with threads.limit(1):
+        assert threads.get_num_threads() == 1
+        s1 = Surface(cloud, scheme="cspm")
+        L1 = s1.laplacian_matrix()
+        y1 = s1.laplacian(f)
+    with threads.limit(2):
+        s2 = Surface(cloud, scheme="cspm")
+        L2 = s2.laplacian_matrix()
+        y2 = s2.laplacian(f)
+    # chunks are independent: the same arithmetic in either case
+    assert (L1 != L2).nnz == 0
+    np.testing.assert_array_equal(s1.area.dV, s2.area.dV)
+    np.testing.assert_allclose(y1, y2, rtol=0, atol=1e-12 * np.abs(y1).max())
+
+
+def test_row_blocks_follow_the_thread_setting():
+    from manifold_sph import threads
+
+    A = sp.random(3000, 3000, density=0.03, random_state=2, format="csr")
+    x = np.random.default_rng(5).standard_normal(3000)
+    B = RowBlocks(A, n_blocks=2)
+    with threads.limit(1):
+        np.testing.assert_allclose(B @ x, A @ x, rtol=0, atol=1e-12)
+
+
+def test_thread_setting_is_validated_and_restored():
+    from manifold_sph import get_num_threads, set_num_threads, threads
+
+    before = get_num_threads()
+    with pytest.raises(ValueError, match="n must be a positive integer, got 0"):
+        set_num_threads(0)
+    with pytest.raises(TypeError, match="n must be a positive integer, got 2.5"):
+        set_num_threads(2.5)
+    with pytest.raises(TypeError, match="got True"):
+        set_num_threads(True)
+    with pytest.raises(ValueError, match="workers must be a positive integer, got -3"):
+        threads.resolve_workers(-3)
+    set_num_threads(np.int64(1))
+    try:
+        assert get_num_threads() == 1
+    finally:
+        set_num_threads(None)
+    assert get_num_threads() == before
+    with pytest.raises(RuntimeError):
+        with threads.limit(1):
+            raise RuntimeError("inside")
+    assert get_num_threads() == before
+
+
+def test_thread_environment_variable(monkeypatch):
+    import importlib
+
+    from manifold_sph import threads
+
+    monkeypatch.setenv(threads.ENV_VAR, "1")
+    assert threads._from_env() == 1
+    monkeypatch.setenv(threads.ENV_VAR, "two")
+    with pytest.raises(ValueError, match="MANIFOLD_SPH_NUM_THREADS must be a positive integer, got 'two'"):
+        threads._from_env()
+    monkeypatch.setenv(threads.ENV_VAR, "0")
+    with pytest.raises(ValueError, match="MANIFOLD_SPH_NUM_THREADS"):
+        threads._from_env()
+    monkeypatch.delenv(threads.ENV_VAR)
+    assert threads._from_env() is None
+    importlib.reload(threads)  # the module state is back to the default
+    assert threads.get_num_threads() >= 1
+
+
+def test_run_chunks_reraises():
+    from manifold_sph.threads import run_chunks
+
+    def job(c):
+        if c == 2:
+            raise ValueError("chunk 2")
+
+    with pytest.raises(ValueError, match="chunk 2"):
+        run_chunks(job, 5, workers=2)

@@ -1,0 +1,131 @@
+"""How many threads the package uses.
+
+Every threaded step (the KD-tree queries, the neighbour filter, the projection,
+the kernel values, the assembly, ``op(f)`` and the area solve) runs on
+:func:`get_num_threads` threads. The default is every core
+(``os.cpu_count()``); the environment variable ``MANIFOLD_SPH_NUM_THREADS``,
+read at import, or :func:`set_num_threads` change it, and :func:`limit` changes
+it for a ``with`` block. Functions taking ``workers`` read ``-1`` as "the
+package setting".
+
+The heavy parts are numpy and scipy calls that release the GIL, so threads over
+particle chunks use every core without copying the cloud into other processes.
+
+Examples
+--------
+>>> from manifold_sph import threads
+>>> with threads.limit(1):
+...     threads.get_num_threads()
+1
+>>> threads.resolve_workers(3)
+3
+"""
+
+from __future__ import annotations
+
+import numbers
+import os
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
+
+__all__ = ["get_num_threads", "set_num_threads", "limit", "resolve_workers", "run_chunks"]
+
+ENV_VAR = "MANIFOLD_SPH_NUM_THREADS"
+
+
+def _check_count(n, name: str) -> int:
+    if isinstance(n, bool) or not isinstance(n, numbers.Integral):
+        raise TypeError(f"{name} must be a positive integer, got {n!r} ({type(n).__name__})")
+    n = int(n)
+    if n < 1:
+        raise ValueError(f"{name} must be a positive integer, got {n}")
+    return n
+
+
+def _from_env() -> int | None:
+    raw = os.environ.get(ENV_VAR)
+    if raw is None or raw.strip() == "":
+        return None
+    try:
+        return _check_count(int(raw), ENV_VAR)
+    except (TypeError, ValueError):
+        raise ValueError(f"environment variable {ENV_VAR} must be a positive integer, got {raw!r}") from None
+
+
+_NUM_THREADS: int | None = _from_env()
+
+
+def get_num_threads() -> int:
+    """Threads the package uses (default: every core).
+
+    Examples
+    --------
+    >>> get_num_threads() >= 1
+    True
+    """
+    return _NUM_THREADS if _NUM_THREADS is not None else (os.cpu_count() or 1)
+
+
+def set_num_threads(n: int | None) -> None:
+    """Use ``n`` threads from now on (``None``: every core).
+
+    Parameters
+    ----------
+    n : int or None
+        A positive integer, or ``None`` for ``os.cpu_count()``.
+
+    Examples
+    --------
+    >>> set_num_threads(1); get_num_threads()
+    1
+    >>> set_num_threads(None)
+    """
+    global _NUM_THREADS
+    _NUM_THREADS = None if n is None else _check_count(n, "n")
+
+
+@contextmanager
+def limit(n: int | None):
+    """``with limit(n):`` use ``n`` threads inside the block, then restore the setting."""
+    global _NUM_THREADS
+    before = _NUM_THREADS
+    set_num_threads(n)
+    try:
+        yield
+    finally:
+        _NUM_THREADS = before
+
+
+def resolve_workers(workers: int) -> int:
+    """Threads for a ``workers`` argument: -1 is :func:`get_num_threads`, else a positive count.
+
+    Examples
+    --------
+    >>> resolve_workers(-1) == get_num_threads()
+    True
+    """
+    if workers == -1:
+        return get_num_threads()
+    return _check_count(workers, "workers")
+
+
+def run_chunks(job, n_chunks: int, workers: int = -1) -> None:
+    """Run ``job(c)`` for ``c`` in ``range(n_chunks)``, on threads when there are several.
+
+    ``job`` must write disjoint outputs (numpy releases the GIL in its heavy parts).
+
+    Examples
+    --------
+    >>> out = [0] * 4
+    >>> def job(c):
+    ...     out[c] = c * c
+    >>> run_chunks(job, 4); out
+    [0, 1, 4, 9]
+    """
+    nthreads = min(resolve_workers(workers), n_chunks)
+    if nthreads > 1:
+        with ThreadPoolExecutor(max_workers=nthreads, thread_name_prefix="manifold_sph") as pool:
+            list(pool.map(job, range(n_chunks)))  # re-raises the first exception
+    else:
+        for c in range(n_chunks):
+            job(c)
