@@ -35,6 +35,16 @@ separate, untimed run of the step. numpy allocations are traced; the KD-tree's o
 C++ arrays and the peers' (Kokkos, C++) allocations are not, so their rows say n/a.
 The process's ``ru_maxrss`` is printed at the end.
 
+A real scan (``--scan``, default the Igea scan of ``../shared/data/scans``, 134,345
+points, skipped when absent): read, normals estimated, then the end-to-end builds and
+the GMLS peers, timed as for the sphere. A scan has no exact reference, so its rows give
+each Laplacian's relative difference from msph's (area shepard, h adaptive: the README's
+advice for scans) instead of an error,
+for f = cos(xz - sin y) in coordinates scaled to [-1, 1].
+
+``end-to-end cspm, 1 thread`` repeats the default build under
+``manifold_sph.threads.limit(1)``: the two-core speedup of the whole build.
+
 ``--peers`` (the ``bench`` extra, on the same points in the same run):
 robust-laplacian ``point_cloud_laplacian`` (its (L, M) give the Laplacian
 ``-M^-1 L``: the sign is checked against the exact reference and both errors are
@@ -70,7 +80,7 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 import numpy as np
 from scipy.spatial import cKDTree
 
-from manifold_sph import Surface, shapes
+from manifold_sph import Surface, estimate_normals, read, shapes, threads
 from manifold_sph.accuracy import exact_operators
 from manifold_sph.area import area_elements
 from manifold_sph.assembly import assemble
@@ -220,6 +230,9 @@ def bench_size(n, repeat, mem, peers, pc):
         add(f"assembly {name}", asm_t[name], asm_err[name], traced_peak(fn, mem), f"{nbk.counts.mean():.1f} nb, {fb} fallback")
 
     add("end-to-end cspm", t_e2e, e_cspm, p_e2e, e2e_note)
+    with threads.limit(1):
+        t_e2e1, _ = timed(quiet(lambda: Surface(cloud, scheme="cspm")), repeat)
+    add("end-to-end cspm, 1 thread", t_e2e1, e_cspm, None, f"threads.limit(1); 2-core speedup x{t_e2e1 / t_e2e:.2f}")
     t_e2e_sh, s_sh = timed(quiet(lambda: Surface(cloud, scheme="cspm", area="shepard")), repeat)
     e_sh = lap_err(s_sh.laplacian(f), lap_ex)
     add("end-to-end cspm shepard", t_e2e_sh, e_sh, None, "area shepard")
@@ -255,14 +268,14 @@ def bench_size(n, repeat, mem, peers, pc):
             "error of the increment (u0 = z)" + (", includes LU" if solver == "direct" else ", BiCGSTAB 1e-10"))
 
     res = {
-        "e2e_cspm": t_e2e, "e2e_cspm_err": e_cspm, "bare_radius": t_bare, "bare_radius_w1": t_bare1, "bare_knn": t_knn,
+        "e2e_cspm": t_e2e, "e2e_cspm_err": e_cspm, "e2e_cspm_1thread": t_e2e1, "bare_radius": t_bare, "bare_radius_w1": t_bare1, "bare_knn": t_knn,
         "e2e_msph4": t_m4, "e2e_msph4_err": e_m4, "matvec": t_mv, "matvec_scipy": t_sp, "stream": t_st, "peak_e2e_mb": p_e2e,
         "e2e_cspm_shepard": t_e2e_sh, "e2e_cspm_shepard_err": e_sh,
         "assembly": asm_t, "assembly_err": asm_err, "heat": heat_t,
     }
     s = L = None  # free the matrices before the peers run
     gc.collect()
-    if peers:
+    if peers and n <= peers:
         res["peers"] = bench_peers(cloud, f, lap_ex, repeat, pc, add)
     return rows, res
 
@@ -303,6 +316,64 @@ def bench_peers(cloud, f, lap_ex, repeat, pc, add):
     return out
 
 
+# ----------------------------------------------------------------------------- a real scan
+DEFAULT_SCAN = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "shared", "data", "scans", "igea.ply")
+
+
+def bench_scan(path, repeat, pc):
+    """A scan as a user meets it: vertices only, normals estimated, then the builds.
+
+    No exact reference exists for a scan: the error column stays empty and the
+    note gives the relative difference of each Laplacian of f from msph's."""
+    rows = []
+    name = os.path.basename(path)
+
+    def add(step, t, note=""):
+        rows.append({"n": name, "step": step, "time_s": t, "note": note})
+        print(f"{name:>8} {step:<31} {t:>9.4f} {'n/a':>8} {'-':>10}  {note}", flush=True)
+
+    t_read, cloud = timed(lambda: read(path), repeat)
+    pts = cloud.points
+    add("read", t_read, f"{pts.shape[0]} points, normals in file: {cloud.normals is not None}")
+    t_nrm, nrm = timed(lambda: estimate_normals(pts), repeat)
+    add("estimate normals", t_nrm, "PCA + outward orientation (manifold_sph.estimate_normals)")
+    from manifold_sph import PointCloud
+
+    cloud = PointCloud(pts, nrm)
+    # f = cos(xz - sin y) in coordinates scaled to [-1, 1] (the head is 0.1 across)
+    X = (pts - 0.5 * (pts.min(0) + pts.max(0))) / (0.5 * float(np.ptp(pts, axis=0).max()))
+    f = np.cos(X[:, 0] * X[:, 2] - np.sin(X[:, 1]))
+    out = {"n_points": int(pts.shape[0]), "read": t_read, "normals": t_nrm}
+    laps = {}
+    # the README's advice for scans (area "shepard", h "adaptive") and the defaults
+    runs = (("msph", "shepard", "adaptive"), ("cspm", "shepard", "adaptive"), ("cspm", "numerical", None),
+            ("msph4", "shepard", "adaptive"))
+    for scheme, area, hh in runs:
+        kw = {} if hh is None else {"h": hh}
+        t, s = timed(quiet(lambda: Surface(cloud, scheme=scheme, area=area, **kw)), repeat)
+        key = f"{scheme} {area}" + ("" if hh is None else f" h={hh}")
+        laps[key] = s.laplacian(f)
+        fb = sum(v.size for v in s.fallback.values())
+        ref = laps["msph shepard h=adaptive"]
+        diff = np.linalg.norm(laps[key] - ref) / np.linalg.norm(ref)
+        add(f"e2e {key}", t, f"{s.neighborhood.counts.mean():.1f} nb, {fb} fallback, "
+            f"{s.area.n_negative} dV < 0; |L f - L_msph f| / |L_msph f| = {diff:.2e}")
+        out[f"e2e_{key}"] = t
+        del s
+    if pc is not None:
+        sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+        from msph4_vs_gmls import gmls
+
+        for order in (2, 4):
+            times = [gmls(pc, cloud, order)["build"] for _ in range(repeat)]
+            t = statistics.median(times)
+            add(f"peer gmls p{order}", t, f"pycompadre, same points and estimated normals; cspm (shepard, adaptive) "
+                f"x{t / out['e2e_cspm shepard h=adaptive']:.2f} faster, default cspm x{t / out['e2e_cspm numerical']:.2f}"
+                if order == 2 else f"pycompadre; msph4 x{t / out['e2e_msph4 shepard h=adaptive']:.2f} faster")
+            out[f"gmls_p{order}"] = t
+    return rows, out
+
+
 # ----------------------------------------------------------------------------- report
 def targets(results):
     lines, out = [], {}
@@ -312,6 +383,8 @@ def targets(results):
         lines.append(f"  [{'met' if ok else 'NOT met'}] {name}: {text}")
 
     for n, r in results.items():
+        if n == "scan":
+            continue
         p = r.get("peers", {})
         if "gmls_p2" in p:
             ratio = p["gmls_p2"]["time_s"] / r["e2e_cspm"]
@@ -338,7 +411,7 @@ def targets(results):
             pk = r["peak_e2e_mb"]
             if pk is not None:
                 check(f"N={n} peak memory <= 2.5 GB", pk, pk <= 2560, f"{pk:.0f} MB traced (tracemalloc)")
-    ns = sorted(results)
+    ns = sorted(k for k in results if k != "scan")
     if len(ns) >= 2:
         slope = float(np.polyfit(np.log(ns), np.log([results[n]["e2e_cspm"] for n in ns]), 1)[0])
         check(f"scaling exponent (end-to-end cspm, N={ns[0]}..{ns[-1]}) <= 1.1", slope, slope <= 1.1 and ns[-1] >= 1_000_000,
@@ -356,7 +429,11 @@ def main(argv=None):
     ap.add_argument("--repeat", type=int, default=3, help="runs per timing; the median is reported")
     ap.add_argument("--json", help="write all rows and the target checks to this file")
     ap.add_argument("--peers", action="store_true", help="robust-laplacian and pycompadre GMLS p2 / p4 on the same points")
+    ap.add_argument("--peers-max", type=int, default=200_000, help="run the peers only up to this N (default 200000)")
     ap.add_argument("--no-mem", action="store_true", help="skip the tracemalloc runs")
+    ap.add_argument("--scan", default=str(DEFAULT_SCAN),
+                    help="a scan to time as users would (read, estimate normals, build); 'none' skips it "
+                         "(default: the Igea scan of ../shared, skipped when absent)")
     args = ap.parse_args(argv)
     sizes = [int(float(x)) for x in args.sizes.split(",") if x]
     meta = {
@@ -381,10 +458,18 @@ def main(argv=None):
     all_rows, results = [], {}
     for n in sizes:
         t0 = time.perf_counter()
-        rows, res = bench_size(n, args.repeat, not args.no_mem, args.peers, pc)
+        rows, res = bench_size(n, args.repeat, not args.no_mem, args.peers_max if args.peers else 0, pc)
         all_rows += rows
         results[n] = res
         print(f"{'':>8} (N = {n}: {time.perf_counter() - t0:.0f} s of benchmarking)\n", flush=True)
+    if args.scan.lower() != "none":
+        if os.path.exists(args.scan):
+            t0 = time.perf_counter()
+            rows, results["scan"] = bench_scan(args.scan, args.repeat, pc if args.peers else None)
+            all_rows += rows
+            print(f"{'':>8} (scan: {time.perf_counter() - t0:.0f} s of benchmarking)\n", flush=True)
+        else:
+            print(f"scan {args.scan} not found: skipped\n")
     meta["loadavg_end"] = os.getloadavg()
     meta["maxrss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     lines, checks = targets(results)
