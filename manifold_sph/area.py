@@ -134,11 +134,17 @@ def area_elements(
         dV = _solve_partition_of_unity(A)
         if dV is None or not np.all(np.isfinite(dV)):
             raise ValueError(
-                "area='numerical': the kernel system sum_j W_ij dV_j = 1 is singular for this cloud; "
-                "use area='shepard'"
+                "area='numerical': the kernel system sum_j W_ij dV_j = 1 is singular for this cloud"
+                + (f" or BiCGSTAB did not converge ({n} particles, too many for a direct solve)" if n > LU_MAX_ROWS else "")
+                + "; use area='shepard'"
             )
     residual = float(np.abs(A @ dV - 1.0).max())
     return AreaElements(dV=dV, method=method, n_negative=int((dV < 0).sum()), residual=residual)
+
+
+#: Above this many particles a failed iterative area solve is not retried with a sparse LU
+#: (134,345 rows already took 21 s), and ``area='numerical'`` raises instead.
+LU_MAX_ROWS = 200_000
 
 
 def _solve_partition_of_unity(A: sp.csr_matrix, rtol: float = 1e-15):
@@ -156,6 +162,8 @@ def _solve_partition_of_unity(A: sp.csr_matrix, rtol: float = 1e-15):
         dV, info = spla.bicgstab(op, ones, x0=1.0 / rowsum, rtol=rtol, atol=0.0, M=sp.diags(1.0 / rowsum), maxiter=2000)
         if info == 0 and np.all(np.isfinite(dV)) and np.abs(A @ dV - 1.0).max() < 1e-9:
             return dV
+    if n > LU_MAX_ROWS:  # a sparse LU of a kernel matrix this large takes minutes and gigabytes
+        return None
     with np.errstate(all="ignore"):
         try:
             return spla.spsolve(sp.csc_matrix(A), ones)

@@ -193,3 +193,17 @@ def test_seed_sphere_field_divergence_order_away_from_poles(name):
     order = -2 * np.polyfit(np.log(sizes), np.log(errs), 1)[0]
     assert order >= 1.8, (errs, order)
     assert errs[1] < 1.2e-2
+
+
+def test_numerical_area_without_convergence_raises_for_large_clouds(monkeypatch):
+    # above LU_MAX_ROWS a failed BiCGSTAB is not retried with a (minutes-long) sparse LU
+    import manifold_sph.area as area_mod
+    from manifold_sph import shapes as _shapes
+
+    monkeypatch.setattr(area_mod, "LU_MAX_ROWS", 100)
+    monkeypatch.setattr(area_mod.spla, "bicgstab", lambda *a, **k: (np.zeros(a[1].shape), 5))
+    with pytest.raises(ValueError, match=r"BiCGSTAB did not converge \(500 particles.*use area='shepard'"):
+        Surface(_shapes.sphere(500), scheme="cspm", area="numerical")
+    monkeypatch.setattr(area_mod, "LU_MAX_ROWS", 10**6)  # small clouds: the direct solve takes over
+    s = Surface(_shapes.sphere(500), scheme="cspm", area="numerical")
+    assert s.area.residual < 1e-9
