@@ -45,6 +45,12 @@ for f = cos(xz - sin y) in coordinates scaled to [-1, 1].
 ``end-to-end cspm, 1 thread`` repeats the default build under
 ``manifold_sph.threads.limit(1)``: the two-core speedup of the whole build.
 
+Spectrum: the largest relative error of the 15 smallest nonzero eigenvalues
+(l (l + 1), l = 1..3) is printed for ours (cspm, msph4) up to N = 20,000 and for
+robust-laplacian (``L x = lam M x``) up to N = 200,000. robust-laplacian is a
+weak-form (cotan-like) Laplacian: its pointwise ``M^-1 L f`` is not expected to
+converge on irregular points, its eigenvalues are.
+
 ``--peers`` (the ``bench`` extra, on the same points in the same run):
 robust-laplacian ``point_cloud_laplacian`` (its (L, M) give the Laplacian
 ``-M^-1 L``: the sign is checked against the exact reference and both errors are
@@ -147,6 +153,28 @@ def quiet(fn):
     return run
 
 
+#: Eigenvalues l (l + 1) of -Lap on the unit sphere, l = 1, 2, 3 (multiplicities 3, 5, 7).
+SPHERE_EIGS = np.repeat([2.0, 6.0, 12.0], [3, 5, 7])
+SPECTRUM_OURS_MAX = 20000  # our shift-invert LU (27 entries a row) takes 30-40 s at 1e5
+SPECTRUM_PEER_MAX = 200000
+
+
+def spectrum_err(L, M=None):
+    """Largest relative error of the 15 smallest nonzero eigenvalues on the unit sphere.
+
+    ``-L x = lam x`` for ours (non-symmetric: ARPACK ``eigs``), ``L x = lam M x`` for a
+    weak-form peer (symmetric: ``eigsh``); shift-invert at -0.5, the zero mode dropped.
+    """
+    import scipy.sparse.linalg as spla
+
+    if M is None:
+        vals = spla.eigs(-L, k=16, sigma=-0.5, return_eigenvectors=False)
+    else:
+        vals = spla.eigsh(L, k=16, M=M, sigma=-0.5, return_eigenvectors=False)
+    vals = np.sort(vals.real)[1:]
+    return float(np.max(np.abs(vals - SPHERE_EIGS) / SPHERE_EIGS))
+
+
 # ----------------------------------------------------------------------------- ours
 def bench_size(n, repeat, mem, peers, pc):
     cloud = shapes.sphere(n)
@@ -242,6 +270,11 @@ def bench_size(n, repeat, mem, peers, pc):
     fb4 = sum(v.size for v in s4.fallback.values())
     add("end-to-end msph4", t_m4, e_m4, traced_peak(quiet(lambda: Surface(cloud, scheme="msph4", area="shepard")), mem),
         f"area shepard (unused), {s4.neighborhood.counts.mean():.1f} nb, {fb4} fallback")
+    spec = {}
+    if n <= SPECTRUM_OURS_MAX:
+        spec = {"cspm": spectrum_err(L), "msph4": spectrum_err(s4.laplacian_matrix())}
+        print(f"{'':>8} spectrum (15 smallest nonzero eigenvalues of -L vs l(l+1), max relative error): "
+              f"cspm {spec['cspm']:.2e}, msph4 {spec['msph4']:.2e}", flush=True)
     del s4
 
     # matvec against streaming the matrix bytes once
@@ -270,7 +303,7 @@ def bench_size(n, repeat, mem, peers, pc):
     res = {
         "e2e_cspm": t_e2e, "e2e_cspm_err": e_cspm, "e2e_cspm_1thread": t_e2e1, "bare_radius": t_bare, "bare_radius_w1": t_bare1, "bare_knn": t_knn,
         "e2e_msph4": t_m4, "e2e_msph4_err": e_m4, "matvec": t_mv, "matvec_scipy": t_sp, "stream": t_st, "peak_e2e_mb": p_e2e,
-        "e2e_cspm_shepard": t_e2e_sh, "e2e_cspm_shepard_err": e_sh,
+        "e2e_cspm_shepard": t_e2e_sh, "e2e_cspm_shepard_err": e_sh, "spectrum_err": spec,
         "assembly": asm_t, "assembly_err": asm_err, "heat": heat_t,
     }
     s = L = None  # free the matrices before the peers run
@@ -296,10 +329,13 @@ def bench_peers(cloud, f, lap_ex, repeat, pc, add):
         sign = "-M^-1 L" if e_neg <= e_pos else "+M^-1 L"
         area = getattr(cloud.shape, "area", None)
         mass = float(m.sum() / area) if area else float("nan")  # 1 when its local triangulations cover the surface
+        # a weak-form Laplacian: its eigenvalues (L x = lam M x) are the fairer accuracy figure
+        sp_err = spectrum_err(Lr, Mr) if pts.shape[0] <= SPECTRUM_PEER_MAX and area else None
+        sp_txt = "" if sp_err is None else f", spectrum error {sp_err:.2e}"
         add("peer robust_laplacian", t, min(e_neg, e_pos), None,
-            f"n_neighbors=30, Laplacian {sign} (other sign {max(e_neg, e_pos):.2e}), sum M / area {mass:.3f}; peak n/a (C++)")
+            f"n_neighbors=30, Laplacian {sign} (other sign {max(e_neg, e_pos):.2e}), sum M / area {mass:.3f}{sp_txt}; peak n/a (C++)")
         out["robust_laplacian"] = {"time_s": t, "lap_l2": min(e_neg, e_pos), "lap_l2_neg": e_neg, "lap_l2_pos": e_pos,
-                                   "mass_over_area": mass}
+                                   "mass_over_area": mass, "spectrum_err": sp_err}
         del Lr, Mr
     if pc is not None:
         sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
