@@ -21,8 +21,9 @@ from .threads import run_chunks
 
 __all__ = ["Assembled", "assemble", "pair_kernel_data"]
 
-#: Rows per chunk: bounds the temporary per-pair arrays and keeps them in cache.
-CHUNK_ROWS = 2048
+#: Rows per chunk, overriding every scheme's ``chunk_rows`` when set (tests, tuning);
+#: ``None``: each scheme's own (chunks bound the per-pair temporaries and keep them in cache).
+CHUNK_ROWS: int | None = None
 
 
 class Assembled:
@@ -198,6 +199,7 @@ def assemble(
         Threads over row chunks (-1: :func:`manifold_sph.threads.get_num_threads`).
     """
     n = nb.n_rows
+    rows_per_chunk = CHUNK_ROWS if CHUNK_ROWS is not None else scheme.chunk_rows
     gx = np.empty(xy.shape[0])
     gy = np.empty(xy.shape[0])
     lp = np.empty(xy.shape[0])
@@ -205,7 +207,7 @@ def assemble(
     used = np.empty(n, dtype=np.int8)
 
     def chunk(lo):  # writes disjoint slices: safe to run chunks in threads
-        hi = min(lo + CHUNK_ROWS, n)
+        hi = min(lo + rows_per_chunk, n)
         pairs = _local_pairs(lo, hi, nb, xy, dV_pairs, kernel)
         grad, lap, cond, u = _weights_with_fallback(pairs, scheme, max_condition)
         p0, p1 = nb.indptr[lo], nb.indptr[hi]
@@ -217,7 +219,7 @@ def assemble(
         condition[lo:hi] = cond
         used[lo:hi] = u
 
-    starts = range(0, n, CHUNK_ROWS)
+    starts = range(0, n, rows_per_chunk)
     run_chunks(lambda c: chunk(starts[c]), len(starts), workers)  # numpy releases the GIL in the heavy parts
     shape = (n, n if n_cols is None else n_cols)
     if columns is None:  # pairs are already in CSR order, one entry per (row, column)

@@ -185,3 +185,16 @@ def test_run_chunks_reraises():
 
     with pytest.raises(ValueError, match="chunk 2"):
         run_chunks(job, 5, workers=2)
+
+
+@pytest.mark.parametrize("scheme", ["cspm", "msph", "ncsph", "msph4"])
+def test_chunk_size_does_not_change_the_operators(monkeypatch, scheme):
+    import manifold_sph.assembly as assembly
+    from manifold_sph import Surface
+
+    cloud = shapes.torus(3000)  # irregular counts: chunks pad to different widths
+    ref = Surface(cloud, scheme=scheme, area="shepard").laplacian_matrix()
+    monkeypatch.setattr(assembly, "CHUNK_ROWS", 97)
+    got = Surface(cloud, scheme=scheme, area="shepard").laplacian_matrix()
+    diff = abs(ref - got).max()
+    assert diff <= 1e-12 * abs(ref).max(), diff

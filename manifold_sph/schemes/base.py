@@ -149,6 +149,10 @@ class Scheme:
     default_neighbors: int = 27
     #: Whether the weights depend on the area elements dV.
     uses_area: bool = True
+    #: Particles per assembly chunk: a chunk's pair arrays should stay in cache. Measured
+    #: at N = 131072 on 2 cores: 2048 for the second-order schemes; fewer for the
+    #: larger systems of msph3/4/5 (``benchmarks/perf.py``).
+    chunk_rows: int = 2048
 
     def weights(self, pairs: LocalPairs, max_condition: float) -> SchemeWeights:  # pragma: no cover - interface
         raise NotImplementedError
