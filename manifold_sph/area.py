@@ -17,7 +17,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from ._sparse import RowBlocks
+from ._sparse import RowBlocks, bicgstab_diag
 from .kernels import Kernel
 from .neighbors import Neighborhood
 from .threads import run_chunks
@@ -158,8 +158,8 @@ def _solve_partition_of_unity(A: sp.csr_matrix, rtol: float = 1e-15):
     ones = np.ones(n)
     rowsum = np.asarray(A.sum(axis=1)).ravel()
     if np.all(rowsum > 0):
-        op = spla.LinearOperator(A.shape, matvec=RowBlocks(A).matvec, dtype=A.dtype)  # threaded products
-        dV, info = spla.bicgstab(op, ones, x0=1.0 / rowsum, rtol=rtol, atol=0.0, M=sp.diags(1.0 / rowsum), maxiter=2000)
+        dinv = 1.0 / rowsum
+        dV, info = bicgstab_diag(RowBlocks(A), ones, dinv, dinv, rtol=rtol, maxiter=2000)  # threaded products
         if info == 0 and np.all(np.isfinite(dV)) and np.abs(A @ dV - 1.0).max() < 1e-9:
             return dV
     if n > LU_MAX_ROWS:  # a sparse LU of a kernel matrix this large takes minutes and gigabytes
