@@ -116,7 +116,7 @@ def bicgstab_diag(A, b: np.ndarray, dinv: np.ndarray, x0: np.ndarray, rtol: floa
     -------
     x : ndarray, shape (N,)
     info : int
-        0 converged; ``maxiter`` not converged; -10 or -11 a breakdown.
+        0 converged; ``max(maxiter, 1)`` not converged; -10 or -11 a breakdown.
 
     Examples
     --------
@@ -174,4 +174,4 @@ def bicgstab_diag(A, b: np.ndarray, dinv: np.ndarray, x0: np.ndarray, rtol: floa
         np.multiply(t, omega, out=tmp)
         r -= tmp
         rho_prev = rho
-    return x, maxiter
+    return x, max(int(maxiter), 1)  # > 0: not converged (also for maxiter = 0)

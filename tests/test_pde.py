@@ -78,7 +78,15 @@ def test_callback_sees_every_step(surf, sphere):
     assert seen == [(i, round(i * 1e-3, 6)) for i in range(1, 6)]
 
 
-def test_iterative_solver_matches_direct(surf, sphere):
+@pytest.mark.parametrize("jacobi_iters", [500, 1, 0])
+def test_iterative_solver_matches_direct(surf, sphere, monkeypatch, jacobi_iters):
+    # 500: Jacobi-BiCGSTAB; 1: it fails and multigrid takes over; 0 with multigrid
+    # disabled: the LU fallback
+    monkeypatch.setattr(pde, "JACOBI_MAXITER", jacobi_iters)
+    if jacobi_iters == 0:
+        import pyamg
+
+        monkeypatch.setattr(pyamg, "ruge_stuben_solver", lambda A: 1 / 0)
     Y = sphere.points[:, 1]
     a = pde.heat(surf, Y, dt=1e-2, steps=5, solver="direct")
     b = pde.heat(surf, Y, dt=1e-2, steps=5, solver="iterative")
