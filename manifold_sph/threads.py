@@ -86,7 +86,10 @@ def set_num_threads(n: int | None) -> None:
 
 @contextmanager
 def limit(n: int | None):
-    """``with limit(n):`` use ``n`` threads inside the block, then restore the setting."""
+    """``with limit(n):`` use ``n`` threads inside the block, then restore the setting.
+
+    The setting is process-wide: a block entered in one thread applies to every
+    thread until it exits (do not nest it across threads)."""
     global _NUM_THREADS
     before = _NUM_THREADS
     set_num_threads(n)
