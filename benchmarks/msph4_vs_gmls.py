@@ -117,7 +117,7 @@ def gmls(pc, cloud, order, power=None):
     return row
 
 
-def _median_build(fn, repeat):
+def median_build(fn, repeat):
     """``fn()`` run ``repeat`` times; the last row with the median build time."""
     runs = [fn() for _ in range(max(1, repeat))]
     row = runs[-1]
@@ -130,10 +130,10 @@ def sphere_table(sizes, schemes, pc, gmls_order, repeat=3):
     for n in sizes:
         cloud = shapes.sphere(n)
         for sch in schemes:
-            rows.append({"n": n, **_median_build(lambda: ours(cloud, sch), repeat)})
+            rows.append({"n": n, **median_build(lambda: ours(cloud, sch), repeat)})
         if pc is not None:
             for power in (None, 4):
-                rows.append({"n": n, **_median_build(lambda: gmls(pc, cloud, gmls_order, power), repeat)})
+                rows.append({"n": n, **median_build(lambda: gmls(pc, cloud, gmls_order, power), repeat)})
     print(f"{'N':>7} {'method':<24} {'lap L2':>10} {'grad L2':>10} {'build s':>8}  note")
     for r in rows:
         print(f"{r['n']:>7d} {r['method']:<24} {r['lap']:>10.3e} {r['grad']:>10.3e} {r['build']:>8.2f}  {r['note']}")

@@ -86,7 +86,7 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 import numpy as np
 from scipy.spatial import cKDTree
 
-from manifold_sph import Surface, estimate_normals, read, shapes, threads
+from manifold_sph import PointCloud, Surface, estimate_normals, read, shapes, threads
 from manifold_sph.accuracy import exact_operators
 from manifold_sph.area import area_elements
 from manifold_sph.assembly import assemble
@@ -97,6 +97,9 @@ from manifold_sph.kernels import get_kernel
 from manifold_sph.neighbors import H_SAMPLE, find_neighbors, smoothing_length_for_count
 from manifold_sph.pde import heat
 from manifold_sph.schemes import get_scheme
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from msph4_vs_gmls import gmls, median_build  # noqa: E402 - the GMLS call shared with that benchmark
 
 SCHEMES = ("cspm", "msph", "ncsph", "msph4")
 KERNEL = "quintic"
@@ -338,15 +341,9 @@ def bench_peers(cloud, f, lap_ex, repeat, pc, add):
                                    "mass_over_area": mass, "spectrum_err": sp_err}
         del Lr, Mr
     if pc is not None:
-        sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-        from msph4_vs_gmls import gmls
-
         for order in (2, 4):
-            times, row = [], None
-            for _ in range(repeat):
-                row = gmls(pc, cloud, order)
-                times.append(row["build"])
-            t = statistics.median(times)
+            row = median_build(lambda: gmls(pc, cloud, order), repeat)
+            t = row["build"]
             add(f"peer gmls p{order}", t, row["lap"], None, f"pycompadre, {row['note']}, default weighting; peak n/a (Kokkos)")
             out[f"gmls_p{order}"] = {"time_s": t, "lap_l2": row["lap"]}
     return out
@@ -373,8 +370,6 @@ def bench_scan(path, repeat, pc):
     add("read", t_read, f"{pts.shape[0]} points, normals in file: {cloud.normals is not None}")
     t_nrm, nrm = timed(lambda: estimate_normals(pts), repeat)
     add("estimate normals", t_nrm, "PCA + outward orientation (manifold_sph.estimate_normals)")
-    from manifold_sph import PointCloud
-
     cloud = PointCloud(pts, nrm)
     # f = cos(xz - sin y) in coordinates scaled to [-1, 1] (the head is 0.1 across)
     X = (pts - 0.5 * (pts.min(0) + pts.max(0))) / (0.5 * float(np.ptp(pts, axis=0).max()))
@@ -397,12 +392,8 @@ def bench_scan(path, repeat, pc):
         out[f"e2e_{key}"] = t
         del s
     if pc is not None:
-        sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-        from msph4_vs_gmls import gmls
-
         for order in (2, 4):
-            times = [gmls(pc, cloud, order)["build"] for _ in range(repeat)]
-            t = statistics.median(times)
+            t = median_build(lambda: gmls(pc, cloud, order), repeat)["build"]
             add(f"peer gmls p{order}", t, f"pycompadre, same points and estimated normals; cspm (shepard, adaptive) "
                 f"x{t / out['e2e_cspm shepard h=adaptive']:.2f} faster, default cspm x{t / out['e2e_cspm numerical']:.2f}"
                 if order == 2 else f"pycompadre; msph4 x{t / out['e2e_msph4 shepard h=adaptive']:.2f} faster")

@@ -23,23 +23,15 @@ Examples
 
 from __future__ import annotations
 
-import numbers
 import os
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 
+from ._validation import check_int
+
 __all__ = ["get_num_threads", "set_num_threads", "limit", "resolve_workers", "run_chunks"]
 
 ENV_VAR = "MANIFOLD_SPH_NUM_THREADS"
-
-
-def _check_count(n, name: str) -> int:
-    if isinstance(n, bool) or not isinstance(n, numbers.Integral):
-        raise TypeError(f"{name} must be a positive integer, got {n!r} ({type(n).__name__})")
-    n = int(n)
-    if n < 1:
-        raise ValueError(f"{name} must be a positive integer, got {n}")
-    return n
 
 
 def _from_env() -> int | None:
@@ -47,7 +39,7 @@ def _from_env() -> int | None:
     if raw is None or raw.strip() == "":
         return None
     try:
-        return _check_count(int(raw), ENV_VAR)
+        return check_int(ENV_VAR, int(raw), minimum=1)
     except (TypeError, ValueError):
         raise ValueError(f"environment variable {ENV_VAR} must be a positive integer, got {raw!r}") from None
 
@@ -81,7 +73,7 @@ def set_num_threads(n: int | None) -> None:
     >>> set_num_threads(None)
     """
     global _NUM_THREADS
-    _NUM_THREADS = None if n is None else _check_count(n, "n")
+    _NUM_THREADS = None if n is None else check_int("n", n, minimum=1)
 
 
 @contextmanager
@@ -109,7 +101,7 @@ def resolve_workers(workers: int) -> int:
     """
     if workers == -1:
         return get_num_threads()
-    return _check_count(workers, "workers")
+    return check_int("workers", workers, minimum=1)
 
 
 def run_chunks(job, n_chunks: int, workers: int = -1) -> None:

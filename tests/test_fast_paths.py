@@ -137,13 +137,13 @@ def test_thread_setting_is_validated_and_restored():
     from manifold_sph import get_num_threads, set_num_threads, threads
 
     before = get_num_threads()
-    with pytest.raises(ValueError, match="n must be a positive integer, got 0"):
+    with pytest.raises(ValueError, match="n must be at least 1, got 0"):
         set_num_threads(0)
-    with pytest.raises(TypeError, match="n must be a positive integer, got 2.5"):
+    with pytest.raises(TypeError, match="n must be an integer, got float 2.5"):
         set_num_threads(2.5)
-    with pytest.raises(TypeError, match="got True"):
+    with pytest.raises(TypeError, match="n must be an integer, got bool True"):
         set_num_threads(True)
-    with pytest.raises(ValueError, match="workers must be a positive integer, got -3"):
+    with pytest.raises(ValueError, match="workers must be at least 1, got -3"):
         threads.resolve_workers(-3)
     set_num_threads(np.int64(1))
     try:
@@ -155,6 +155,14 @@ def test_thread_setting_is_validated_and_restored():
         with threads.limit(1):
             raise RuntimeError("inside")
     assert get_num_threads() == before
+    with pytest.raises(ValueError, match="n must be at least 1, got 0"):
+        with threads.limit(0):
+            pass
+    assert get_num_threads() == before
+    with pytest.raises(TypeError, match="workers must be an integer, got str"):
+        threads.run_chunks(lambda c: None, 3, workers="2")
+    with pytest.raises(ValueError, match="workers must be at least 1, got 0"):
+        threads.run_chunks(lambda c: None, 3, workers=0)
 
 
 def test_thread_environment_variable(monkeypatch):
