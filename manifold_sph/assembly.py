@@ -9,7 +9,6 @@ all weights go into one COO -> CSR conversion per operator.
 
 from __future__ import annotations
 
-
 import numpy as np
 import scipy.sparse as sp
 

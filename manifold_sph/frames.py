@@ -9,7 +9,6 @@ Any orthonormal frame gives the same operators; this one is only a convention.
 
 from __future__ import annotations
 
-
 import numpy as np
 
 from .threads import run_chunks
