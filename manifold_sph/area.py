@@ -17,8 +17,9 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from . import _jit
 from ._sparse import RowBlocks, bicgstab_diag
-from .kernels import Kernel
+from .kernels import Kernel, QuinticSpline
 from .neighbors import Neighborhood
 from .threads import run_chunks
 
@@ -33,6 +34,9 @@ def kernel_values(nb: Neighborhood, xy: np.ndarray, kernel: Kernel) -> np.ndarra
     vals = np.empty(xy.shape[0])
     a = kernel.alpha(2)
     starts = list(range(0, n, _ROWS))
+    if _jit.ENABLED and type(kernel) is QuinticSpline:
+        run_chunks(lambda c: _jit.quintic_values(starts[c], min(starts[c] + _ROWS, n), nb.indptr, xy, nb.h, a, vals), len(starts))
+        return vals
 
     def chunk(c):  # rows lo:hi, disjoint slices of ``vals``
         lo = starts[c]

@@ -12,17 +12,53 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from .kernels import Kernel
+from . import _jit
+from .kernels import Kernel, QuinticSpline
 from .neighbors import Neighborhood
 from .schemes import Scheme, get_scheme
 from .schemes.base import LocalPairs
+from .schemes.cspm import CSPM
+from .schemes.msph import MSPH
+from .schemes.msph4 import HighOrderCorrected
+from .schemes.ncsph import NCSPH
 from .threads import run_chunks
 
 __all__ = ["Assembled", "assemble", "pair_kernel_data"]
 
-#: Rows per chunk, overriding every scheme's ``chunk_rows`` when set (tests, tuning);
-#: ``None``: each scheme's own (chunks bound the per-pair temporaries and keep them in cache).
+#: Rows per chunk, overriding every scheme's ``chunk_rows`` (and :data:`COMPILED_CHUNK_ROWS`)
+#: when set (tests, tuning); ``None``: each scheme's own (chunks bound the per-pair
+#: temporaries and keep them in cache).
 CHUNK_ROWS: int | None = None
+
+#: Rows per chunk of the compiled schemes (their temporaries are one particle's).
+COMPILED_CHUNK_ROWS = 4096
+
+
+def _compiled_weights(scheme: Scheme, kernel: Kernel):
+    """The compiled kernel of :mod:`manifold_sph._jit` computing ``scheme``'s weights, or None.
+
+    Compiled: the quintic spline with cspm, msph, ncsph and msph3/4/5 (not subclasses
+    that change the weights); everything else runs the numpy schemes. The result is
+    a function ``f(lo, hi, indptr, xy, dV_pairs, h, alpha, max_condition, gx, gy, lp,
+    condition, failed)``.
+    """
+    if not _jit.ENABLED or type(kernel) is not QuinticSpline:
+        return None
+    table = {CSPM: _jit.cspm_rows, MSPH: _jit.msph_rows, NCSPH: _jit.ncsph_rows}
+    if type(scheme) in table:  # exactly these classes: a subclass may change the weights
+        return table[type(scheme)]
+    if isinstance(scheme, HighOrderCorrected) and type(scheme).weights is HighOrderCorrected.weights:
+        exps = scheme.exponents
+        px = np.array([a for a, _ in exps], dtype=np.int64)
+        py = np.array([b for _, b in exps], dtype=np.int64)
+        sel = np.array([exps.index(e) for e in ((1, 0), (0, 1), (2, 0), (0, 2))], dtype=np.int64)
+        scale = np.ascontiguousarray(scheme.scale, dtype=np.float64)
+
+        def moment(lo, hi, indptr, xy, dV_pairs, h, alpha, max_condition, gx, gy, lp, condition, failed):
+            _jit.moment_rows(lo, hi, indptr, xy, h, alpha, px, py, scale, sel, max_condition, gx, gy, lp, condition, failed)
+
+        return moment
+    return None
 
 
 class Assembled:
@@ -119,22 +155,23 @@ def pair_kernel_data(kernel: Kernel, x: np.ndarray, y: np.ndarray, h: np.ndarray
     return xi, w, dW, d2W, q
 
 
-def _local_pairs(lo, hi, nb, xy, dV_pairs, kernel) -> LocalPairs:
-    """Padded pair data of rows ``lo:hi``; unused slots get R = support (zero kernel) and dV = 0."""
-    starts = nb.indptr[lo:hi]
-    counts = nb.indptr[lo + 1 : hi + 1] - starts
+def _local_pairs(rows, nb, xy, dV_pairs, kernel) -> tuple[LocalPairs, np.ndarray]:
+    """Padded pair data of ``rows`` (a slice or an index array), and the pair index of every slot
+    (0 in unused slots, which get R = support, i.e. a zero kernel, and dV = 0)."""
+    starts = nb.indptr[:-1][rows]
+    counts = nb.indptr[1:][rows] - starts
     k = int(counts.max())
     slot = np.arange(k)
     valid = slot[None, :] < counts[:, None]
     pos = np.where(valid, starts[:, None] + slot[None, :], 0)
-    h = nb.h[lo:hi]
+    h = nb.h[rows]
     far = kernel.support * h[:, None]  # outside the support: every kernel factor vanishes
     x = np.where(valid, xy[pos, 0], far)
     y = np.where(valid, xy[pos, 1], 0.0)
     xi, W, dW, d2W, q = pair_kernel_data(kernel, x, y, h)
     xi[:, 0][~valid] = 0.0
     dV = np.where(valid, dV_pairs[pos], 0.0) / (h * h)[:, None]
-    return LocalPairs(valid=valid, xy=xi, dV=dV, W=W, dW=dW, d2W=d2W, dw_over_r=q)
+    return LocalPairs(valid=valid, xy=xi, dV=dV, W=W, dW=dW, d2W=d2W, dw_over_r=q), pos
 
 
 def _weights_with_fallback(pairs: LocalPairs, scheme: Scheme, max_condition: float):
@@ -198,28 +235,44 @@ def assemble(
         Threads over row chunks (-1: :func:`manifold_sph.threads.get_num_threads`).
     """
     n = nb.n_rows
-    rows_per_chunk = CHUNK_ROWS if CHUNK_ROWS is not None else scheme.chunk_rows
     gx = np.empty(xy.shape[0])
     gy = np.empty(xy.shape[0])
     lp = np.empty(xy.shape[0])
     condition = np.empty(n)
-    used = np.empty(n, dtype=np.int8)
+    used = np.zeros(n, dtype=np.int8)
 
-    def chunk(lo):  # writes disjoint slices: safe to run chunks in threads
-        hi = min(lo + rows_per_chunk, n)
-        pairs = _local_pairs(lo, hi, nb, xy, dV_pairs, kernel)
+    def numpy_rows(rows):  # rows: a slice or indices; their pair slices are disjoint from other calls'
+        pairs, pos = _local_pairs(rows, nb, xy, dV_pairs, kernel)
         grad, lap, cond, u = _weights_with_fallback(pairs, scheme, max_condition)
-        p0, p1 = nb.indptr[lo], nb.indptr[hi]
         valid = pairs.valid
-        h = nb.h[lo:hi][:, None]
-        gx[p0:p1] = (grad[:, 0] / h)[valid]  # row-major compress: CSR pair order
-        gy[p0:p1] = (grad[:, 1] / h)[valid]
-        lp[p0:p1] = (lap / (h * h))[valid]
-        condition[lo:hi] = cond
-        used[lo:hi] = u
+        h = nb.h[rows][:, None]
+        at = pos[valid]  # row-major: CSR pair order
+        gx[at] = (grad[:, 0] / h)[valid]
+        gy[at] = (grad[:, 1] / h)[valid]
+        lp[at] = (lap / (h * h))[valid]
+        condition[rows] = cond
+        used[rows] = u
 
-    starts = range(0, n, rows_per_chunk)
-    run_chunks(lambda c: chunk(starts[c]), len(starts), workers)  # numpy releases the GIL in the heavy parts
+    compiled = _compiled_weights(scheme, kernel)
+    if compiled is None:
+        rows_per_chunk = CHUNK_ROWS if CHUNK_ROWS is not None else scheme.chunk_rows
+        starts = range(0, n, rows_per_chunk)
+        # numpy releases the GIL in the heavy parts
+        run_chunks(lambda c: numpy_rows(slice(starts[c], min(starts[c] + rows_per_chunk, n))), len(starts), workers)
+    else:
+        rows_per_chunk = CHUNK_ROWS if CHUNK_ROWS is not None else COMPILED_CHUNK_ROWS
+        failed = np.zeros(n, dtype=bool)
+        args = (nb.indptr, xy, dV_pairs, nb.h, kernel.alpha(2))
+        starts = range(0, n, rows_per_chunk)
+        run_chunks(
+            lambda c: compiled(starts[c], min(starts[c] + rows_per_chunk, n), *args, max_condition, gx, gy, lp, condition, failed),
+            len(starts),
+            workers,
+        )
+        # particles the first scheme fails on: the numpy schemes, down the fallback chain
+        redo = np.flatnonzero(failed | (nb.counts < scheme.min_neighbors))
+        if redo.size:
+            numpy_rows(redo)
     shape = (n, n if n_cols is None else n_cols)
     if columns is None:  # pairs are already in CSR order, one entry per (row, column)
 

@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from ._validation import as_points, check_finite
-from .neighbors import find_neighbors
+from .neighbors import build_tree, find_neighbors
 from .operators import OperatorSet
 
 __all__ = ["Domain2D", "mirror_ghosts"]
@@ -121,7 +120,7 @@ class Domain2D(OperatorSet):
                 raise ValueError(f"points must lie inside bounds {self.bounds}, but {int(outside.sum())} lie outside")
         if self.mirror and self.bounds is None:
             raise ValueError("mirror=True needs bounds=(xmin, xmax, ymin, ymax): the rectangle to repeat periodically")
-        hv = self._smoothing_length(h, pts, cKDTree(pts))
+        hv = self._smoothing_length(h, pts, build_tree(pts))
         n = pts.shape[0]
         columns = None
         cand = pts

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import _jit
 from .threads import run_chunks
 
 __all__ = ["tangent_frames", "check_frames", "project_pairs", "project_neighborhood"]
@@ -126,6 +127,16 @@ def project_neighborhood(points, u, v, indptr, indices, candidates=None, workers
     n = indptr.size - 1
     out = np.empty((indices.size, 2))
     starts = list(range(0, n, _PROJECT_ROWS))
+
+    if _jit.ENABLED and points.shape[1] == 3:
+        pts = np.asarray(points, dtype=np.float64)
+        cnd = np.asarray(cand, dtype=np.float64)
+        run_chunks(
+            lambda c: _jit.project_rows(starts[c], min(starts[c] + _PROJECT_ROWS, n), pts, cnd, u, v, indptr, indices, out),
+            len(starts),
+            workers,
+        )
+        return out
 
     def chunk(lo):
         hi = min(lo + _PROJECT_ROWS, n)

@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from .frames import check_frames, project_neighborhood, tangent_frames
-from .neighbors import find_neighbors
+from .neighbors import build_tree, find_neighbors
 from .operators import OperatorSet
 from .pointcloud import PointCloud
 
@@ -108,7 +107,7 @@ class Surface(OperatorSet):
         self.cloud = cloud
         self._resolve(kernel, scheme, neighbors, max_condition)
         pts, nrm = cloud.points, cloud.normals
-        tree = cKDTree(pts)
+        tree = build_tree(pts)
         hv = self._smoothing_length(h, pts, tree)
         nb = find_neighbors(
             pts, nrm, h=hv, support=self.kernel.support, normal_threshold=normal_threshold, tree=tree,

@@ -1,0 +1,610 @@
+"""Compiled per-row kernels (numba) for the hot steps of the pipeline.
+
+numpy does these steps in several passes over the per-pair arrays (gathers,
+padding, one temporary per factor), and at a few dozen pairs per particle they are
+bound by memory traffic. Each function here does one step for the rows
+``lo:hi`` in a single pass, keeping a particle's pairs in registers and cache:
+
+- :func:`filter_count`, :func:`filter_fill`: the radius mask and normal filter of
+  :func:`manifold_sph.neighbors.find_neighbors`;
+- :func:`project_rows`: :func:`manifold_sph.frames.project_neighborhood`;
+- :func:`quintic_values`: :func:`manifold_sph.area.kernel_values` (quintic spline);
+- :func:`cspm_rows`, :func:`msph_rows`, :func:`ncsph_rows`, :func:`moment_rows`: the
+  weights of the schemes of :mod:`manifold_sph.schemes` (quintic spline), with the same
+  condition-number test; a particle that fails is only flagged, and the assembly
+  recomputes it (with the fallback chain) through the numpy schemes.
+
+Every function releases the GIL and writes only its rows' slices, so
+:func:`manifold_sph.threads.run_chunks` runs chunks on threads. Each has a numpy
+twin that defines it; ``tests/test_jit.py`` compares them (to round-off).
+
+``MANIFOLD_SPH_JIT=0`` in the environment, or ``ENABLED = False`` here, selects
+the numpy twins everywhere (for debugging; they are several times slower).
+Compiled code is cached on disk (numba ``cache=True``): the first import on a
+machine compiles it (a few seconds), later ones load it.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numba
+import numpy as np
+
+__all__ = [
+    "ENABLED",
+    "cspm_rows",
+    "filter_count",
+    "filter_fill",
+    "moment_rows",
+    "msph_rows",
+    "ncsph_rows",
+    "project_rows",
+    "quintic_values",
+]
+
+#: Whether the pipeline uses the compiled kernels (``MANIFOLD_SPH_JIT=0`` turns them off).
+ENABLED = os.environ.get("MANIFOLD_SPH_JIT", "1").strip().lower() not in ("0", "false", "no", "off")
+
+# error_model="numpy": a division by zero gives inf or nan (then caught by the
+# condition test), as in numpy, instead of raising.
+_jit = numba.njit(nogil=True, cache=True, error_model="numpy")
+
+
+# ----------------------------------------------------------------- neighbours
+@_jit
+def filter_count(lo, hi, dist, idx, radii, normals, cand_normals, threshold, use_normals, keep, counts, n_filtered):
+    """Rows ``lo:hi`` of a k-NN result (dist, idx (n, k)): mark the kept slots in ``keep`` (uint8, (n, k))
+    (inside ``radii`` and, with ``use_normals``, ``n_i . n_j > threshold``); count them and the filtered ones."""
+    k = dist.shape[1]
+    for i in range(lo, hi):
+        r = radii[i]
+        c = 0
+        f = 0
+        for s in range(k):
+            ok = dist[i, s] < r
+            if ok and use_normals:
+                j = idx[i, s]
+                dot = normals[i, 0] * cand_normals[j, 0] + normals[i, 1] * cand_normals[j, 1]
+                if normals.shape[1] == 3:
+                    dot += normals[i, 2] * cand_normals[j, 2]
+                if not dot > threshold:
+                    ok = False
+                    f += 1
+            keep[i, s] = ok
+            c += ok
+        counts[i] = c
+        n_filtered[i] = f
+
+
+@_jit
+def filter_fill(lo, hi, idx, keep, indptr, indices):
+    """Write the kept columns of rows ``lo:hi`` (in k-NN order) at ``indices[indptr[i]:indptr[i + 1]]``."""
+    k = idx.shape[1]
+    for i in range(lo, hi):
+        p = indptr[i]
+        for s in range(k):
+            if keep[i, s]:
+                indices[p] = idx[i, s]
+                p += 1
+
+
+# ----------------------------------------------------------------- projection
+@_jit
+def project_rows(lo, hi, points, cand, u, v, indptr, indices, out):
+    """``out[p] = ((c_j - p_i) . u_i, (c_j - p_i) . v_i)`` for the pairs ``p`` of rows ``lo:hi``."""
+    for i in range(lo, hi):
+        px, py, pz = points[i, 0], points[i, 1], points[i, 2]
+        ux, uy, uz = u[i, 0], u[i, 1], u[i, 2]
+        vx, vy, vz = v[i, 0], v[i, 1], v[i, 2]
+        for p in range(indptr[i], indptr[i + 1]):
+            j = indices[p]
+            dx = cand[j, 0] - px
+            dy = cand[j, 1] - py
+            dz = cand[j, 2] - pz
+            out[p, 0] = dx * ux + dy * uy + dz * uz
+            out[p, 1] = dx * vx + dy * vy + dz * vz
+
+
+# ----------------------------------------------------------------- kernel
+@_jit
+def _quintic(R):
+    """``(w, w'/R, (w'' - w'/R)/R^2)`` of the quintic spline (:meth:`QuinticSpline.radial_terms`)."""
+    if R >= 3.0:
+        return 0.0, 0.0, 0.0
+    a = 3.0 - R
+    b = max(2.0 - R, 0.0)
+    c = max(1.0 - R, 0.0)
+    a3 = a * a * a
+    b3 = b * b * b
+    c3 = c * c * c
+    a4 = a3 * a
+    b4 = b3 * b
+    w = a4 * a - 6.0 * (b4 * b) + 15.0 * (c3 * c * c)
+    if R < 1.0:
+        q = -120.0 + R * R * (120.0 - 50.0 * R)
+        t = 240.0 - 150.0 * R if R > 0.0 else 0.0
+    else:
+        q = (30.0 * b4 - 5.0 * a4) / R
+        t = (20.0 * a3 - 120.0 * b3 + 300.0 * c3 - q) / (R * R)
+    return w, q, t
+
+
+@_jit
+def quintic_values(lo, hi, indptr, xy, h, alpha, out):
+    """``out[p] = alpha w(|xy_p| / h_i) / h_i^2`` for the pairs of rows ``lo:hi``."""
+    for i in range(lo, hi):
+        ih = 1.0 / h[i]
+        scale = alpha * (ih * ih)
+        for p in range(indptr[i], indptr[i + 1]):
+            x = xy[p, 0]
+            y = xy[p, 1]
+            R = np.sqrt(x * x + y * y) * ih
+            if R >= 3.0:
+                out[p] = 0.0
+                continue
+            a = 3.0 - R
+            b = max(2.0 - R, 0.0)
+            c = max(1.0 - R, 0.0)
+            a2 = a * a
+            b2 = b * b
+            c2 = c * c
+            out[p] = (a2 * a2 * a - 6.0 * (b2 * b2 * b) + 15.0 * (c2 * c2 * c)) * scale
+
+
+# ----------------------------------------------------------------- small systems
+@_jit
+def _norm1(A, m):
+    best = 0.0
+    for c in range(m):
+        s = 0.0
+        for r in range(m):
+            s += abs(A[r, c])
+        if s > best:
+            best = s
+    return best
+
+
+@_jit
+def _invert(A, m, inv, work):
+    """Inverse of ``A[:m, :m]`` into ``inv`` (Gauss-Jordan, partial pivoting); returns the 1-norm
+    condition number, ``inf`` when ``A`` is singular or not finite."""
+    for i in range(m):
+        for j in range(m):
+            a = A[i, j]
+            if not np.isfinite(a):
+                return np.inf
+            work[i, j] = a
+            work[i, m + j] = 1.0 if i == j else 0.0
+    for col in range(m):
+        p = col
+        best = abs(work[col, col])
+        for r in range(col + 1, m):
+            if abs(work[r, col]) > best:
+                best = abs(work[r, col])
+                p = r
+        if best == 0.0:
+            return np.inf
+        if p != col:
+            for j in range(col, 2 * m):
+                tmp = work[col, j]
+                work[col, j] = work[p, j]
+                work[p, j] = tmp
+        ip = 1.0 / work[col, col]
+        for j in range(col, 2 * m):
+            work[col, j] *= ip
+        for r in range(m):
+            if r != col:
+                f = work[r, col]
+                if f != 0.0:
+                    for j in range(col, 2 * m):
+                        work[r, j] -= f * work[col, j]
+    for i in range(m):
+        for j in range(m):
+            inv[i, j] = work[i, m + j]
+    cond = _norm1(A, m) * _norm1(inv, m)
+    if not np.isfinite(cond):
+        return np.inf
+    return cond
+
+
+@_jit
+def _inverse2(A, inv):
+    """Closed-form 2x2 inverse (as ``schemes.base._small_inverse``); returns the 1-norm condition number."""
+    a, b, c, d = A[0, 0], A[0, 1], A[1, 0], A[1, 1]
+    det = a * d - b * c
+    inv[0, 0] = d / det
+    inv[0, 1] = -b / det
+    inv[1, 0] = -c / det
+    inv[1, 1] = a / det
+    cond = _norm1(A, 2) * _norm1(inv, 2)
+    return cond if np.isfinite(cond) else np.inf
+
+
+@_jit
+def _inverse3(A, inv):
+    """Closed-form 3x3 inverse (adjugate over determinant); returns the 1-norm condition number."""
+    a, b, c = A[0, 0], A[0, 1], A[0, 2]
+    d, e, f = A[1, 0], A[1, 1], A[1, 2]
+    g, h, k = A[2, 0], A[2, 1], A[2, 2]
+    c0 = e * k - f * h
+    c1 = f * g - d * k
+    c2 = d * h - e * g
+    det = a * c0 + b * c1 + c * c2
+    inv[0, 0] = c0 / det
+    inv[0, 1] = (c * h - b * k) / det
+    inv[0, 2] = (b * f - c * e) / det
+    inv[1, 0] = c1 / det
+    inv[1, 1] = (a * k - c * g) / det
+    inv[1, 2] = (c * d - a * f) / det
+    inv[2, 0] = c2 / det
+    inv[2, 1] = (b * g - a * h) / det
+    inv[2, 2] = (a * e - b * d) / det
+    cond = _norm1(A, 3) * _norm1(inv, 3)
+    return cond if np.isfinite(cond) else np.inf
+
+
+@_jit
+def _max_count(lo, hi, indptr):
+    k = 0
+    for i in range(lo, hi):
+        k = max(k, indptr[i + 1] - indptr[i])
+    return k
+
+
+@_jit
+def _pair_terms(p0, m, xy, dvp, ih, dsc, alpha, use_dv, X, Y, D, Wv, Q, T):
+    """Normalised offsets, area elements and kernel factors of one particle's ``m`` pairs."""
+    for k in range(m):
+        x = xy[p0 + k, 0] * ih
+        y = xy[p0 + k, 1] * ih
+        w, q, t = _quintic(np.sqrt(x * x + y * y))
+        X[k] = x
+        Y[k] = y
+        D[k] = dvp[p0 + k] * dsc if use_dv else 1.0
+        Wv[k] = w * alpha
+        Q[k] = q * alpha
+        T[k] = t * alpha
+
+
+@_jit
+def _store(p0, m, cx, cy, cl, ih, dsc, difference, gx, gy, lp):
+    """Scale weights to physical units (1/h, 1/h^2) and store them; ``difference``: weights on
+    ``f_j - f_i``, so the particle's own slot takes minus the others' sum."""
+    if difference:
+        sx = 0.0
+        sy = 0.0
+        sl = 0.0
+        for k in range(1, m):
+            sx += cx[k]
+            sy += cy[k]
+            sl += cl[k]
+        cx[0] = -sx
+        cy[0] = -sy
+        cl[0] = -sl
+    for k in range(m):
+        gx[p0 + k] = cx[k] * ih
+        gy[p0 + k] = cy[k] * ih
+        lp[p0 + k] = cl[k] * dsc
+
+
+@_jit
+def _zero(p0, m, gx, gy, lp):
+    for k in range(m):
+        gx[p0 + k] = 0.0
+        gy[p0 + k] = 0.0
+        lp[p0 + k] = 0.0
+
+
+# ----------------------------------------------------------------- schemes
+@_jit
+def cspm_rows(lo, hi, indptr, xy, dvp, h, alpha, max_condition, gx, gy, lp, cond, failed):
+    """CSPM weights (:class:`manifold_sph.schemes.CSPM`) of rows ``lo:hi`` into the pair arrays
+    ``gx, gy, lp`` (physical units), with each row's condition number and failure flag."""
+    K = _max_count(lo, hi, indptr)
+    X = np.empty(K)
+    Y = np.empty(K)
+    D = np.empty(K)
+    Wv = np.empty(K)
+    Q = np.empty(K)
+    T = np.empty(K)
+    r1 = np.empty((2, K))
+    r2 = np.empty((3, K))
+    cx = np.empty(K)
+    cy = np.empty(K)
+    cl = np.empty(K)
+    M1 = np.empty((2, 2))
+    M1i = np.empty((2, 2))
+    N2 = np.empty((3, 3))
+    N2i = np.empty((3, 3))
+    N1 = np.empty((3, 2))
+    for i in range(lo, hi):
+        p0 = indptr[i]
+        m = indptr[i + 1] - p0
+        ih = 1.0 / h[i]
+        dsc = ih * ih
+        _pair_terms(p0, m, xy, dvp, ih, dsc, alpha, True, X, Y, D, Wv, Q, T)
+        M1[:] = 0.0
+        N2[:] = 0.0
+        N1[:] = 0.0
+        for k in range(m):
+            x, y, q, t, dv = X[k], Y[k], Q[k], T[k], D[k]
+            a = -(x * q) * dv
+            b = -(y * q) * dv
+            r1[0, k] = a
+            r1[1, k] = b
+            M1[0, 0] += a * x
+            M1[0, 1] += a * y
+            M1[1, 0] += b * x
+            M1[1, 1] += b * y
+            tx = t * x
+            s0 = (tx * x + q) * dv
+            s1 = (tx * y) * dv
+            s2 = (t * y * y + q) * dv
+            r2[0, k] = s0
+            r2[1, k] = s1
+            r2[2, k] = s2
+            qx = 0.5 * x * x
+            qxy = x * y
+            qy = 0.5 * y * y
+            N2[0, 0] += s0 * qx
+            N2[0, 1] += s0 * qxy
+            N2[0, 2] += s0 * qy
+            N2[1, 0] += s1 * qx
+            N2[1, 1] += s1 * qxy
+            N2[1, 2] += s1 * qy
+            N2[2, 0] += s2 * qx
+            N2[2, 1] += s2 * qxy
+            N2[2, 2] += s2 * qy
+            N1[0, 0] += s0 * x
+            N1[0, 1] += s0 * y
+            N1[1, 0] += s1 * x
+            N1[1, 1] += s1 * y
+            N1[2, 0] += s2 * x
+            N1[2, 1] += s2 * y
+        c1 = _inverse2(M1, M1i)
+        c2 = _inverse3(N2, N2i)
+        cond[i] = max(c1, c2)
+        if not (c1 <= max_condition and c2 <= max_condition):
+            failed[i] = True
+            _zero(p0, m, gx, gy, lp)
+            continue
+        failed[i] = False
+        y0 = N2i[0, 0] + N2i[2, 0]
+        y1 = N2i[0, 1] + N2i[2, 1]
+        y2 = N2i[0, 2] + N2i[2, 2]
+        z0 = y0 * N1[0, 0] + y1 * N1[1, 0] + y2 * N1[2, 0]
+        z1 = y0 * N1[0, 1] + y1 * N1[1, 1] + y2 * N1[2, 1]
+        for k in range(m):
+            a = M1i[0, 0] * r1[0, k] + M1i[0, 1] * r1[1, k]
+            b = M1i[1, 0] * r1[0, k] + M1i[1, 1] * r1[1, k]
+            cx[k] = a
+            cy[k] = b
+            cl[k] = (y0 * r2[0, k] + y1 * r2[1, k] + y2 * r2[2, k]) - (z0 * a + z1 * b)
+        _store(p0, m, cx, cy, cl, ih, dsc, True, gx, gy, lp)
+
+
+@_jit
+def msph_rows(lo, hi, indptr, xy, dvp, h, alpha, max_condition, gx, gy, lp, cond, failed):
+    """MSPH weights (:class:`manifold_sph.schemes.MSPH`, the 6x6 system) of rows ``lo:hi``."""
+    K = _max_count(lo, hi, indptr)
+    X = np.empty(K)
+    Y = np.empty(K)
+    D = np.empty(K)
+    Wv = np.empty(K)
+    Q = np.empty(K)
+    T = np.empty(K)
+    rows = np.empty((K, 6))
+    A = np.empty((6, 6))
+    Ai = np.empty((6, 6))
+    work = np.empty((6, 12))
+    cols = np.empty(6)
+    cx = np.empty(K)
+    cy = np.empty(K)
+    cl = np.empty(K)
+    for i in range(lo, hi):
+        p0 = indptr[i]
+        m = indptr[i + 1] - p0
+        ih = 1.0 / h[i]
+        dsc = ih * ih
+        _pair_terms(p0, m, xy, dvp, ih, dsc, alpha, True, X, Y, D, Wv, Q, T)
+        A[:] = 0.0
+        for k in range(m):
+            x, y, q, t, dv = X[k], Y[k], Q[k], T[k], D[k]
+            tx = t * x
+            rows[k, 0] = Wv[k] * dv
+            rows[k, 1] = -(x * q) * dv
+            rows[k, 2] = -(y * q) * dv
+            rows[k, 3] = (tx * x + q) * dv
+            rows[k, 4] = (tx * y) * dv
+            rows[k, 5] = (t * y * y + q) * dv
+            cols[0] = 1.0
+            cols[1] = x
+            cols[2] = y
+            cols[3] = 0.5 * x * x
+            cols[4] = x * y
+            cols[5] = 0.5 * y * y
+            for r in range(6):
+                s = rows[k, r]
+                for c in range(6):
+                    A[r, c] += s * cols[c]
+        c = _invert(A, 6, Ai, work)
+        cond[i] = c
+        if not c <= max_condition:
+            failed[i] = True
+            _zero(p0, m, gx, gy, lp)
+            continue
+        failed[i] = False
+        for k in range(m):
+            sx = 0.0
+            sy = 0.0
+            sl = 0.0
+            for r in range(6):
+                s = rows[k, r]
+                sx += Ai[1, r] * s
+                sy += Ai[2, r] * s
+                sl += (Ai[3, r] + Ai[5, r]) * s
+            cx[k] = sx
+            cy[k] = sy
+            cl[k] = sl
+        _store(p0, m, cx, cy, cl, ih, dsc, False, gx, gy, lp)
+
+
+@_jit
+def ncsph_rows(lo, hi, indptr, xy, dvp, h, alpha, max_condition, gx, gy, lp, cond, failed):
+    """NCSPH weights (:class:`manifold_sph.schemes.NCSPH`: CSPM's gradient, the 5x5 block system's
+    Laplacian) of rows ``lo:hi``."""
+    K = _max_count(lo, hi, indptr)
+    X = np.empty(K)
+    Y = np.empty(K)
+    D = np.empty(K)
+    Wv = np.empty(K)
+    Q = np.empty(K)
+    T = np.empty(K)
+    rows = np.empty((K, 5))
+    A = np.empty((5, 5))
+    Ai = np.empty((5, 5))
+    work = np.empty((5, 10))
+    cols = np.empty(5)
+    M1 = np.empty((2, 2))
+    M1i = np.empty((2, 2))
+    cx = np.empty(K)
+    cy = np.empty(K)
+    cl = np.empty(K)
+    for i in range(lo, hi):
+        p0 = indptr[i]
+        m = indptr[i + 1] - p0
+        ih = 1.0 / h[i]
+        dsc = ih * ih
+        _pair_terms(p0, m, xy, dvp, ih, dsc, alpha, True, X, Y, D, Wv, Q, T)
+        A[:] = 0.0
+        M1[:] = 0.0
+        for k in range(m):
+            x, y, q, t, dv = X[k], Y[k], Q[k], T[k], D[k]
+            tx = t * x
+            a = -(x * q) * dv
+            b = -(y * q) * dv
+            rows[k, 0] = a
+            rows[k, 1] = b
+            rows[k, 2] = (tx * x + q) * dv
+            rows[k, 3] = (tx * y) * dv
+            rows[k, 4] = (t * y * y + q) * dv
+            M1[0, 0] += a * x
+            M1[0, 1] += a * y
+            M1[1, 0] += b * x
+            M1[1, 1] += b * y
+            cols[0] = x
+            cols[1] = y
+            cols[2] = 0.5 * x * x
+            cols[3] = x * y
+            cols[4] = 0.5 * y * y
+            for r in range(5):
+                s = rows[k, r]
+                for c in range(5):
+                    A[r, c] += s * cols[c]
+        c1 = _inverse2(M1, M1i)
+        c2 = _invert(A, 5, Ai, work)
+        cond[i] = max(c1, c2)
+        if not (c1 <= max_condition and c2 <= max_condition):
+            failed[i] = True
+            _zero(p0, m, gx, gy, lp)
+            continue
+        failed[i] = False
+        for k in range(m):
+            a = rows[k, 0]
+            b = rows[k, 1]
+            cx[k] = M1i[0, 0] * a + M1i[0, 1] * b
+            cy[k] = M1i[1, 0] * a + M1i[1, 1] * b
+            sl = 0.0
+            for r in range(5):
+                sl += (Ai[2, r] + Ai[4, r]) * rows[k, r]
+            cl[k] = sl
+        _store(p0, m, cx, cy, cl, ih, dsc, True, gx, gy, lp)
+
+
+@_jit
+def moment_rows(lo, hi, indptr, xy, h, alpha, px, py, scale, sel, max_condition, gx, gy, lp, cond, failed):
+    """Weights of the moment-form schemes (:class:`manifold_sph.schemes.msph4.HighOrderCorrected`:
+    monomials ``x^px y^py * scale``, ``U = px.size`` unknowns; ``sel`` the positions of
+    ``f_x, f_y, f_xx, f_yy``) of rows ``lo:hi``, with the Jacobi-equilibrated condition test."""
+    U = px.size
+    K = _max_count(lo, hi, indptr)
+    top = 0
+    for a in range(U):
+        top = max(top, px[a], py[a])
+    X = np.empty(K)
+    Y = np.empty(K)
+    D = np.empty(K)
+    Wv = np.empty(K)
+    Q = np.empty(K)
+    T = np.empty(K)
+    mono = np.empty((K, U))
+    mw = np.empty((K, U))
+    powx = np.empty(top + 1)
+    powy = np.empty(top + 1)
+    A = np.empty((U, U))
+    As = np.empty((U, U))
+    Ai = np.empty((U, U))
+    work = np.empty((U, 2 * U))
+    d = np.empty(U)
+    Ysel = np.empty((3, U))
+    cx = np.empty(K)
+    cy = np.empty(K)
+    cl = np.empty(K)
+    for i in range(lo, hi):
+        p0 = indptr[i]
+        m = indptr[i + 1] - p0
+        ih = 1.0 / h[i]
+        dsc = ih * ih
+        _pair_terms(p0, m, xy, xy[:, 0], ih, dsc, alpha, False, X, Y, D, Wv, Q, T)
+        A[:] = 0.0
+        for k in range(m):
+            powx[0] = 1.0
+            powy[0] = 1.0
+            for e in range(1, top + 1):
+                powx[e] = powx[e - 1] * X[k]
+                powy[e] = powy[e - 1] * Y[k]
+            w = Wv[k]
+            for a in range(U):
+                v = powx[px[a]] * powy[py[a]] * scale[a]
+                mono[k, a] = v
+                mw[k, a] = v * w
+            for a in range(U):
+                s = mw[k, a]
+                for c in range(U):
+                    A[a, c] += s * mono[k, c]
+        ok = True
+        for a in range(U):
+            if not (np.isfinite(A[a, a]) and A[a, a] > 0.0):
+                ok = False
+                break
+            d[a] = 1.0 / np.sqrt(A[a, a])
+        c = np.inf
+        if ok:
+            for a in range(U):
+                for b in range(U):
+                    As[a, b] = A[a, b] * d[a] * d[b]
+            c = _invert(As, U, Ai, work)
+        cond[i] = c
+        if not c <= max_condition:
+            failed[i] = True
+            _zero(p0, m, gx, gy, lp)
+            continue
+        failed[i] = False
+        for b in range(U):
+            Ysel[0, b] = d[sel[0]] * Ai[sel[0], b] * d[b]
+            Ysel[1, b] = d[sel[1]] * Ai[sel[1], b] * d[b]
+            Ysel[2, b] = d[sel[2]] * Ai[sel[2], b] * d[b] + d[sel[3]] * Ai[sel[3], b] * d[b]
+        for k in range(m):
+            sx = 0.0
+            sy = 0.0
+            sl = 0.0
+            for a in range(U):
+                s = mw[k, a]
+                sx += Ysel[0, a] * s
+                sy += Ysel[1, a] * s
+                sl += Ysel[2, a] * s
+            cx[k] = sx
+            cy[k] = sy
+            cl[k] = sl
+        _store(p0, m, cx, cy, cl, ih, dsc, True, gx, gy, lp)
