@@ -1,0 +1,172 @@
+"""The compiled kernels (``manifold_sph._jit``) agree with the numpy code they replace.
+
+Each test builds the same thing twice, with the compiled kernels and with
+``_jit.ENABLED = False`` (the numpy schemes, filter, projection and kernel), and
+compares: neighbour lists exactly, offsets and kernel values to 1e-15, operator
+matrices to 1e-11 of their largest entry (the two evaluate the same sums in a
+different order), and the same particles falling back to the same schemes.
+"""
+
+import os
+import subprocess
+import sys
+import warnings
+
+import numpy as np
+import pytest
+
+from manifold_sph import Domain2D, Surface, _jit, sampling, shapes
+from manifold_sph.area import kernel_values
+from manifold_sph.frames import project_neighborhood, project_pairs, tangent_frames
+from manifold_sph.kernels import QuinticSpline
+from manifold_sph.neighbors import find_neighbors
+
+RTOL = 1e-11
+
+
+def _both(monkeypatch, build):
+    """``build()`` with the compiled kernels, then with the numpy ones."""
+    monkeypatch.setattr(_jit, "ENABLED", True)
+    fast = build()
+    monkeypatch.setattr(_jit, "ENABLED", False)
+    plain = build()
+    monkeypatch.setattr(_jit, "ENABLED", True)
+    return fast, plain
+
+
+def _assert_same_operators(a, b):
+    # row by row: 1e-11 of the row's largest weight, more where the local system is
+    # ill-conditioned (its solution is only defined to about condition x round-off)
+    cond = np.where(np.isfinite(b.condition), b.condition, 1.0)
+    for name in ("laplacian_matrix", "gradient_matrix", "divergence_matrix"):
+        A, B = getattr(a, name)(), getattr(b, name)()
+        assert A.shape == B.shape
+        per = A.shape[0] // b.n_points  # rows per particle (the gradient has D)
+        c = np.repeat(cond, per)
+        diff = abs(A - B).max(axis=1).toarray().ravel()
+        scale = abs(B).max(axis=1).toarray().ravel()
+        bound = (RTOL + 1e-14 * c) * scale
+        assert np.all(diff <= bound), (name, np.max(diff / np.maximum(scale, 1e-300)))
+    np.testing.assert_array_equal(a.scheme_used, b.scheme_used)
+    assert a.fallback.keys() == b.fallback.keys()
+    for k in a.fallback:
+        np.testing.assert_array_equal(a.fallback[k], b.fallback[k])
+    # condition numbers of the systems that passed the test: to about condition x round-off
+    ok = b.condition <= b.max_condition
+    np.testing.assert_array_equal(a.condition <= b.max_condition, ok)
+    c = b.condition[ok]
+    assert np.all(np.abs(a.condition[ok] - c) <= (1e-12 + 1e-15 * c) * c)
+
+
+@pytest.mark.parametrize("scheme", ["cspm", "msph", "ncsph", "msph3", "msph4", "msph5"])
+@pytest.mark.parametrize("cloud", ["sphere", "torus"])
+def test_surface_operators_equal_numpy(monkeypatch, scheme, cloud):
+    pc = shapes.sphere(1500) if cloud == "sphere" else shapes.torus(2500, seed=3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # negative dV, fallbacks: the same in both
+        fast, plain = _both(monkeypatch, lambda: Surface(pc, scheme=scheme))
+    _assert_same_operators(fast, plain)
+    np.testing.assert_allclose(fast.dV, plain.dV, rtol=1e-10, atol=0)  # solved to round-off from 1-ulp different W
+
+
+@pytest.mark.parametrize("scheme", ["cspm", "msph", "ncsph", "msph4"])
+def test_planar_domain_with_boundary_equals_numpy(monkeypatch, scheme):
+    p = sampling.square(900, seed=2)  # boundary particles: one-sided, ill-conditioned systems
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        fast, plain = _both(monkeypatch, lambda: Domain2D(p, scheme=scheme))
+    _assert_same_operators(fast, plain)
+
+
+def _threshold_in_a_gap(cond):
+    """A condition threshold near the median, in the widest gap between neighbouring values
+    (no particle sits on it, so both paths make the same decisions)."""
+    c = np.sort(cond[np.isfinite(cond)])
+    mid = c[c.size // 3 : 2 * c.size // 3]
+    i = int(np.argmax(mid[1:] / mid[:-1]))
+    return float(np.sqrt(mid[i] * mid[i + 1]))
+
+
+@pytest.mark.parametrize("scheme", ["cspm", "msph", "ncsph", "msph4"])
+def test_fallbacks_equal_numpy(monkeypatch, scheme):
+    # a threshold that about half the particles fail: the compiled path flags them and the
+    # numpy schemes redo them down the chain; both must end with the same operators
+    pc = shapes.torus(2000, seed=5)
+    cond = Surface(pc, scheme=scheme, area="shepard").condition
+    limit = _threshold_in_a_gap(cond)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        fast, plain = _both(monkeypatch, lambda: Surface(pc, scheme=scheme, area="shepard", max_condition=limit))
+    n_fell = sum(v.size for v in plain.fallback.values())
+    assert 0.2 * pc.points.shape[0] < n_fell < 0.8 * pc.points.shape[0]
+    _assert_same_operators(fast, plain)
+
+
+def test_neighbor_filter_equals_numpy(monkeypatch):
+    # the sausage's two ends face each other: the normal filter drops pairs
+    pc = shapes.sausage(2652)
+    p, n = pc.points, pc.normals
+    for threshold in (-1.0, 0.0, 0.5):
+        fast, plain = _both(monkeypatch, lambda: find_neighbors(p, n, h=0.08, support=3.0, normal_threshold=threshold))
+        np.testing.assert_array_equal(fast.indptr, plain.indptr)
+        np.testing.assert_array_equal(fast.indices, plain.indices)
+        assert fast.n_filtered == plain.n_filtered
+        assert fast.indices.dtype == plain.indices.dtype
+    fast, plain = _both(monkeypatch, lambda: find_neighbors(p, None, h=0.08, support=3.0))
+    np.testing.assert_array_equal(fast.indices, plain.indices)
+    assert fast.n_filtered == plain.n_filtered == 0
+
+
+def test_projection_and_kernel_values_equal_numpy(monkeypatch):
+    pc = shapes.torus(3000, seed=1)
+    p, n = pc.points, pc.normals
+    u, v = tangent_frames(n)
+    nb = find_neighbors(p, n, h=0.05, support=3.0)
+    fast, plain = _both(monkeypatch, lambda: project_neighborhood(p, u, v, nb.indptr, nb.indices))
+    ref = project_pairs(p, u, v, nb.rows, nb.indices)
+    np.testing.assert_allclose(fast, ref, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(plain, ref, rtol=0, atol=1e-15)
+    k = QuinticSpline()
+    wf, wp = _both(monkeypatch, lambda: kernel_values(nb, fast, k))
+    r = np.linalg.norm(fast, axis=1) / nb.h[nb.rows]
+    exact = k.w(r) * k.alpha(2) / nb.h[nb.rows] ** 2
+    tol = 1e-14 * exact.max()  # absolute: w(R) cancels near the support's edge
+    np.testing.assert_allclose(wf, exact, rtol=1e-13, atol=tol)
+    np.testing.assert_allclose(wp, exact, rtol=1e-13, atol=tol)
+
+
+def test_other_kernels_use_numpy(monkeypatch):
+    # the compiled schemes are the quintic spline's; another kernel takes the numpy path and works
+    pc = shapes.sphere(1200)
+    s = Surface(pc, scheme="cspm", kernel="wendland2")
+    x = pc.points
+    f = x[:, 0] * x[:, 1] * x[:, 2]
+    err = np.linalg.norm(s.laplacian(f) + 12 * f) / np.linalg.norm(12 * f)
+    assert err < 0.05, err
+
+
+def test_non_finite_local_systems_fail_and_fall_back():
+    # four particles on a line inside a cloud: their systems are singular; the compiled
+    # path must flag them (never return inf or nan weights)
+    p = sampling.square(600, seed=4)
+    p = np.vstack([p, np.column_stack([np.linspace(3.0, 3.3, 4), np.zeros(4)])])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        try:
+            d = Domain2D(p, scheme="cspm", area="shepard", h=0.12)
+        except ValueError as e:  # isolated points are refused outright: also acceptable
+            assert "isolated" in str(e) or "neighbour" in str(e)
+            return
+    L = d.laplacian_matrix()
+    assert np.all(np.isfinite(L.data))
+    assert set(range(600, 604)) <= set(np.flatnonzero(d.scheme_used != "cspm"))
+
+
+def test_environment_variable_turns_the_kernels_off():
+    code = "from manifold_sph import _jit; print(_jit.ENABLED)"
+    env = dict(os.environ, MANIFOLD_SPH_JIT="0")
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
+    env["MANIFOLD_SPH_JIT"] = "1"
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "True"
