@@ -50,6 +50,11 @@ ENABLED = os.environ.get("MANIFOLD_SPH_JIT", "1").strip().lower() not in ("0", "
 # condition test), as in numpy, instead of raising.
 _jit = numba.njit(nogil=True, cache=True, error_model="numpy")
 
+# Indices into the pair and point arrays are cast to unsigned: numba then skips the
+# wrap-around test of negative indices. It made a CSR product 1.5x slower than scipy's
+# (measured, 3.5 million entries: 5.8 ms signed, 2.4 ms unsigned, scipy 4.0 ms).
+_u = np.uint64
+
 
 # ----------------------------------------------------------------- neighbours
 @_jit
@@ -64,7 +69,7 @@ def filter_count(lo, hi, dist, idx, radii, normals, cand_normals, threshold, use
         for s in range(k):
             ok = dist[i, s] < r
             if ok and use_normals:
-                j = idx[i, s]
+                j = _u(idx[i, s])
                 dot = normals[i, 0] * cand_normals[j, 0] + normals[i, 1] * cand_normals[j, 1]
                 if normals.shape[1] == 3:
                     dot += normals[i, 2] * cand_normals[j, 2]
@@ -85,7 +90,7 @@ def filter_fill(lo, hi, idx, keep, indptr, indices):
         p = indptr[i]
         for s in range(k):
             if keep[i, s]:
-                indices[p] = idx[i, s]
+                indices[_u(p)] = idx[i, s]
                 p += 1
 
 
@@ -97,8 +102,8 @@ def project_rows(lo, hi, points, cand, u, v, indptr, indices, out):
         px, py, pz = points[i, 0], points[i, 1], points[i, 2]
         ux, uy, uz = u[i, 0], u[i, 1], u[i, 2]
         vx, vy, vz = v[i, 0], v[i, 1], v[i, 2]
-        for p in range(indptr[i], indptr[i + 1]):
-            j = indices[p]
+        for p in range(_u(indptr[i]), _u(indptr[i + 1])):
+            j = _u(indices[p])
             dx = cand[j, 0] - px
             dy = cand[j, 1] - py
             dz = cand[j, 2] - pz
@@ -136,7 +141,7 @@ def quintic_values(lo, hi, indptr, xy, h, alpha, out):
     for i in range(lo, hi):
         ih = 1.0 / h[i]
         scale = alpha * (ih * ih)
-        for p in range(indptr[i], indptr[i + 1]):
+        for p in range(_u(indptr[i]), _u(indptr[i + 1])):
             x = xy[p, 0]
             y = xy[p, 1]
             R = np.sqrt(x * x + y * y) * ih
@@ -256,12 +261,13 @@ def _max_count(lo, hi, indptr):
 def _pair_terms(p0, m, xy, dvp, ih, dsc, alpha, use_dv, X, Y, D, Wv, Q, T):
     """Normalised offsets, area elements and kernel factors of one particle's ``m`` pairs."""
     for k in range(m):
-        x = xy[p0 + k, 0] * ih
-        y = xy[p0 + k, 1] * ih
+        p = _u(p0 + k)
+        x = xy[p, 0] * ih
+        y = xy[p, 1] * ih
         w, q, t = _quintic(np.sqrt(x * x + y * y))
         X[k] = x
         Y[k] = y
-        D[k] = dvp[p0 + k] * dsc if use_dv else 1.0
+        D[k] = dvp[p] * dsc if use_dv else 1.0
         Wv[k] = w * alpha
         Q[k] = q * alpha
         T[k] = t * alpha
@@ -283,9 +289,10 @@ def _store(p0, m, cx, cy, cl, ih, dsc, difference, gx, gy, lp):
         cy[0] = -sy
         cl[0] = -sl
     for k in range(m):
-        gx[p0 + k] = cx[k] * ih
-        gy[p0 + k] = cy[k] * ih
-        lp[p0 + k] = cl[k] * dsc
+        p = _u(p0 + k)
+        gx[p] = cx[k] * ih
+        gy[p] = cy[k] * ih
+        lp[p] = cl[k] * dsc
 
 
 @_jit
@@ -608,3 +615,78 @@ def moment_rows(lo, hi, indptr, xy, h, alpha, px, py, scale, sel, max_condition,
             cy[k] = sy
             cl[k] = sl
         _store(p0, m, cx, cy, cl, ih, dsc, True, gx, gy, lp)
+
+
+# ----------------------------------------------------------------- Krylov solves
+# Each pass works on the row blocks ``g0:g1`` (rows ``bounds[b]:bounds[b + 1]``) and leaves
+# its inner products per block in ``partial[b]``: summed in block order, they do not
+# depend on how the blocks are shared among threads.
+@_jit
+def csr_matvec_dot(g0, g1, bounds, indptr, indices, data, x, out, a, partial):
+    """``out = A x`` (CSR arrays of ``A``); ``partial[b, 0] = sum a * out`` over block ``b``."""
+    for b in range(g0, g1):
+        s = 0.0
+        for i in range(bounds[b], bounds[b + 1]):
+            acc = 0.0
+            for p in range(_u(indptr[i]), _u(indptr[i + 1])):
+                acc += data[p] * x[_u(indices[p])]
+            out[i] = acc
+            s += a[i] * acc
+        partial[b, 0] = s
+
+
+@_jit
+def csr_matvec_dots2(g0, g1, bounds, indptr, indices, data, x, out, a, partial):
+    """``out = A x``; ``partial[b] = (sum out * out, sum a * out)`` over block ``b``."""
+    for b in range(g0, g1):
+        s0 = 0.0
+        s1 = 0.0
+        for i in range(bounds[b], bounds[b + 1]):
+            acc = 0.0
+            for p in range(_u(indptr[i]), _u(indptr[i + 1])):
+                acc += data[p] * x[_u(indices[p])]
+            out[i] = acc
+            s0 += acc * acc
+            s1 += a[i] * acc
+        partial[b, 0] = s0
+        partial[b, 1] = s1
+
+
+@_jit
+def bicgstab_direction(g0, g1, bounds, r, p, v, dinv, phat, beta, omega, first, partial):
+    """BiCGSTAB: ``p = r`` (first step) or ``r + beta (p - omega v)``; ``phat = dinv p``."""
+    for i in range(bounds[g0], bounds[g1]):
+        pi = r[i] if first else r[i] + beta * (p[i] - omega * v[i])
+        p[i] = pi
+        phat[i] = dinv[i] * pi
+
+
+@_jit
+def bicgstab_half(g0, g1, bounds, r, v, alpha, dinv, shat, partial):
+    """BiCGSTAB: ``r = s = r - alpha v``, ``shat = dinv s``; ``partial[b, 0] = s . s`` over block ``b``."""
+    for b in range(g0, g1):
+        ss = 0.0
+        for i in range(bounds[b], bounds[b + 1]):
+            s = r[i] - alpha * v[i]
+            r[i] = s
+            shat[i] = dinv[i] * s
+            ss += s * s
+        partial[b, 0] = ss
+
+
+@_jit
+def bicgstab_step(g0, g1, bounds, x, phat, shat, alpha, omega, r, t, rtilde, partial):
+    """BiCGSTAB: ``x += alpha phat + omega shat``, ``r = s - omega t``;
+    ``partial[b] = (r . r, rtilde . r)`` over block ``b``."""
+    for b in range(g0, g1):
+        rr = 0.0
+        rho = 0.0
+        for i in range(bounds[b], bounds[b + 1]):
+            x[i] += alpha * phat[i]
+            x[i] += omega * shat[i]
+            ri = r[i] - omega * t[i]
+            r[i] = ri
+            rr += ri * ri
+            rho += rtilde[i] * ri
+        partial[b, 0] = rr
+        partial[b, 1] = rho

@@ -18,7 +18,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from . import _jit
-from ._sparse import RowBlocks, bicgstab_diag
+from ._sparse import bicgstab_csr
 from .kernels import Kernel, QuinticSpline
 from .neighbors import Neighborhood
 from .threads import run_chunks
@@ -163,7 +163,7 @@ def _solve_partition_of_unity(A: sp.csr_matrix, rtol: float = 1e-15):
     rowsum = np.asarray(A.sum(axis=1)).ravel()
     if np.all(rowsum > 0):
         dinv = 1.0 / rowsum
-        dV, info = bicgstab_diag(RowBlocks(A), ones, dinv, dinv, rtol=rtol, maxiter=2000)  # threaded products
+        dV, info = bicgstab_csr(A, ones, dinv, dinv, rtol=rtol, maxiter=2000)  # fused, threaded passes
         if info == 0 and np.all(np.isfinite(dV)) and np.abs(A @ dV - 1.0).max() < 1e-9:
             return dV
     if n > LU_MAX_ROWS:  # a sparse LU of a kernel matrix this large takes minutes and gigabytes

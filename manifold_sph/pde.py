@@ -23,7 +23,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from ._sparse import RowBlocks, _dot, bicgstab_diag
+from ._sparse import RowBlocks, _dot, bicgstab_csr
 from ._validation import as_field, check_in, check_int, check_positive
 from .operators import OperatorSet
 
@@ -382,7 +382,7 @@ def _implicit_solver(A: sp.csr_matrix, solver: str) -> Callable:
         if "lu" in state:
             return state["lu"].solve(rhs)
         if state["jacobi"]:
-            x, info = bicgstab_diag(blocks, rhs, dinv, guess, rtol=1e-10, maxiter=JACOBI_MAXITER)
+            x, info = bicgstab_csr(A, rhs, dinv, guess, rtol=1e-10, maxiter=JACOBI_MAXITER)
             if info == 0 and good(x, rhs):
                 return x
             state["jacobi"] = False  # too stiff for Jacobi: multigrid from now on

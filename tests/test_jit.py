@@ -170,3 +170,34 @@ def test_environment_variable_turns_the_kernels_off():
     env["MANIFOLD_SPH_JIT"] = "1"
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "True"
+
+
+def test_bicgstab_csr_equals_the_row_block_iteration(monkeypatch):
+    import scipy.sparse as sp
+
+    from manifold_sph import _sparse, threads
+
+    rng = np.random.default_rng(4)
+    n = 3000
+    A = (sp.random(n, n, density=0.004, random_state=3, format="csr") + sp.diags(4.0 + rng.random(n))).tocsr()
+    b = rng.standard_normal(n)
+    dinv = 1.0 / A.diagonal()
+    monkeypatch.setattr(_sparse, "_SOLVE_BLOCK_NNZ", 1000)  # 20 blocks
+    monkeypatch.setattr(_sparse, "MIN_THREADED_NNZ", 0)
+    ref, info_ref = _sparse.bicgstab_diag(A, b, dinv, np.zeros(n), rtol=1e-14, maxiter=500)
+    with threads.limit(1):
+        x1, info1 = _sparse.bicgstab_csr(A, b, dinv, np.zeros(n), rtol=1e-14, maxiter=500)
+    with threads.limit(2):
+        x2, info2 = _sparse.bicgstab_csr(A, b, dinv, np.zeros(n), rtol=1e-14, maxiter=500)
+    assert info_ref == info1 == info2 == 0
+    np.testing.assert_array_equal(x1, x2)  # block partial sums: the same on any thread count
+    assert np.linalg.norm(A @ x1 - b) <= 1e-14 * np.linalg.norm(b)
+    np.testing.assert_allclose(x1, ref, rtol=0, atol=1e-12 * np.abs(ref).max())
+    # too few iterations: the count comes back, not a silent answer
+    _, info = _sparse.bicgstab_csr(A, b, dinv, np.zeros(n), rtol=1e-15, maxiter=2)
+    assert info == 2
+    # numpy twin when the kernels are off
+    monkeypatch.setattr(_jit, "ENABLED", False)
+    x3, info3 = _sparse.bicgstab_csr(A, b, dinv, np.zeros(n), rtol=1e-14, maxiter=500)
+    assert info3 == 0
+    np.testing.assert_array_equal(x3, ref)

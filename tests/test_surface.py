@@ -201,7 +201,7 @@ def test_numerical_area_without_convergence_raises_for_large_clouds(monkeypatch)
     from manifold_sph import shapes as _shapes
 
     monkeypatch.setattr(area_mod, "LU_MAX_ROWS", 100)
-    monkeypatch.setattr(area_mod, "bicgstab_diag", lambda A, b, *a, **k: (np.zeros(b.shape), 5))
+    monkeypatch.setattr(area_mod, "bicgstab_csr", lambda A, b, *a, **k: (np.zeros(b.shape), 5))
     with pytest.raises(ValueError, match=r"BiCGSTAB did not converge \(500 particles.*use area='shepard'"):
         Surface(_shapes.sphere(500), scheme="cspm", area="numerical")
     monkeypatch.setattr(area_mod, "LU_MAX_ROWS", 10**6)  # small clouds: the direct solve takes over
