@@ -23,7 +23,9 @@ Examples
 
 from __future__ import annotations
 
+import itertools
 import os
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 
@@ -104,10 +106,36 @@ def resolve_workers(workers: int) -> int:
     return check_int("workers", workers, minimum=1)
 
 
+_POOL: tuple | None = None  # (pid, size, executor): one pool per process, kept between calls
+_POOL_LOCK = threading.Lock()
+_LOCAL = threading.local()  # .inside: this thread runs chunks of a run_chunks call
+
+
+def pool(size: int) -> ThreadPoolExecutor:
+    """The package's thread pool, with at least ``size`` workers (created once per process:
+    starting threads for every call cost 0.3 ms; a forked child gets a new pool)."""
+    global _POOL
+    with _POOL_LOCK:
+        pid = os.getpid()
+        if _POOL is None or _POOL[0] != pid or _POOL[1] < size:
+            n = max(size, os.cpu_count() or 1)
+            _POOL = (pid, n, ThreadPoolExecutor(max_workers=n, thread_name_prefix="manifold_sph"))
+        return _POOL[2]
+
+
+def in_chunk() -> bool:
+    """Whether the calling thread is running a chunk of :func:`run_chunks` (nested parallel
+    work should then run serially)."""
+    return getattr(_LOCAL, "inside", False)
+
+
 def run_chunks(job, n_chunks: int, workers: int = -1) -> None:
     """Run ``job(c)`` for ``c`` in ``range(n_chunks)``, on threads when there are several.
 
-    ``job`` must write disjoint outputs (numpy releases the GIL in its heavy parts).
+    ``job`` must write disjoint outputs (numpy and the compiled kernels release the
+    GIL in their heavy parts). The calling thread and ``workers - 1`` pool threads
+    take chunks in turn; a call from inside a chunk runs serially (no deadlock).
+    The first exception is re-raised once every thread has stopped.
 
     Examples
     --------
@@ -118,9 +146,34 @@ def run_chunks(job, n_chunks: int, workers: int = -1) -> None:
     [0, 1, 4, 9]
     """
     nthreads = min(resolve_workers(workers), n_chunks)
-    if nthreads > 1:
-        with ThreadPoolExecutor(max_workers=nthreads, thread_name_prefix="manifold_sph") as pool:
-            list(pool.map(job, range(n_chunks)))  # re-raises the first exception
-    else:
+    if nthreads <= 1 or in_chunk():
         for c in range(n_chunks):
             job(c)
+        return
+    counter = itertools.count()
+    lock = threading.Lock()
+
+    def loop():
+        _LOCAL.inside = True
+        try:
+            while True:
+                with lock:
+                    c = next(counter)
+                if c >= n_chunks:
+                    return
+                job(c)
+        finally:
+            _LOCAL.inside = False
+
+    futures = [pool(nthreads - 1).submit(loop) for _ in range(nthreads - 1)]
+    try:
+        loop()
+    finally:
+        errors = []
+        for f in futures:
+            try:
+                f.result()
+            except BaseException as e:  # noqa: BLE001 - re-raised below
+                errors.append(e)
+    if errors:
+        raise errors[0]
