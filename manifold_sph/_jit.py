@@ -36,6 +36,7 @@ __all__ = [
     "cspm_rows",
     "filter_count",
     "filter_fill",
+    "frames_rows",
     "moment_rows",
     "msph_rows",
     "ncsph_rows",
@@ -92,6 +93,29 @@ def filter_fill(lo, hi, idx, keep, indptr, indices):
             if keep[i, s]:
                 indices[_u(p)] = idx[i, s]
                 p += 1
+
+
+# ----------------------------------------------------------------- frames
+@_jit
+def frames_rows(lo, hi, normals, parallel_tol, u, v):
+    """:func:`manifold_sph.frames.tangent_frames` for rows ``lo:hi``: ``u`` the unit tangent in the
+    plane ``y = y_i`` (or ``x = x_i`` when the normal is almost along y), ``v = n x u``."""
+    for i in range(lo, hi):
+        nx, ny, nz = normals[i, 0], normals[i, 1], normals[i, 2]
+        if np.hypot(nx, nz) < parallel_tol:
+            a, b, c = 0.0, nz, -ny
+        else:
+            a, b, c = nz, 0.0, -nx
+        norm = np.sqrt(a * a + b * b + c * c)
+        a /= norm
+        b /= norm
+        c /= norm
+        u[i, 0] = a
+        u[i, 1] = b
+        u[i, 2] = c
+        v[i, 0] = ny * c - nz * b
+        v[i, 1] = nz * a - nx * c
+        v[i, 2] = nx * b - ny * a
 
 
 # ----------------------------------------------------------------- projection

@@ -41,6 +41,12 @@ def tangent_frames(normals) -> tuple[np.ndarray, np.ndarray]:
     ([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0]], [[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
     """
     n = np.asarray(normals, dtype=np.float64)
+    if _jit.ENABLED and n.ndim == 2 and n.shape[1] == 3:
+        u = np.empty_like(n)
+        v = np.empty_like(n)
+        starts = range(0, n.shape[0], _PROJECT_ROWS)
+        run_chunks(lambda c: _jit.frames_rows(starts[c], min(starts[c] + _PROJECT_ROWS, n.shape[0]), n, PARALLEL_TOL, u, v), len(starts))
+        return u, v
     nx, ny, nz = n[:, 0], n[:, 1], n[:, 2]
     zero = np.zeros_like(nx)
     u_y = np.stack([nz, zero, -nx], axis=1)  # tangent plane ∩ {y = y_i}

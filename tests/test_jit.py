@@ -201,3 +201,14 @@ def test_bicgstab_csr_equals_the_row_block_iteration(monkeypatch):
     x3, info3 = _sparse.bicgstab_csr(A, b, dinv, np.zeros(n), rtol=1e-14, maxiter=500)
     assert info3 == 0
     np.testing.assert_array_equal(x3, ref)
+
+
+def test_tangent_frames_equal_numpy(monkeypatch):
+    rng = np.random.default_rng(7)
+    n = rng.standard_normal((5000, 3))
+    n[:10] = [0.0, 1.0, 0.0]  # along y: the other branch
+    n[10:20] = [0.0, -1.0, 1e-12]
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    (uf, vf), (up, vp) = _both(monkeypatch, lambda: tangent_frames(n))
+    np.testing.assert_allclose(uf, up, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(vf, vp, rtol=0, atol=1e-15)
