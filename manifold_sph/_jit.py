@@ -7,21 +7,27 @@ bound by memory traffic. Each function here does one step for the rows
 
 - :func:`filter_count`, :func:`filter_fill`: the radius mask and normal filter of
   :func:`manifold_sph.neighbors.find_neighbors`;
+- :func:`frames_rows`: :func:`manifold_sph.frames.tangent_frames`;
 - :func:`project_rows`: :func:`manifold_sph.frames.project_neighborhood`;
 - :func:`quintic_values`: :func:`manifold_sph.area.kernel_values` (quintic spline);
 - :func:`cspm_rows`, :func:`msph_rows`, :func:`ncsph_rows`, :func:`moment_rows`: the
   weights of the schemes of :mod:`manifold_sph.schemes` (quintic spline), with the same
   condition-number test; a particle that fails is only flagged, and the assembly
-  recomputes it (with the fallback chain) through the numpy schemes.
+  recomputes it (with the fallback chain) through the numpy schemes;
+- :func:`csr_matvec_dot`, :func:`csr_matvec_dots2`, :func:`bicgstab_direction`,
+  :func:`bicgstab_half`, :func:`bicgstab_step`: the passes of
+  :func:`manifold_sph._sparse.bicgstab_csr` (the area elements' solve and the implicit
+  steps), each a CSR product or vector update fused with the inner products after it.
 
 Every function releases the GIL and writes only its rows' slices, so
 :func:`manifold_sph.threads.run_chunks` runs chunks on threads. Each has a numpy
 twin that defines it; ``tests/test_jit.py`` compares them (to round-off).
 
 ``MANIFOLD_SPH_JIT=0`` in the environment, or ``ENABLED = False`` here, selects
-the numpy twins everywhere (for debugging; they are several times slower).
-Compiled code is cached on disk (numba ``cache=True``): the first import on a
-machine compiles it (a few seconds), later ones load it.
+the numpy twins everywhere (for debugging: the whole cspm build is then 1.6-2.1x
+slower, ``benchmarks/perf.py``). Compiled code is cached on disk (numba
+``cache=True``): the first call of each kernel on a machine compiles it (about 7 s
+for all of them), later processes load it (about 0.3 s).
 """
 
 from __future__ import annotations
@@ -33,6 +39,11 @@ import numpy as np
 
 __all__ = [
     "ENABLED",
+    "bicgstab_direction",
+    "bicgstab_half",
+    "bicgstab_step",
+    "csr_matvec_dot",
+    "csr_matvec_dots2",
     "cspm_rows",
     "filter_count",
     "filter_fill",
