@@ -195,6 +195,53 @@ def test_run_chunks_reraises():
         run_chunks(job, 5, workers=2)
 
 
+def test_run_chunks_runs_every_chunk_once_and_nested_calls_serially():
+    import threading
+
+    from manifold_sph.threads import in_chunk, run_chunks
+
+    seen = []
+    lock = threading.Lock()
+    inner = {}
+
+    def job(c):
+        assert in_chunk()
+        sub = []
+        run_chunks(lambda k: sub.append(k), 3, workers=2)  # nested: serial, in order, no deadlock
+        inner[c] = sub
+        with lock:
+            seen.append(c)
+
+    run_chunks(job, 40, workers=2)
+    assert sorted(seen) == list(range(40))
+    assert all(v == [0, 1, 2] for v in inner.values())
+    assert not in_chunk()  # the caller's flag is restored
+
+
+def test_thread_pool_is_renewed_in_a_forked_child():
+    import multiprocessing as mp
+
+    from manifold_sph.threads import run_chunks
+
+    run_chunks(lambda c: None, 4, workers=2)  # the parent's pool exists
+    ctx = mp.get_context("fork")
+    with ctx.Pool(1) as pool:
+        out = pool.apply_async(_square_chunks).get(timeout=60)  # a dead inherited pool would hang here
+    assert out == [0, 1, 4, 9]
+
+
+def _square_chunks():
+    from manifold_sph.threads import run_chunks
+
+    out = [None] * 4
+
+    def job(c):
+        out[c] = c * c
+
+    run_chunks(job, 4, workers=2)
+    return out
+
+
 @pytest.mark.parametrize("scheme", ["cspm", "msph", "ncsph", "msph4"])
 def test_chunk_size_does_not_change_the_operators(monkeypatch, scheme):
     import manifold_sph.assembly as assembly
