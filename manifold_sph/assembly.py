@@ -5,6 +5,11 @@ put in normalised units (:class:`~manifold_sph.schemes.base.LocalPairs`), the
 scheme turns them into per-pair weights, particles whose local systems fail
 are recomputed with the scheme's fallback (e.g. ncsph -> cspm -> standard), and
 all weights go into one COO -> CSR conversion per operator.
+
+With the quintic spline, cspm, msph, ncsph and msph3/4/5 run as compiled per-row
+kernels (:mod:`manifold_sph._jit`), which give the same weights in one pass; the
+particles they flag as failed (and those with too few neighbours) are then redone
+through the numpy schemes above, down the fallback chain.
 """
 
 from __future__ import annotations
@@ -271,8 +276,8 @@ def assemble(
         )
         # particles the first scheme fails on: the numpy schemes, down the fallback chain
         redo = np.flatnonzero(failed | (nb.counts < scheme.min_neighbors))
-        if redo.size:
-            numpy_rows(redo)
+        step = CHUNK_ROWS if CHUNK_ROWS is not None else scheme.chunk_rows  # bounded padded arrays, as above
+        run_chunks(lambda c: numpy_rows(redo[c * step : (c + 1) * step]), -(-redo.size // step), workers)
     shape = (n, n if n_cols is None else n_cols)
     if columns is None:  # pairs are already in CSR order, one entry per (row, column)
 

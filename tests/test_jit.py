@@ -87,10 +87,14 @@ def _threshold_in_a_gap(cond):
     return float(np.sqrt(mid[i] * mid[i + 1]))
 
 
+@pytest.mark.parametrize("chunk_rows", [None, 97])
 @pytest.mark.parametrize("scheme", ["cspm", "msph", "ncsph", "msph4"])
-def test_fallbacks_equal_numpy(monkeypatch, scheme):
+def test_fallbacks_equal_numpy(monkeypatch, scheme, chunk_rows):
     # a threshold that about half the particles fail: the compiled path flags them and the
     # numpy schemes redo them down the chain; both must end with the same operators
+    import manifold_sph.assembly as assembly
+
+    monkeypatch.setattr(assembly, "CHUNK_ROWS", chunk_rows)  # 97: the redone particles span many chunks
     pc = shapes.torus(2000, seed=5)
     cond = Surface(pc, scheme=scheme, area="shepard").condition
     limit = _threshold_in_a_gap(cond)
