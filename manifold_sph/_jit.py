@@ -34,8 +34,12 @@ from __future__ import annotations
 
 import os
 
-import numba
 import numpy as np
+
+try:
+    import numba
+except ImportError:  # pragma: no cover - numba is a dependency; a platform without its wheels still works
+    numba = None
 
 __all__ = [
     "ENABLED",
@@ -55,12 +59,13 @@ __all__ = [
     "quintic_values",
 ]
 
-#: Whether the pipeline uses the compiled kernels (``MANIFOLD_SPH_JIT=0`` turns them off).
-ENABLED = os.environ.get("MANIFOLD_SPH_JIT", "1").strip().lower() not in ("0", "false", "no", "off")
+#: Whether the pipeline uses the compiled kernels (``MANIFOLD_SPH_JIT=0`` turns them off; so does
+#: a missing numba, e.g. on a Python version it does not support yet: the numpy code then runs).
+ENABLED = numba is not None and os.environ.get("MANIFOLD_SPH_JIT", "1").strip().lower() not in ("0", "false", "no", "off")
 
 # error_model="numpy": a division by zero gives inf or nan (then caught by the
 # condition test), as in numpy, instead of raising.
-_jit = numba.njit(nogil=True, cache=True, error_model="numpy")
+_jit = numba.njit(nogil=True, cache=True, error_model="numpy") if numba is not None else (lambda f: f)
 
 # Indices into the pair and point arrays are cast to unsigned: numba then skips the
 # wrap-around test of negative indices. It made a CSR product 1.5x slower than scipy's
