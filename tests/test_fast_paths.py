@@ -274,3 +274,25 @@ def test_bicgstab_diag_matches_scipy():
     # too few iterations: the count comes back, not a silent answer
     _, info = bicgstab_diag(A, b, dinv, np.zeros(n), rtol=1e-15, maxiter=2)
     assert info == 2
+
+
+def test_radius_knn_asks_again_for_dense_rows(monkeypatch):
+    # a dense clump the strided probe misses: its rows come back full, are asked again,
+    # and every neighbour inside the radius is found (the arrays widen only as needed)
+    import manifold_sph.neighbors as nbm
+
+    rng = np.random.default_rng(11)
+    base = rng.random((20000, 3)) * [1.0, 1.0, 0.0]
+    clump = base[7] + rng.normal(scale=0.002, size=(60, 3)) * [1.0, 1.0, 0.0]
+    pts = np.vstack([base, clump])
+    tree = nbm.build_tree(pts)
+    radii = np.full(pts.shape[0], 0.02)
+    calls = []
+    knn = nbm._knn
+    monkeypatch.setattr(nbm, "_knn", lambda *a: calls.append(a[2]) or knn(*a))
+    dist, idx = nbm._radius_knn(tree, pts, radii, -1)
+    assert len(calls) >= 3  # probe, everyone, the full rows again
+    counts = (dist < radii[:, None]).sum(axis=1)
+    ref = tree.query_ball_point(pts, 0.02, return_length=True)
+    np.testing.assert_array_equal(counts, ref)
+    assert dist.shape[1] <= ref.max() + 1 or dist.shape[1] == calls[-1]
