@@ -116,9 +116,15 @@ DIRECT_MAX = 20000
 def timed(fn, repeat, min_time=0.0):
     """Median wall time of ``fn()`` over ``repeat`` runs, and its last result.
 
-    Runs shorter than ``min_time`` are looped and the loop time divided."""
+    Runs shorter than ``min_time`` are looped and the loop time divided. The previous
+    run's result is released (and garbage collected) before each run, untimed: otherwise
+    every run allocates fresh memory while the last result still holds its own, and
+    first-touch page faults (slow on this VM: 1.6 s for 650 MB of never-used memory,
+    0.1 s when reused) are timed instead of the code."""
     times, out = [], None
     for _ in range(repeat):
+        out = None
+        gc.collect()
         loops, t = 0, 0.0
         t0 = time.perf_counter()
         while True:
