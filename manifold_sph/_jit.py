@@ -24,7 +24,7 @@ Every function releases the GIL and writes only its rows' slices, so
 twin that defines it; ``tests/test_jit.py`` compares them (to round-off).
 
 ``MANIFOLD_SPH_JIT=0`` in the environment, or ``ENABLED = False`` here, selects
-the numpy twins everywhere (for debugging: the whole cspm build is then 1.6-2.1x
+the numpy twins everywhere (for debugging: the whole cspm build is then 1.6-2.2x
 slower, ``benchmarks/perf.py``). Compiled code is cached on disk (numba
 ``cache=True``): the first call of each kernel on a machine compiles it (about 7 s
 for all of them), later processes load it (about 0.3 s).
