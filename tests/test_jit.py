@@ -231,3 +231,26 @@ def test_without_numba_the_numpy_code_runs():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "True"
+
+
+@pytest.mark.parametrize("scheme", ["cspm", "ncsph", "msph4"])
+def test_adaptive_h_equals_numpy(monkeypatch, scheme):
+    # per-particle h_i: the compiled kernels scale each row by its own h
+    pc = shapes.torus(2500, seed=7)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        fast, plain = _both(monkeypatch, lambda: Surface(pc, scheme=scheme, h="adaptive", area="shepard"))
+    assert np.ptp(fast.h) > 0.1 * fast.h.mean()
+    _assert_same_operators(fast, plain)
+
+
+def test_planar_normal_filter_equals_numpy(monkeypatch):
+    # 2D points with 2D "normals": the filter's dot product has two components
+    rng = np.random.default_rng(3)
+    p = sampling.square(1500, seed=1)
+    n = rng.standard_normal((1500, 2))
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    fast, plain = _both(monkeypatch, lambda: find_neighbors(p, n, h=0.05, support=3.0, normal_threshold=0.2))
+    np.testing.assert_array_equal(fast.indptr, plain.indptr)
+    np.testing.assert_array_equal(fast.indices, plain.indices)
+    assert fast.n_filtered == plain.n_filtered > 0
