@@ -66,6 +66,9 @@ ENABLED = numba is not None and os.environ.get("MANIFOLD_SPH_JIT", "1").strip().
 # error_model="numpy": a division by zero gives inf or nan (then caught by the
 # condition test), as in numpy, instead of raising.
 _jit = numba.njit(nogil=True, cache=True, error_model="numpy") if numba is not None else (lambda f: f)
+# Small helpers of the scheme kernels, inlined into them at numba's level (as separate
+# functions the shared helpers cost up to 1.7x in the cspm kernel, measured).
+_inline = numba.njit(nogil=True, cache=True, error_model="numpy", inline="always") if numba is not None else (lambda f: f)
 
 # Indices into the pair and point arrays are cast to unsigned: numba then skips the
 # wrap-around test of negative indices. It made a CSR product 1.5x slower than scipy's
@@ -152,7 +155,7 @@ def project_rows(lo, hi, points, cand, u, v, indptr, indices, out):
 
 
 # ----------------------------------------------------------------- kernel
-@_jit
+@_inline
 def _quintic(R):
     """``(w, w'/R, (w'' - w'/R)/R^2)`` of the quintic spline (:meth:`QuinticSpline.radial_terms`)."""
     if R >= 3.0:
@@ -198,7 +201,7 @@ def quintic_values(lo, hi, indptr, xy, h, alpha, out):
 
 
 # ----------------------------------------------------------------- small systems
-@_jit
+@_inline
 def _norm1(A, m):
     best = 0.0
     for c in range(m):
@@ -253,7 +256,7 @@ def _invert(A, m, inv, work):
     return cond
 
 
-@_jit
+@_inline
 def _inverse2(A, inv):
     """Closed-form 2x2 inverse (as ``schemes.base._small_inverse``); returns the 1-norm condition number."""
     a, b, c, d = A[0, 0], A[0, 1], A[1, 0], A[1, 1]
@@ -266,7 +269,7 @@ def _inverse2(A, inv):
     return cond if np.isfinite(cond) else np.inf
 
 
-@_jit
+@_inline
 def _inverse3(A, inv):
     """Closed-form 3x3 inverse (adjugate over determinant); returns the 1-norm condition number."""
     a, b, c = A[0, 0], A[0, 1], A[0, 2]
@@ -297,9 +300,23 @@ def _max_count(lo, hi, indptr):
     return k
 
 
-@_jit
-def _pair_terms(p0, m, xy, dvp, ih, dsc, alpha, use_dv, X, Y, D, Wv, Q, T):
-    """Normalised offsets, area elements and kernel factors of one particle's ``m`` pairs."""
+@_inline
+def _scratch(lo, hi, indptr, width):
+    """Per-pair scratch for the particles ``lo:hi``: offsets ``X, Y``, area elements ``D``, kernel
+    factors ``W, Q, T``, the weighted rows (K, width) of the local system and the weights ``cx, cy, cl``."""
+    K = _max_count(lo, hi, indptr)
+    return (np.empty(K), np.empty(K), np.empty(K), np.empty(K), np.empty(K), np.empty(K),
+            np.empty((K, width)), np.empty(K), np.empty(K), np.empty(K))
+
+
+@_inline
+def _begin_row(i, indptr, xy, dvp, h, alpha, use_dv, X, Y, D, Wv, Q, T):
+    """Normalised offsets (units of ``h_i``), area elements (``/ h_i^2``; 1 without ``use_dv``) and
+    kernel factors of particle ``i``'s pairs; returns ``(p0, m, 1 / h_i, 1 / h_i^2)``."""
+    p0 = indptr[i]
+    m = indptr[i + 1] - p0
+    ih = 1.0 / h[i]
+    dsc = ih * ih
     for k in range(m):
         p = _u(p0 + k)
         x = xy[p, 0] * ih
@@ -311,9 +328,58 @@ def _pair_terms(p0, m, xy, dvp, ih, dsc, alpha, use_dv, X, Y, D, Wv, Q, T):
         Wv[k] = w * alpha
         Q[k] = q * alpha
         T[k] = t * alpha
+    return p0, m, ih, dsc
 
 
-@_jit
+@_inline
+def _derivative_rows(k, x, y, q, t, dv, rows, c0):
+    """``rows[k, c0:c0 + 5] = (W_x, W_y, W_xx, W_xy, W_yy) dV`` of one pair."""
+    tx = t * x
+    rows[k, c0] = -(x * q) * dv
+    rows[k, c0 + 1] = -(y * q) * dv
+    rows[k, c0 + 2] = (tx * x + q) * dv
+    rows[k, c0 + 3] = (tx * y) * dv
+    rows[k, c0 + 4] = (t * y * y + q) * dv
+
+
+@_inline
+def _taylor_columns(x, y, cols, c0):
+    """``cols[c0:c0 + 5] = (x, y, x^2/2, xy, y^2/2)``."""
+    cols[c0] = x
+    cols[c0 + 1] = y
+    cols[c0 + 2] = 0.5 * x * x
+    cols[c0 + 3] = x * y
+    cols[c0 + 4] = 0.5 * y * y
+
+
+@_inline
+def _add_outer(A, rows, k, cols, n):
+    """``A[:n, :n] += rows[k, :n] cols[:n]^T`` (one pair's share of the moment sums)."""
+    for r in range(n):
+        s = rows[k, r]
+        for c in range(n):
+            A[r, c] += s * cols[c]
+
+
+@_inline
+def _finish_row(Ysel, rows, n, p0, m, ih, dsc, difference, cx, cy, cl, gx, gy, lp):
+    """Weights ``(cx, cy, cl)[k] = Ysel[:, :n] rows[k, :n]`` of the ``m`` pairs, stored by :func:`_store`."""
+    for k in range(m):
+        sx = 0.0
+        sy = 0.0
+        sl = 0.0
+        for r in range(n):
+            v = rows[k, r]
+            sx += Ysel[0, r] * v
+            sy += Ysel[1, r] * v
+            sl += Ysel[2, r] * v
+        cx[k] = sx
+        cy[k] = sy
+        cl[k] = sl
+    _store(p0, m, cx, cy, cl, ih, dsc, difference, gx, gy, lp)
+
+
+@_inline
 def _store(p0, m, cx, cy, cl, ih, dsc, difference, gx, gy, lp):
     """Scale weights to physical units (1/h, 1/h^2) and store them; ``difference``: weights on
     ``f_j - f_i``, so the particle's own slot takes minus the others' sum."""
@@ -335,238 +401,131 @@ def _store(p0, m, cx, cy, cl, ih, dsc, difference, gx, gy, lp):
         lp[p] = cl[k] * dsc
 
 
-@_jit
-def _zero(p0, m, gx, gy, lp):
+@_inline
+def _fail(i, p0, m, failed, gx, gy, lp):
+    """Flag particle ``i`` (the assembly redoes it) and zero its weights."""
+    failed[i] = True
     for k in range(m):
-        gx[p0 + k] = 0.0
-        gy[p0 + k] = 0.0
-        lp[p0 + k] = 0.0
+        p = _u(p0 + k)
+        gx[p] = 0.0
+        gy[p] = 0.0
+        lp[p] = 0.0
 
 
 # ----------------------------------------------------------------- schemes
+# Every scheme fills, per particle, the weighted rows of its local system (K, n) and
+# the moment matrix A = sum_k rows[k] cols[k]^T, inverts A with the condition test,
+# and turns three rows ``Ysel`` of A^-1 (f_x, f_y and f_xx + f_yy) into weights.
+@_inline
+def _first_derivative_rows(A, M1i, Ysel):
+    """CSPM's gradient: ``Ysel[:2, :2] = M1^-1`` for ``M1 = A[:2, :2]`` (the ``W_x, W_y`` rows
+    against ``x, y``), the rest of those two rows zero; returns the condition number of ``M1``."""
+    c1 = _inverse2(A[:2, :2], M1i)
+    Ysel[:2, :] = 0.0
+    Ysel[0, 0] = M1i[0, 0]
+    Ysel[0, 1] = M1i[0, 1]
+    Ysel[1, 0] = M1i[1, 0]
+    Ysel[1, 1] = M1i[1, 1]
+    return c1
+
+
 @_jit
 def cspm_rows(lo, hi, indptr, xy, dvp, h, alpha, max_condition, gx, gy, lp, cond, failed):
     """CSPM weights (:class:`manifold_sph.schemes.CSPM`) of rows ``lo:hi`` into the pair arrays
-    ``gx, gy, lp`` (physical units), with each row's condition number and failure flag."""
-    K = _max_count(lo, hi, indptr)
-    X = np.empty(K)
-    Y = np.empty(K)
-    D = np.empty(K)
-    Wv = np.empty(K)
-    Q = np.empty(K)
-    T = np.empty(K)
-    r1 = np.empty((2, K))
-    r2 = np.empty((3, K))
-    cx = np.empty(K)
-    cy = np.empty(K)
-    cl = np.empty(K)
-    M1 = np.empty((2, 2))
+    ``gx, gy, lp`` (physical units), with each row's condition number and failure flag.
+
+    ``A`` is the 5x5 moment matrix of the rows ``W_x, W_y, W_xx, W_xy, W_yy`` against the
+    columns ``x, y, x^2/2, xy, y^2/2``: ``M1 = A[:2, :2]``, ``N1 = A[2:, :2]``, ``N2 = A[2:, 2:]``.
+    """
+    X, Y, D, Wv, Q, T, rows, cx, cy, cl = _scratch(lo, hi, indptr, 5)
+    A = np.empty((5, 5))
+    cols = np.empty(5)
     M1i = np.empty((2, 2))
-    N2 = np.empty((3, 3))
     N2i = np.empty((3, 3))
-    N1 = np.empty((3, 2))
+    Ysel = np.empty((3, 5))
     for i in range(lo, hi):
-        p0 = indptr[i]
-        m = indptr[i + 1] - p0
-        ih = 1.0 / h[i]
-        dsc = ih * ih
-        _pair_terms(p0, m, xy, dvp, ih, dsc, alpha, True, X, Y, D, Wv, Q, T)
-        M1[:] = 0.0
-        N2[:] = 0.0
-        N1[:] = 0.0
+        p0, m, ih, dsc = _begin_row(i, indptr, xy, dvp, h, alpha, True, X, Y, D, Wv, Q, T)
+        A[:] = 0.0
         for k in range(m):
-            x, y, q, t, dv = X[k], Y[k], Q[k], T[k], D[k]
-            a = -(x * q) * dv
-            b = -(y * q) * dv
-            r1[0, k] = a
-            r1[1, k] = b
-            M1[0, 0] += a * x
-            M1[0, 1] += a * y
-            M1[1, 0] += b * x
-            M1[1, 1] += b * y
-            tx = t * x
-            s0 = (tx * x + q) * dv
-            s1 = (tx * y) * dv
-            s2 = (t * y * y + q) * dv
-            r2[0, k] = s0
-            r2[1, k] = s1
-            r2[2, k] = s2
-            qx = 0.5 * x * x
-            qxy = x * y
-            qy = 0.5 * y * y
-            N2[0, 0] += s0 * qx
-            N2[0, 1] += s0 * qxy
-            N2[0, 2] += s0 * qy
-            N2[1, 0] += s1 * qx
-            N2[1, 1] += s1 * qxy
-            N2[1, 2] += s1 * qy
-            N2[2, 0] += s2 * qx
-            N2[2, 1] += s2 * qxy
-            N2[2, 2] += s2 * qy
-            N1[0, 0] += s0 * x
-            N1[0, 1] += s0 * y
-            N1[1, 0] += s1 * x
-            N1[1, 1] += s1 * y
-            N1[2, 0] += s2 * x
-            N1[2, 1] += s2 * y
-        c1 = _inverse2(M1, M1i)
-        c2 = _inverse3(N2, N2i)
+            _derivative_rows(k, X[k], Y[k], Q[k], T[k], D[k], rows, 0)
+            _taylor_columns(X[k], Y[k], cols, 0)
+            _add_outer(A, rows, k, cols, 5)
+        c1 = _first_derivative_rows(A, M1i, Ysel)
+        c2 = _inverse3(A[2:, 2:], N2i)
         cond[i] = max(c1, c2)
         if not (c1 <= max_condition and c2 <= max_condition):
-            failed[i] = True
-            _zero(p0, m, gx, gy, lp)
+            _fail(i, p0, m, failed, gx, gy, lp)
             continue
         failed[i] = False
-        y0 = N2i[0, 0] + N2i[2, 0]
-        y1 = N2i[0, 1] + N2i[2, 1]
-        y2 = N2i[0, 2] + N2i[2, 2]
-        z0 = y0 * N1[0, 0] + y1 * N1[1, 0] + y2 * N1[2, 0]
-        z1 = y0 * N1[0, 1] + y1 * N1[1, 1] + y2 * N1[2, 1]
-        for k in range(m):
-            a = M1i[0, 0] * r1[0, k] + M1i[0, 1] * r1[1, k]
-            b = M1i[1, 0] * r1[0, k] + M1i[1, 1] * r1[1, k]
-            cx[k] = a
-            cy[k] = b
-            cl[k] = (y0 * r2[0, k] + y1 * r2[1, k] + y2 * r2[2, k]) - (z0 * a + z1 * b)
-        _store(p0, m, cx, cy, cl, ih, dsc, True, gx, gy, lp)
+        # Laplacian: y = N2^-T e (e picks H_xx + H_yy), weights y . rows2 - (N1^T y) . M1^-1 rows1
+        for c in range(3):
+            Ysel[2, 2 + c] = N2i[0, c] + N2i[2, c]
+        z0 = Ysel[2, 2] * A[2, 0] + Ysel[2, 3] * A[3, 0] + Ysel[2, 4] * A[4, 0]  # z = N1^T y
+        z1 = Ysel[2, 2] * A[2, 1] + Ysel[2, 3] * A[3, 1] + Ysel[2, 4] * A[4, 1]
+        Ysel[2, 0] = -(z0 * M1i[0, 0] + z1 * M1i[1, 0])
+        Ysel[2, 1] = -(z0 * M1i[0, 1] + z1 * M1i[1, 1])
+        _finish_row(Ysel, rows, 5, p0, m, ih, dsc, True, cx, cy, cl, gx, gy, lp)
 
 
 @_jit
 def msph_rows(lo, hi, indptr, xy, dvp, h, alpha, max_condition, gx, gy, lp, cond, failed):
     """MSPH weights (:class:`manifold_sph.schemes.MSPH`, the 6x6 system) of rows ``lo:hi``."""
-    K = _max_count(lo, hi, indptr)
-    X = np.empty(K)
-    Y = np.empty(K)
-    D = np.empty(K)
-    Wv = np.empty(K)
-    Q = np.empty(K)
-    T = np.empty(K)
-    rows = np.empty((K, 6))
+    X, Y, D, Wv, Q, T, rows, cx, cy, cl = _scratch(lo, hi, indptr, 6)
     A = np.empty((6, 6))
     Ai = np.empty((6, 6))
     work = np.empty((6, 12))
     cols = np.empty(6)
-    cx = np.empty(K)
-    cy = np.empty(K)
-    cl = np.empty(K)
+    Ysel = np.empty((3, 6))
     for i in range(lo, hi):
-        p0 = indptr[i]
-        m = indptr[i + 1] - p0
-        ih = 1.0 / h[i]
-        dsc = ih * ih
-        _pair_terms(p0, m, xy, dvp, ih, dsc, alpha, True, X, Y, D, Wv, Q, T)
+        p0, m, ih, dsc = _begin_row(i, indptr, xy, dvp, h, alpha, True, X, Y, D, Wv, Q, T)
         A[:] = 0.0
         for k in range(m):
-            x, y, q, t, dv = X[k], Y[k], Q[k], T[k], D[k]
-            tx = t * x
-            rows[k, 0] = Wv[k] * dv
-            rows[k, 1] = -(x * q) * dv
-            rows[k, 2] = -(y * q) * dv
-            rows[k, 3] = (tx * x + q) * dv
-            rows[k, 4] = (tx * y) * dv
-            rows[k, 5] = (t * y * y + q) * dv
+            rows[k, 0] = Wv[k] * D[k]
+            _derivative_rows(k, X[k], Y[k], Q[k], T[k], D[k], rows, 1)
             cols[0] = 1.0
-            cols[1] = x
-            cols[2] = y
-            cols[3] = 0.5 * x * x
-            cols[4] = x * y
-            cols[5] = 0.5 * y * y
-            for r in range(6):
-                s = rows[k, r]
-                for c in range(6):
-                    A[r, c] += s * cols[c]
+            _taylor_columns(X[k], Y[k], cols, 1)
+            _add_outer(A, rows, k, cols, 6)
         c = _invert(A, 6, Ai, work)
         cond[i] = c
         if not c <= max_condition:
-            failed[i] = True
-            _zero(p0, m, gx, gy, lp)
+            _fail(i, p0, m, failed, gx, gy, lp)
             continue
         failed[i] = False
-        for k in range(m):
-            sx = 0.0
-            sy = 0.0
-            sl = 0.0
-            for r in range(6):
-                s = rows[k, r]
-                sx += Ai[1, r] * s
-                sy += Ai[2, r] * s
-                sl += (Ai[3, r] + Ai[5, r]) * s
-            cx[k] = sx
-            cy[k] = sy
-            cl[k] = sl
-        _store(p0, m, cx, cy, cl, ih, dsc, False, gx, gy, lp)
+        for r in range(6):
+            Ysel[0, r] = Ai[1, r]
+            Ysel[1, r] = Ai[2, r]
+            Ysel[2, r] = Ai[3, r] + Ai[5, r]
+        _finish_row(Ysel, rows, 6, p0, m, ih, dsc, False, cx, cy, cl, gx, gy, lp)
 
 
 @_jit
 def ncsph_rows(lo, hi, indptr, xy, dvp, h, alpha, max_condition, gx, gy, lp, cond, failed):
     """NCSPH weights (:class:`manifold_sph.schemes.NCSPH`: CSPM's gradient, the 5x5 block system's
     Laplacian) of rows ``lo:hi``."""
-    K = _max_count(lo, hi, indptr)
-    X = np.empty(K)
-    Y = np.empty(K)
-    D = np.empty(K)
-    Wv = np.empty(K)
-    Q = np.empty(K)
-    T = np.empty(K)
-    rows = np.empty((K, 5))
+    X, Y, D, Wv, Q, T, rows, cx, cy, cl = _scratch(lo, hi, indptr, 5)
     A = np.empty((5, 5))
     Ai = np.empty((5, 5))
     work = np.empty((5, 10))
     cols = np.empty(5)
-    M1 = np.empty((2, 2))
     M1i = np.empty((2, 2))
-    cx = np.empty(K)
-    cy = np.empty(K)
-    cl = np.empty(K)
+    Ysel = np.empty((3, 5))
     for i in range(lo, hi):
-        p0 = indptr[i]
-        m = indptr[i + 1] - p0
-        ih = 1.0 / h[i]
-        dsc = ih * ih
-        _pair_terms(p0, m, xy, dvp, ih, dsc, alpha, True, X, Y, D, Wv, Q, T)
+        p0, m, ih, dsc = _begin_row(i, indptr, xy, dvp, h, alpha, True, X, Y, D, Wv, Q, T)
         A[:] = 0.0
-        M1[:] = 0.0
         for k in range(m):
-            x, y, q, t, dv = X[k], Y[k], Q[k], T[k], D[k]
-            tx = t * x
-            a = -(x * q) * dv
-            b = -(y * q) * dv
-            rows[k, 0] = a
-            rows[k, 1] = b
-            rows[k, 2] = (tx * x + q) * dv
-            rows[k, 3] = (tx * y) * dv
-            rows[k, 4] = (t * y * y + q) * dv
-            M1[0, 0] += a * x
-            M1[0, 1] += a * y
-            M1[1, 0] += b * x
-            M1[1, 1] += b * y
-            cols[0] = x
-            cols[1] = y
-            cols[2] = 0.5 * x * x
-            cols[3] = x * y
-            cols[4] = 0.5 * y * y
-            for r in range(5):
-                s = rows[k, r]
-                for c in range(5):
-                    A[r, c] += s * cols[c]
-        c1 = _inverse2(M1, M1i)
+            _derivative_rows(k, X[k], Y[k], Q[k], T[k], D[k], rows, 0)
+            _taylor_columns(X[k], Y[k], cols, 0)
+            _add_outer(A, rows, k, cols, 5)
+        c1 = _first_derivative_rows(A, M1i, Ysel)
         c2 = _invert(A, 5, Ai, work)
         cond[i] = max(c1, c2)
         if not (c1 <= max_condition and c2 <= max_condition):
-            failed[i] = True
-            _zero(p0, m, gx, gy, lp)
+            _fail(i, p0, m, failed, gx, gy, lp)
             continue
         failed[i] = False
-        for k in range(m):
-            a = rows[k, 0]
-            b = rows[k, 1]
-            cx[k] = M1i[0, 0] * a + M1i[0, 1] * b
-            cy[k] = M1i[1, 0] * a + M1i[1, 1] * b
-            sl = 0.0
-            for r in range(5):
-                sl += (Ai[2, r] + Ai[4, r]) * rows[k, r]
-            cl[k] = sl
-        _store(p0, m, cx, cy, cl, ih, dsc, True, gx, gy, lp)
+        for r in range(5):
+            Ysel[2, r] = Ai[2, r] + Ai[4, r]
+        _finish_row(Ysel, rows, 5, p0, m, ih, dsc, True, cx, cy, cl, gx, gy, lp)
 
 
 @_jit
@@ -575,18 +534,11 @@ def moment_rows(lo, hi, indptr, xy, h, alpha, px, py, scale, sel, max_condition,
     monomials ``x^px y^py * scale``, ``U = px.size`` unknowns; ``sel`` the positions of
     ``f_x, f_y, f_xx, f_yy``) of rows ``lo:hi``, with the Jacobi-equilibrated condition test."""
     U = px.size
-    K = _max_count(lo, hi, indptr)
     top = 0
     for a in range(U):
         top = max(top, px[a], py[a])
-    X = np.empty(K)
-    Y = np.empty(K)
-    D = np.empty(K)
-    Wv = np.empty(K)
-    Q = np.empty(K)
-    T = np.empty(K)
-    mono = np.empty((K, U))
-    mw = np.empty((K, U))
+    X, Y, D, Wv, Q, T, mw, cx, cy, cl = _scratch(lo, hi, indptr, U)
+    mono = np.empty(U)
     powx = np.empty(top + 1)
     powy = np.empty(top + 1)
     A = np.empty((U, U))
@@ -595,15 +547,8 @@ def moment_rows(lo, hi, indptr, xy, h, alpha, px, py, scale, sel, max_condition,
     work = np.empty((U, 2 * U))
     d = np.empty(U)
     Ysel = np.empty((3, U))
-    cx = np.empty(K)
-    cy = np.empty(K)
-    cl = np.empty(K)
     for i in range(lo, hi):
-        p0 = indptr[i]
-        m = indptr[i + 1] - p0
-        ih = 1.0 / h[i]
-        dsc = ih * ih
-        _pair_terms(p0, m, xy, xy[:, 0], ih, dsc, alpha, False, X, Y, D, Wv, Q, T)
+        p0, m, ih, dsc = _begin_row(i, indptr, xy, xy[:, 0], h, alpha, False, X, Y, D, Wv, Q, T)
         A[:] = 0.0
         for k in range(m):
             powx[0] = 1.0
@@ -611,15 +556,11 @@ def moment_rows(lo, hi, indptr, xy, h, alpha, px, py, scale, sel, max_condition,
             for e in range(1, top + 1):
                 powx[e] = powx[e - 1] * X[k]
                 powy[e] = powy[e - 1] * Y[k]
-            w = Wv[k]
             for a in range(U):
                 v = powx[px[a]] * powy[py[a]] * scale[a]
-                mono[k, a] = v
-                mw[k, a] = v * w
-            for a in range(U):
-                s = mw[k, a]
-                for c in range(U):
-                    A[a, c] += s * mono[k, c]
+                mono[a] = v
+                mw[k, a] = v * Wv[k]
+            _add_outer(A, mw, k, mono, U)
         ok = True
         for a in range(U):
             if not (np.isfinite(A[a, a]) and A[a, a] > 0.0):
@@ -634,27 +575,14 @@ def moment_rows(lo, hi, indptr, xy, h, alpha, px, py, scale, sel, max_condition,
             c = _invert(As, U, Ai, work)
         cond[i] = c
         if not c <= max_condition:
-            failed[i] = True
-            _zero(p0, m, gx, gy, lp)
+            _fail(i, p0, m, failed, gx, gy, lp)
             continue
         failed[i] = False
-        for b in range(U):
+        for b in range(U):  # rows of A^-1 = D As^-1 D picked by sel
             Ysel[0, b] = d[sel[0]] * Ai[sel[0], b] * d[b]
             Ysel[1, b] = d[sel[1]] * Ai[sel[1], b] * d[b]
             Ysel[2, b] = d[sel[2]] * Ai[sel[2], b] * d[b] + d[sel[3]] * Ai[sel[3], b] * d[b]
-        for k in range(m):
-            sx = 0.0
-            sy = 0.0
-            sl = 0.0
-            for a in range(U):
-                s = mw[k, a]
-                sx += Ysel[0, a] * s
-                sy += Ysel[1, a] * s
-                sl += Ysel[2, a] * s
-            cx[k] = sx
-            cy[k] = sy
-            cl[k] = sl
-        _store(p0, m, cx, cy, cl, ih, dsc, True, gx, gy, lp)
+        _finish_row(Ysel, mw, U, p0, m, ih, dsc, True, cx, cy, cl, gx, gy, lp)
 
 
 # ----------------------------------------------------------------- Krylov solves
