@@ -20,6 +20,12 @@ MIN_THREADED_NNZ = 600_000
 
 
 
+def _nnz_bounds(A: sp.csr_matrix, n_blocks: int) -> list[int]:
+    """Row bounds ``[0, ..., N]`` cutting ``A`` into ``n_blocks`` blocks of about equal stored entries."""
+    cuts = np.searchsorted(A.indptr, np.linspace(0, A.nnz, n_blocks + 1)[1:-1])
+    return [0, *[int(min(c, A.shape[0])) for c in cuts], A.shape[0]]
+
+
 def _row_block(A: sp.csr_matrix, lo: int, hi: int) -> sp.csr_matrix:
     """Rows ``lo:hi`` of ``A`` sharing its data and index arrays (``A[lo:hi]`` copies them:
     0.5 s for a million rows)."""
@@ -56,9 +62,7 @@ class RowBlocks:
         if n_blocks is None:
             n_blocks = get_num_threads() if A.nnz >= MIN_THREADED_NNZ else 1
         n_blocks = max(1, min(int(n_blocks), A.shape[0]))
-        # split by stored entries, not rows, so the threads get equal work
-        cuts = np.searchsorted(A.indptr, np.linspace(0, A.nnz, n_blocks + 1)[1:-1])
-        self.bounds = [0, *[int(c) for c in cuts], A.shape[0]]
+        self.bounds = _nnz_bounds(A, n_blocks)  # by stored entries, not rows: the threads get equal work
         self.blocks = [_row_block(A, lo, hi) for lo, hi in zip(self.bounds[:-1], self.bounds[1:])]
 
     def __matmul__(self, x: np.ndarray) -> np.ndarray:
@@ -179,8 +183,7 @@ _SOLVE_MAX_BLOCKS = 64
 def _solve_blocks(A: sp.csr_matrix) -> np.ndarray:
     """Row bounds of about equal stored entries (at most ``_SOLVE_MAX_BLOCKS`` blocks)."""
     n_blocks = int(min(_SOLVE_MAX_BLOCKS, max(1, A.nnz // _SOLVE_BLOCK_NNZ)))
-    cuts = np.searchsorted(A.indptr, np.linspace(0, A.nnz, n_blocks + 1)[1:-1])
-    return np.unique(np.concatenate([[0], np.minimum(cuts, A.shape[0]), [A.shape[0]]])).astype(np.int64)
+    return np.unique(_nnz_bounds(A, n_blocks)).astype(np.int64)
 
 
 def bicgstab_csr(A: sp.csr_matrix, b: np.ndarray, dinv: np.ndarray, x0: np.ndarray, rtol: float, maxiter: int):
