@@ -59,9 +59,20 @@ __all__ = [
     "quintic_values",
 ]
 
+
+
+def _from_env() -> bool:
+    raw = os.environ.get("MANIFOLD_SPH_JIT", "1").strip().lower()
+    if raw in ("", "1", "true", "yes", "on"):
+        return True
+    if raw in ("0", "false", "no", "off"):
+        return False
+    raise ValueError(f"environment variable MANIFOLD_SPH_JIT must be 0 or 1 (or true/false, yes/no, on/off), got {raw!r}")
+
+
 #: Whether the pipeline uses the compiled kernels (``MANIFOLD_SPH_JIT=0`` turns them off; so does
 #: a missing numba, e.g. on a Python version it does not support yet: the numpy code then runs).
-ENABLED = numba is not None and os.environ.get("MANIFOLD_SPH_JIT", "1").strip().lower() not in ("0", "false", "no", "off")
+ENABLED = _from_env() and numba is not None
 
 # error_model="numpy": a division by zero gives inf or nan (then caught by the
 # condition test), as in numpy, instead of raising.

@@ -15,7 +15,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from . import _jit
-from ._validation import check_int, check_positive
+from ._validation import as_points, check_int, check_positive
 from .threads import resolve_workers, run_chunks
 
 __all__ = [
@@ -85,8 +85,19 @@ def build_tree(points) -> cKDTree:
     Measured at N = 131072 (Fibonacci sphere, 2 cores): the 31-nearest-neighbour query
     took 0.21 s on scipy's default tree (leaf size 16, balanced) and 0.14 s on this one,
     whose build is also faster (0.019 s against 0.031 s).
+
+    Parameters
+    ----------
+    points : array_like, shape (N, d), d in 1..3
+        Finite coordinates.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> int(build_tree(np.eye(3)).query([1.0, 0.0, 0.0])[1])
+    0
     """
-    return cKDTree(points, leafsize=32, balanced_tree=False)
+    return cKDTree(as_points("points", points, dim=(1, 2, 3)), leafsize=32, balanced_tree=False)
 
 
 #: Above this many points the uniform ``h`` is fitted on an evenly strided subsample.

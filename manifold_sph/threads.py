@@ -115,6 +115,7 @@ def pool(size: int) -> ThreadPoolExecutor:
     """The package's thread pool, with at least ``size`` workers (created once per process:
     starting threads for every call cost 0.3 ms; a forked child gets a new pool)."""
     global _POOL
+    size = check_int("size", size, minimum=1)
     with _POOL_LOCK:
         pid = os.getpid()
         if _POOL is None or _POOL[0] != pid or _POOL[1] < size:

@@ -296,3 +296,24 @@ def test_radius_knn_asks_again_for_dense_rows(monkeypatch):
     ref = tree.query_ball_point(pts, 0.02, return_length=True)
     np.testing.assert_array_equal(counts, ref)
     assert dist.shape[1] <= ref.max() + 1 or dist.shape[1] == calls[-1]
+
+
+def test_build_tree_rejects_bad_points():
+    from manifold_sph.neighbors import build_tree
+
+    with pytest.raises(ValueError, match="points must be finite"):
+        build_tree(np.array([[0.0, 0.0, 0.0], [1.0, np.nan, 0.0]]))
+    with pytest.raises(ValueError, match=r"points must have shape \(N, 1\) or \(N, 2\) or \(N, 3\), got shape \(4, 5\)"):
+        build_tree(np.zeros((4, 5)))
+    with pytest.raises(TypeError, match="points must be a numeric array"):
+        build_tree("abc")
+    assert build_tree(np.eye(3)).n == 3
+
+
+def test_thread_pool_size_is_validated():
+    from manifold_sph.threads import pool
+
+    for bad in (0, -2, 1.5, "2"):
+        with pytest.raises((ValueError, TypeError), match="size"):
+            pool(bad)
+    assert pool(1) is pool(1)  # one pool, kept between calls

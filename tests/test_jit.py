@@ -254,3 +254,10 @@ def test_planar_normal_filter_equals_numpy(monkeypatch):
     np.testing.assert_array_equal(fast.indptr, plain.indptr)
     np.testing.assert_array_equal(fast.indices, plain.indices)
     assert fast.n_filtered == plain.n_filtered > 0
+
+
+def test_environment_variable_is_validated():
+    env = dict(os.environ, MANIFOLD_SPH_JIT="maybe")
+    out = subprocess.run([sys.executable, "-c", "import manifold_sph"], env=env, capture_output=True, text=True)
+    assert out.returncode != 0
+    assert "MANIFOLD_SPH_JIT must be 0 or 1" in out.stderr and "'maybe'" in out.stderr
