@@ -14,6 +14,7 @@ given ``filename``; an existing file is never overwritten unless
   or MP4 (``imageio`` with ``imageio-ffmpeg``), with an optional progress bar.
 - :data:`CAMERAS`: the fixed views ``"iso"``, ``"equator"`` and
   ``"north_pole"`` (the source's views of the sphere).
+- :func:`detect_up_axis`: the up axis guessed from a cloud (``up="auto"``).
 - :func:`color_limits`: explicit or robust (percentile-clipped) colour limits.
 - :func:`rendering_available`: whether off-screen rendering works here.
 
@@ -49,6 +50,7 @@ __all__ = [
     "render_comparison",
     "render_field",
     "render_panels",
+    "detect_up_axis",
     "rendering_available",
     "save_png",
 ]
@@ -221,14 +223,33 @@ def color_limits(values, clim=None, robust=None) -> tuple[float, float]:
 
 @contextlib.contextmanager
 def _quiet_vtk():
-    """Silence VTK's warnings (e.g. "bad X server connection" before it falls back to EGL)."""
+    """Silence VTK's warnings (e.g. "bad X server connection" before it falls back to EGL), text verbatim.
+
+    Text is drawn verbatim: VTK (>= 9.3) hands every string that contains a
+    ``|`` (its column separator) or a pair of ``$`` to the MathText backend
+    (matplotlib's mathtext), which drops the ``|`` and the spaces ("|H| max"
+    came out as "Hmax"). While rendering, the default text backend is set to
+    FreeType (plain text, no detection) and restored afterwards.
+    """
     from vtkmodules.vtkCommonCore import vtkObject
 
     old = vtkObject.GetGlobalWarningDisplay()
     vtkObject.GlobalWarningDisplayOff()
+    renderer = old_backend = None
+    try:
+        from vtkmodules.vtkRenderingCore import vtkTextRenderer
+
+        renderer = vtkTextRenderer.GetInstance()
+    except ImportError:  # pragma: no cover - every VTK wheel has it
+        pass
+    if renderer is not None:
+        old_backend = renderer.GetDefaultBackend()
+        renderer.SetDefaultBackend(vtkTextRenderer.FreeType)
     try:
         yield
     finally:
+        if renderer is not None:
+            renderer.SetDefaultBackend(old_backend)
         vtkObject.SetGlobalWarningDisplay(old)
 
 
@@ -289,11 +310,67 @@ def _point_size(points: np.ndarray, spacing: float, window_size) -> float:
     return float(np.clip(1.1 * spacing * pix_per_unit, 2.0, 40.0))
 
 
-def _set_camera(plotter, points: np.ndarray, camera, zoom: float = 1.0) -> None:
+_AXES = {"x": 0, "y": 1, "z": 2}
+
+
+def detect_up_axis(points) -> str:
+    """The up axis of a cloud, guessed from its extents: ``"y"`` or ``"z"``.
+
+    The rule (chosen by looking at the models of ../shared/data and the
+    package's shapes): ``"z"`` when z is the longest extent (within 5 %, e.g.
+    the sphere and many CAD parts) or the cloud is flat in z (z extent below
+    a quarter of the longest: tori, planar domains); otherwise ``"y"``, the
+    convention of most graphics and scan files (OBJ/PLY: the bunny, the
+    teapot, the cow, homer, cheburashka). Models it gets wrong (measured: the
+    beetle and Igea, whose longest extents include z) need ``up=`` explicitly.
+
+    Parameters
+    ----------
+    points : array_like (N, 3) or (N, 2), PointCloud, Surface or Domain2D
+
+    Returns
+    -------
+    str
+        ``"y"`` or ``"z"``.
+
+    Examples
+    --------
+    >>> from manifold_sph import shapes
+    >>> detect_up_axis(shapes.torus(200)), detect_up_axis(shapes.sphere(200))
+    ('z', 'z')
+    >>> import numpy as np
+    >>> teapot_like = np.random.default_rng(0).random((100, 3)) * [6.4, 3.2, 4.0]
+    >>> detect_up_axis(teapot_like)
+    'y'
+    """
+    ext = np.ptp(_as_points3(points), axis=0)
+    top = ext.max()
+    if top <= 0 or ext[2] >= 0.95 * top or ext[2] < 0.25 * top:
+        return "z"
+    return "y"
+
+
+def _resolve_up(points, up) -> int:
+    """Index of the up axis from ``up`` ("auto", "x", "y" or "z")."""
+    if not isinstance(up, str):
+        raise TypeError(f"up must be one of 'auto', 'x', 'y', 'z' (a string), got {type(up).__name__} {up!r}")
+    if up not in ("auto", "x", "y", "z"):
+        raise ValueError(f"up must be one of 'auto', 'x', 'y', 'z', got {up!r}")
+    return _AXES[detect_up_axis(points) if up == "auto" else up]
+
+
+def _set_camera(plotter, points: np.ndarray, camera, zoom: float = 1.0, up: str = "z") -> None:
     if isinstance(camera, str):
         check_in("camera", camera, CAMERAS)
-        direction, up = CAMERAS[camera]
+        direction, view_up = CAMERAS[camera]
+        # the presets are written for z up: swap the z component with the up axis
+        a = _resolve_up(points, up)
+        perm = [0, 1, 2]
+        perm[a], perm[2] = 2, a
+        direction = tuple(direction[i] for i in perm)
+        up = tuple(view_up[i] for i in perm)
     else:
+        _resolve_up(points, up)  # validated; an explicit (direction, view_up) pair is used as given
         try:
             direction, up = (np.asarray(camera[0], float), np.asarray(camera[1], float))
         except (TypeError, ValueError, IndexError):
@@ -455,6 +532,7 @@ def render_field(
     clim=None,
     robust=None,
     camera="iso",
+    up: str = "auto",
     zoom: float = 1.0,
     window_size=(800, 600),
     point_size: float | None = None,
@@ -491,6 +569,13 @@ def render_field(
     camera : str or (direction, view_up)
         A key of :data:`CAMERAS` (``"iso"``, ``"equator"``, ``"north_pole"``, ...)
         or a pair of 3-vectors (direction from the centre to the camera, up).
+        The presets are written for z up and turned to the ``up`` axis.
+    up : {"auto", "x", "y", "z"}
+        The axis that points up in the named camera presets. ``"auto"``
+        (default) guesses it from the cloud's extents (:func:`detect_up_axis`:
+        y for most graphics/scan models, z for the package's shapes, flat
+        clouds and clouds longest in z). Ignored (but validated) for an
+        explicit ``(direction, view_up)`` pair.
     zoom : float
         Camera zoom after fitting the cloud in the view.
     window_size : (int, int)
@@ -534,7 +619,7 @@ def render_field(
                 vector_scale=vector_scale, vector_color=vector_color, normals=_normals_of(points, len(pts)),
             )
             _title_text(p, title, _font(ws, 12))
-            _set_camera(p, pts, camera, zoom)
+            _set_camera(p, pts, camera, zoom, up)
             return _finish(p, transparent, filename, overwrite)
         finally:
             p.close()
@@ -550,6 +635,7 @@ def render_panels(
     clim=None,
     robust=None,
     camera="iso",
+    up: str = "auto",
     zoom: float = 1.0,
     panel_size=(400, 400),
     point_size: float | None = None,
@@ -575,7 +661,7 @@ def render_panels(
         One colour map, or one per panel title.
     clim, robust
         As in :func:`render_field` (applied to every panel or to the shared group).
-    camera, zoom, point_size, background, transparent, filename, overwrite
+    camera, up, zoom, point_size, background, transparent, filename, overwrite
         As in :func:`render_field`.
     panel_size : (int, int)
         ``(width, height)`` of one panel; the image is ``len(fields)`` panels wide.
@@ -625,7 +711,7 @@ def render_panels(
                     normals=_normals_of(points, n),
                 )
                 _title_text(p, t, _font((w, h), 11))
-                _set_camera(p, pts, camera, zoom)
+                _set_camera(p, pts, camera, zoom, up)
             return _finish(p, transparent, filename, overwrite)
         finally:
             p.close()
@@ -674,6 +760,7 @@ def animate(
     clim=None,
     robust=None,
     camera="iso",
+    up: str = "auto",
     zoom: float = 1.0,
     window_size=(480, 400),
     point_size: float | None = None,
@@ -700,7 +787,7 @@ def animate(
         Frames per second.
     progress : bool
         Show a tqdm progress bar on stderr (default False: library calls are quiet).
-    title, bar_title, cmap, clim, robust, camera, zoom, window_size, point_size, background, overwrite
+    title, bar_title, cmap, clim, robust, camera, up, zoom, window_size, point_size, background, overwrite
         As in :func:`render_field`.
 
     Returns
@@ -754,7 +841,7 @@ def animate(
             )
             _title_text(p, title, _font(ws, 12))
             clock = p.add_text(" ", position="lower_left", font_size=_font(ws, 9), color="black") if times is not None else None
-            _set_camera(p, pts, camera, zoom)
+            _set_camera(p, pts, camera, zoom, up)
             for k in tqdm(range(snaps.shape[0]), desc=f"frames -> {path.name}", disable=not progress, unit="frame"):
                 data = actor.mapper.dataset
                 data.point_data["field"][:] = np.clip(snaps[k], *lim)

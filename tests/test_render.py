@@ -19,6 +19,7 @@ from manifold_sph.render import (
     CAMERAS,
     animate,
     color_limits,
+    detect_up_axis,
     render_comparison,
     render_field,
     render_panels,
@@ -237,12 +238,14 @@ def test_animate_mp4(cloud, tmp_path):
         ({"vectors": np.zeros((600, 4))}, ValueError, r"vectors must have shape \(600, 3\)"),
         ({"filename": "x.jpg"}, ValueError, r"filename must end in \.png"),
         ({"zoom": 0}, ValueError, "zoom must be a finite positive number, got 0"),
+        ({"up": "w"}, ValueError, "up must be one of 'auto', 'x', 'y', 'z', got 'w'"),
+        ({"up": 2}, TypeError, "up must be one of 'auto', 'x', 'y', 'z' \\(a string\\), got int 2"),
     ],
 )
 def test_render_field_bad_input(cloud, kwargs, exc, match):
     args = {"field": cloud.points[:, 2], **kwargs}
     f = args.pop("field")
-    if "camera" in kwargs and not _OK:
+    if ("camera" in kwargs or "up" in kwargs) and not _OK:
         pytest.skip(_WHY)
     with pytest.raises(exc, match=match):
         render_field(cloud, f, **args)
@@ -259,6 +262,80 @@ def test_bad_points_and_snapshots(cloud, tmp_path):
         render_panels(cloud, [cloud.points[:, 0]])
     with pytest.raises(ValueError, match="shared_clim names 'w', which is not a panel title"):
         render_panels(cloud, {"x": cloud.points[:, 0]}, shared_clim=["w"])
+
+
+MODELS = Path(__file__).resolve().parents[2] / "shared" / "data" / "models"
+
+
+def test_detect_up_axis_rule():
+    rng = np.random.default_rng(0)
+    box = rng.random((200, 3))
+    assert detect_up_axis(shapes.sphere(200)) == "z"  # z longest (tie): z
+    assert detect_up_axis(shapes.torus(300)) == "z"  # flat in z: z
+    assert detect_up_axis(box * [6.4, 3.2, 4.0]) == "y"  # teapot-like extents: y
+    assert detect_up_axis(box * [1.0, 2.0, 0.5]) == "y"  # tall in y
+    assert detect_up_axis(box * [0.3, 0.5, 1.0]) == "z"  # longest in z
+    assert detect_up_axis(box[:, :2]) == "z"  # planar (N, 2) points lie in z = 0
+
+
+def test_detect_up_axis_on_the_models():
+    """Measured on ../shared/data/models: y for the y-up graphics models, z for the planar alligator."""
+    if not MODELS.is_dir():
+        pytest.skip(f"{MODELS} not found (the models live outside the repository)")
+    from manifold_sph.io import read
+
+    expected = {"cow": "y", "homer": "y", "cheburashka": "y", "teapot": "y", "alligator": "z", "rocker-arm": "z"}
+    for name, axis in expected.items():
+        path = MODELS / f"{name}.obj"
+        if path.is_file():
+            assert detect_up_axis(read(path, duplicates="merge").points) == axis, name
+
+
+def _ink_box(img):
+    """Rows and columns spanned by non-white pixels."""
+    ink = np.flatnonzero(np.any(img[..., :3] < 200, axis=(1, 2))), np.flatnonzero(np.any(img[..., :3] < 200, axis=(0, 2)))
+    return np.ptp(ink[0]) + 1, np.ptp(ink[1]) + 1
+
+
+@needs_gl
+def test_y_up_cloud_stands_upright():
+    """A tall y-up cylinder: with up="auto" it stands (taller than wide); forced z up it lies on its side."""
+    t = np.linspace(0, 2 * np.pi, 40, endpoint=False)
+    y = np.linspace(0, 4, 30)
+    T, Y = np.meshgrid(t, y)
+    pts = np.c_[0.5 * np.cos(T.ravel()), Y.ravel(), 0.5 * np.sin(T.ravel())]
+    kw = dict(window_size=(200, 200), show_scalar_bar=False, point_size=4, camera="equator")
+    h, w = _ink_box(render_field(pts, **kw))
+    assert h > 2.5 * w, (h, w)  # measured ~ 4 : 1
+    h, w = _ink_box(render_field(pts, up="z", **kw))
+    assert w > 2.5 * h, (h, w)
+    h2, w2 = _ink_box(render_field(pts, up="y", **kw))
+    assert h2 > 2.5 * w2
+
+
+@needs_gl
+def test_titles_are_drawn_verbatim(cloud):
+    """'|' used to send the title to VTK's MathText backend, which dropped the bars and the spaces."""
+    from vtkmodules.vtkRenderingCore import vtkTextRenderer
+
+    before = vtkTextRenderer.GetInstance().GetDefaultBackend()
+    kw = dict(window_size=(240, 160), show_scalar_bar=False, point_size=2, camera="iso")
+    f = cloud.points[:, 2]
+    bars = render_field(cloud, f, title="|H| |H|", **kw)
+    plain = render_field(cloud, f, title="H H", **kw)
+    squeezed = render_field(cloud, f, title="HH", **kw)
+    top = slice(0, 30)
+    width = lambda img: _ink_box(img[top])[1]  # noqa: E731
+    assert width(bars) > width(plain) > width(squeezed)  # the bars and the space take room
+    # bar titles and panel titles too
+    p1 = render_panels(cloud, {"|u|": f}, panel_size=(160, 160))
+    p2 = render_panels(cloud, {"u": f}, panel_size=(160, 160))
+    assert width(p1) > width(p2)
+    b1 = render_field(cloud, f, bar_title="|v| max", window_size=(240, 160), point_size=2)
+    b2 = render_field(cloud, f, bar_title="v", window_size=(240, 160), point_size=2)
+    assert not np.array_equal(b1[-30:], b2[-30:])
+    # the renderer's global text backend is restored afterwards
+    assert vtkTextRenderer.GetInstance().GetDefaultBackend() == before
 
 
 if __name__ == "__main__":  # pragma: no cover
