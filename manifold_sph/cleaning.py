@@ -1,5 +1,8 @@
 """Cleaning raw scans: duplicates, outliers, voxel downsampling.
 
+Outliers are judged against each point's own neighbourhood (density-adaptive),
+not a global statistic: see :func:`remove_outliers`.
+
 Each function takes points (N, 3) (or a :class:`~manifold_sph.PointCloud`) and
 optional normals, and returns a :class:`CleanResult` saying what it removed.
 :func:`clean` chains them. All are deterministic and vectorised.
@@ -146,23 +149,99 @@ def merge_duplicates(points, normals=None, *, tolerance: float = 0.0) -> CleanRe
     return CleanResult(out_pts, out_nrm, keep, labels.astype(np.int64), report)
 
 
-def remove_outliers(points, normals=None, *, k: int = 16, std_ratio: float = 3.0) -> CleanResult:
-    """Statistical outlier removal.
+def _local_outlier_scores(pts, k):
+    """Density-adaptive outlier measures from the ``k`` nearest neighbours (vectorised).
 
-    A point is removed when the mean distance to its ``k`` nearest neighbours
-    exceeds the mean of that quantity over the cloud by ``std_ratio`` standard
-    deviations (the rule of PCL and open3d). On an evenly sampled scan such as
-    the bunny the default removes a handful of stray points, not the rim of
-    the scan.
+    Returns ``(ratio, offset, small_volumetric)``: the mean neighbour distance
+    over the median of the neighbours' own (a local-outlier-factor style
+    ratio); the distance to the nearest of the three closest neighbours'
+    local planes over that neighbour's tangential spread; and membership of a
+    small (<= k points) piece of the mutual-k-NN graph whose median
+    neighbourhood is volumetric (smallest PCA eigenvalue > 10 % of the sum),
+    which is how clumps of outliers look.
+    """
+    n = pts.shape[0]
+    dist, idx = cKDTree(pts).query(pts, k=k + 1, workers=get_num_threads())
+    nb = idx[:, 1:]
+    r = dist[:, 1:].mean(axis=1)
+    ref = np.median(r[nb], axis=1)
+    ratio = np.where(ref > 0, r / np.where(ref > 0, ref, 1.0), np.where(r > 0, np.inf, 1.0))
+    q = pts[idx]
+    c = q.mean(axis=1)
+    X = q - c[:, None, :]
+    w, V = np.linalg.eigh(np.einsum("nki,nkj->nij", X, X) / (k + 1))
+    w = np.maximum(w, 0.0)
+    spread = np.sqrt(w[:, 1] + w[:, 2])
+    j = nb[:, : min(3, k)]
+    h = np.abs(np.einsum("nmd,nmd->nm", pts[:, None, :] - c[j], V[j, :, 0]))
+    sj = spread[j]
+    offset = np.where(sj > 0, h / np.where(sj > 0, sj, 1.0), np.where(h > 0, np.inf, 0.0)).min(axis=1)
+    planarity = w[:, 0] / np.maximum(w.sum(axis=1), np.finfo(float).tiny)
+    rows = np.repeat(np.arange(n), k)
+    A = sp.csr_matrix((np.ones(rows.size), (rows, nb.ravel())), shape=(n, n))
+    _, lab = csgraph.connected_components(A.multiply(A.T), directed=False)
+    size = np.bincount(lab)
+    order = np.lexsort((planarity, lab))
+    first = np.concatenate([[0], np.cumsum(size)[:-1]])
+    median_pl = planarity[order][first + size // 2]
+    small_volumetric = (size[lab] <= k) & (median_pl[lab] > 0.1)
+    return ratio, offset, small_volumetric
+
+
+def remove_outliers(
+    points,
+    normals=None,
+    *,
+    k: int = 16,
+    std_ratio: float = 3.0,
+    method: str = "local",
+    ratio: float = 3.0,
+    max_offset: float = 1.5,
+) -> CleanResult:
+    """Outlier removal, density-adaptive by default.
+
+    ``method="local"`` (default) compares every point with its own
+    neighbourhood, never with a global statistic, so that a cloud whose
+    density varies (fine detail next to coarse parts) is left alone. A point
+    is removed when any of these holds:
+
+    - its mean distance to its ``k`` nearest neighbours exceeds ``ratio``
+      times the median of the same quantity over those neighbours (a
+      local-outlier-factor style ratio: stray points in empty space);
+    - its distance to the local planes of its three nearest neighbours
+      (PCA over each one's ``k`` neighbours) exceeds ``max_offset`` times that
+      neighbour's tangential spread (points hovering off the surface);
+    - it belongs to a small clump (at most ``k`` points, a piece of the
+      mutual-k-NN graph) whose neighbourhoods are volumetric, not surface-like.
+
+    Measured (k = 16) on the noise-free models of ../shared/data/models and the
+    scans, used as bare points: at most 0.1 % removed (cow 0.07 %, rocker-arm
+    0.01 %, homer, cheburashka, teapot, alligator, bunny, Igea 0 %), except
+    the coarse beetle (0.7 %). Of 1 % injected outliers (uniform in the
+    bounding box) only 48-75 % are caught (beetle 27 %): outliers that fall
+    within a few spacings of the surface or inside thin parts look like it,
+    and far outliers clump with each other, which defeats local ratios. The
+    95 % target is not met (the statistical rule catches about as many).
+
+    ``method="statistical"`` is the former rule (PCL, open3d): removed when
+    the mean distance to the ``k`` neighbours exceeds the cloud's mean of that
+    quantity by ``std_ratio`` standard deviations; it removes 1-2 % of a
+    noise-free model of varying density.
 
     Parameters
     ----------
     points : array_like, shape (N, 3), or PointCloud
     normals : array_like, shape (N, 3), optional
     k : int
-        Neighbours (not counting the point itself), at least 1 and below N.
+        Neighbours (not counting the point itself), at least 1 and below N
+        (at least 3 for ``method="local"``).
     std_ratio : float
-        Threshold in standard deviations (> 0).
+        Threshold in standard deviations (> 0), for ``method="statistical"``.
+    method : {"local", "statistical"}
+    ratio : float
+        Local distance ratio threshold (> 1), for ``method="local"``.
+    max_offset : float
+        Off-plane threshold in units of the local spacing (> 0), for ``method="local"``.
 
     Returns
     -------
@@ -182,19 +261,37 @@ def remove_outliers(points, normals=None, *, k: int = 16, std_ratio: float = 3.0
     k = check_int("k", k, minimum=1)
     if k >= n:
         raise ValueError(f"k must be smaller than the number of points {n}, got {k}")
-    ratio = check_positive("std_ratio", std_ratio)
-    dist, _ = cKDTree(pts).query(pts, k=k + 1, workers=get_num_threads())
-    md = dist[:, 1:].mean(axis=1)
-    centre = md.mean()
-    spread = md.std()
-    limit = centre + ratio * spread
-    keep = md <= limit
+    std = check_positive("std_ratio", std_ratio)
+    if not isinstance(method, str) or method not in ("local", "statistical"):
+        raise ValueError(f"method must be one of ['local', 'statistical'], got {method!r}")
+    lim_ratio = check_positive("ratio", ratio)
+    if lim_ratio <= 1.0:
+        raise ValueError(f"ratio must be greater than 1, got {ratio!r}")
+    lim_off = check_positive("max_offset", max_offset)
+    if method == "statistical":
+        dist, _ = cKDTree(pts).query(pts, k=k + 1, workers=get_num_threads())
+        md = dist[:, 1:].mean(axis=1)
+        centre = md.mean()
+        spread = md.std()
+        limit = centre + std * spread
+        keep = md <= limit
+        why = (
+            f"whose mean distance to {k} neighbours exceeds {limit:.4g} (mean {centre:.4g} + {std:g} x std {spread:.3g})"
+        )
+    else:
+        if k < 3:
+            raise ValueError(f"k must be at least 3 for method='local', got {k}")
+        rat, off, clump = _local_outlier_scores(pts, k)
+        far, hover = rat > lim_ratio, off > lim_off
+        keep = ~(far | hover | clump)
+        why = (
+            f"(local, {k} neighbours): {int(far.sum())} with distance ratio > {lim_ratio:g}, "
+            f"{int(hover.sum())} more than {lim_off:g} spacings off the local planes, "
+            f"{int(clump.sum())} in small volumetric clumps"
+        )
     groups = np.full(n, -1, dtype=np.int64)
     groups[keep] = np.arange(int(keep.sum()))
-    report = (
-        f"remove_outliers: removed {n - int(keep.sum())} of {n} points whose mean distance to {k} neighbours "
-        f"exceeds {limit:.4g} (mean {centre:.4g} + {ratio:g} x std {spread:.3g})"
-    )
+    report = f"remove_outliers: removed {n - int(keep.sum())} of {n} points {why}"
     return CleanResult(pts[keep], None if nrm is None else nrm[keep], keep, groups, report)
 
 
@@ -262,8 +359,24 @@ def clean(
     k: int = 16,
     std_ratio: float = 3.0,
     voxel_size: float | None = None,
+    outlier_method: str = "local",
 ) -> CleanResult:
-    """Merge duplicates, remove statistical outliers, then (optionally) voxel-downsample.
+    """Merge duplicates, remove outliers, then (optionally) voxel-downsample.
+
+    Parameters
+    ----------
+    points : array_like, shape (N, 3), or PointCloud
+    normals : array_like, shape (N, 3), optional
+    duplicate_tolerance : float
+        See :func:`merge_duplicates`.
+    outliers : bool
+        Run :func:`remove_outliers`.
+    k, std_ratio : int, float
+        See :func:`remove_outliers`.
+    voxel_size : float, optional
+        See :func:`voxel_downsample`.
+    outlier_method : {"local", "statistical"}
+        The ``method`` of :func:`remove_outliers` (default: density-adaptive).
 
     Returns
     -------
@@ -287,7 +400,7 @@ def clean(
     n = pts.shape[0]
     steps = [merge_duplicates(pts, nrm, tolerance=duplicate_tolerance)]
     if outliers:
-        steps.append(remove_outliers(steps[-1].points, steps[-1].normals, k=k, std_ratio=std_ratio))
+        steps.append(remove_outliers(steps[-1].points, steps[-1].normals, k=k, std_ratio=std_ratio, method=outlier_method))
     if voxel_size is not None:
         steps.append(voxel_downsample(steps[-1].points, steps[-1].normals, voxel_size=voxel_size))
     groups = np.arange(n)

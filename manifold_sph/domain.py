@@ -128,6 +128,7 @@ class Domain2D(OperatorSet):
             ghosts, owner = mirror_ghosts(pts, self.bounds, self.kernel.support * float(np.max(hv)))
             cand = np.concatenate([pts, ghosts])
             owner = np.concatenate([np.arange(n), owner])
+        self._cand, self._owner = cand, (owner if self.mirror else None)
         nb = find_neighbors(pts, h=hv, support=self.kernel.support, candidates=cand)
         self._check_isolated(nb, "increase neighbors or h")
         if self.mirror:
@@ -139,6 +140,16 @@ class Domain2D(OperatorSet):
             total_area = (x1 - x0) * (y1 - y0)
         frames = np.broadcast_to(np.eye(2), (n, 2, 2))
         self._setup(nb, xy, frames, area, total_area, columns=columns)
+
+    def _wider_candidates(self, rows: np.ndarray):
+        """The ``_WIDER_K`` nearest candidates (ghosts included) of ``rows``."""
+        k = min(self._WIDER_K, self._cand.shape[0])
+        dist, idx = build_tree(self._cand).query(self._points[rows], k=k)
+        xy = self._cand[idx] - self._points[rows][:, None, :]
+        cols = idx if self._owner is None else self._owner[idx]
+        indptr = np.arange(0, rows.size * k + 1, k)
+        radius = dist[:, -1] if k < self._cand.shape[0] else np.full(rows.size, np.inf)
+        return indptr, xy.reshape(-1, 2), cols.ravel(), radius
 
     @property
     def points(self) -> np.ndarray:

@@ -26,6 +26,7 @@ from .assembly import Assembled, assemble
 from .kernels import get_kernel
 from .neighbors import Neighborhood, adaptive_smoothing_length, smoothing_length_for_count
 from .schemes import get_scheme
+from .voronoi import BOUNDARY, DEGENERATE, INCOMPLETE, NEAR_DUPLICATE, stiffness_matrix, voronoi_cells
 
 __all__ = ["OperatorSet"]
 
@@ -247,6 +248,164 @@ class OperatorSet:
         e = self._frames
         dx, dy = self._blocks("dx"), self._blocks("dy")
         return np.einsum("nk,nk->n", e[:, 0], dx @ F) + np.einsum("nk,nk->n", e[:, 1], dy @ F)
+
+    # ------------------------------------------------------- stable Laplacian
+    #: Nearest neighbours searched again for the cells that the neighbourhood does not close.
+    _WIDER_K = 64
+
+    def _wider_candidates(self, rows: np.ndarray):
+        """``(indptr, xy, columns, radius)`` of a wider search for ``rows``, or None (subclasses)."""
+        return None
+
+    def _stable(self) -> dict:
+        """Voronoi stiffness and mass, built once (see :mod:`manifold_sph.voronoi`)."""
+        if "stable" in self._cache:
+            return self._cache["stable"]
+        nb = self.neighborhood
+        n = nb.n_rows
+        cells = voronoi_cells(nb.indptr, self._xy, nb.support * nb.h)
+        rows, cols, weights = nb.rows, np.asarray(self._columns), cells.weights
+        area, flags = cells.area.copy(), cells.flags.copy()
+        redo = np.flatnonzero(flags & (INCOMPLETE | DEGENERATE))
+        n_widened = 0
+        if redo.size:
+            wider = self._wider_candidates(redo)
+            if wider is not None:
+                indptr2, xy2, cols2, radius2 = wider
+                more = voronoi_cells(indptr2, xy2, radius2)
+                mark = np.zeros(n, dtype=bool)
+                mark[redo] = True
+                keep = ~mark[rows]
+                rows = np.concatenate([rows[keep], np.repeat(redo, np.diff(indptr2))])
+                cols = np.concatenate([cols[keep], cols2])
+                weights = np.concatenate([weights[keep], more.weights])
+                area[redo], flags[redo] = more.area, more.flags
+                n_widened = int(redo.size)
+        degenerate = np.flatnonzero(area <= 0)
+        if degenerate.size:  # no cell: a mass from the neighbours' cells, and no flux of its own
+            good = area > 0
+            if not good.any():
+                raise ValueError(
+                    "stable Laplacian: no particle has a proper Voronoi cell (all neighbourhoods are "
+                    "collinear or too small); increase neighbors"
+                )
+            sums = np.bincount(rows, weights=np.where(good[cols], area[cols], 0.0), minlength=n)
+            cnt = np.bincount(rows, weights=good[cols].astype(float), minlength=n)
+            fill = np.where(cnt[degenerate] > 0, sums[degenerate] / np.maximum(cnt[degenerate], 1), np.median(area[good]))
+            area[degenerate] = fill
+            weights = np.where(np.isin(rows, degenerate), 0.0, weights)
+        K = stiffness_matrix(rows, cols, weights, n)
+        report = {
+            "boundary": int(np.count_nonzero(flags & BOUNDARY)),
+            "widened": n_widened,
+            "unclosed": int(np.count_nonzero(flags & INCOMPLETE)),
+            "degenerate": int(degenerate.size),
+            "near_duplicate": int(np.count_nonzero(flags & NEAR_DUPLICATE)),
+        }
+        if degenerate.size or report["near_duplicate"]:
+            warnings.warn(
+                f"stable Laplacian: {degenerate.size} particle(s) have no Voronoi cell (collinear or too few "
+                f"neighbours: given the mean of their neighbours' areas and no flux of their own), "
+                f"{report['near_duplicate']} have near-duplicate neighbours (closer than "
+                f"1e-3 of the cell size: their distance is floored there); see .stable_report",
+                RuntimeWarning,
+                stacklevel=3,
+            )
+        self._cache["stable"] = {"K": K, "M": sp.diags(area).tocsr(), "area": area, "report": report}
+        return self._cache["stable"]
+
+    @property
+    def stable_report(self) -> dict:
+        """Counts from the stable Laplacian's Voronoi cells.
+
+        ``boundary``: cells clipped by the neighbourhood's hull (open boundary);
+        ``widened``: cells recomputed with a wider neighbour search; ``unclosed``:
+        cells that even the wider search may not have closed (kept clipped to the
+        hull); ``degenerate``: particles without a cell; ``near_duplicate``:
+        particles with a neighbour closer than 1e-3 of their cell's size.
+        """
+        return dict(self._stable()["report"])
+
+    def stiffness_matrix(self) -> sp.csr_matrix:
+        """Symmetric positive semi-definite stiffness K, shape (N, N), with ``K @ 1 == 0``.
+
+        Two-point fluxes through tangent-plane Voronoi cells (:mod:`manifold_sph.voronoi`):
+        ``-K`` is a weighted graph Laplacian, and ``L = -M^-1 K`` (:meth:`stable_laplacian_matrix`)
+        a Laplace-Beltrami operator whose eigenvalues are real and ``<= 0`` on any cloud.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from manifold_sph import Surface, shapes
+        >>> s = Surface(shapes.sphere(1000))
+        >>> K = s.stiffness_matrix()
+        >>> bool(abs(K - K.T).max() == 0), bool(np.abs(K @ np.ones(1000)).max() < 1e-10)
+        (True, True)
+        """
+        return self._stable()["K"]
+
+    def mass_matrix(self) -> sp.csr_matrix:
+        """Diagonal mass M, shape (N, N): the Voronoi cell areas (positive; their sum is the area)."""
+        return self._stable()["M"]
+
+    def stable_laplacian_matrix(self) -> sp.csr_matrix:
+        """``L = -M^-1 K``, shape (N, N): a Laplace-Beltrami matrix with real eigenvalues ``<= 0``."""
+        if "stable_L" not in self._cache:
+            st = self._stable()
+            self._cache["stable_L"] = (-sp.diags(1.0 / st["area"]) @ st["K"]).tocsr()
+        return self._cache["stable_L"]
+
+    def eigs(self, k: int = 50, *, sigma: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The ``k`` smallest eigenpairs of ``K v = lambda M v`` (the stable Laplacian's spectrum).
+
+        Parameters
+        ----------
+        k : int
+            Number of eigenpairs, ``1 <= k < N - 1``.
+        sigma : float, optional
+            Shift of the shift-invert Lanczos iteration (default ``-1e-2 / area``,
+            just below the zero eigenvalue).
+
+        Returns
+        -------
+        values : ndarray, shape (k,)
+            Ascending; ``lambda`` approximates the eigenvalues of ``-Lap_S`` (0 first on a
+            connected closed surface).
+        vectors : ndarray, shape (N, k)
+            M-orthonormal: ``vectors.T @ M @ vectors == I``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from manifold_sph import Surface, shapes
+        >>> lam, V = Surface(shapes.sphere(2000)).eigs(4)     # 0, then l(l+1) = 2 three times
+        >>> np.round(lam, 1).tolist()
+        [0.0, 2.0, 2.0, 2.0]
+        """
+        import scipy.linalg as sla
+        import scipy.sparse.linalg as spla
+
+        from ._validation import check_int
+
+        n = self.n_points
+        k = check_int("k", k, minimum=1)
+        if k >= n - 1:
+            raise ValueError(f"k must be smaller than the number of points minus 1 ({n - 1}), got {k}")
+        st = self._stable()
+        K, area = st["K"], st["area"]
+        if sigma is None:
+            sigma = -1e-2 / area.sum()
+        elif not np.isfinite(sigma):
+            raise ValueError(f"sigma must be finite, got {sigma!r}")
+        if n <= 1500:
+            lam, V = sla.eigh(K.toarray(), np.diag(area), subset_by_index=[0, k - 1])
+        else:
+            v0 = np.random.default_rng(0).standard_normal(n)
+            lam, V = spla.eigsh(K.tocsc(), k=k, M=st["M"].tocsc(), sigma=float(sigma), which="LM", v0=v0)
+        order = np.argsort(lam)
+        lam, V = lam[order], V[:, order]
+        V = V / np.sqrt(np.einsum("ik,i,ik->k", V, area, V))
+        return lam, V
 
     def laplacian(self, f) -> np.ndarray:
         """Laplace-Beltrami operator (Laplacian in the plane) of a scalar field.

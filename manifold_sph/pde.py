@@ -4,18 +4,29 @@ Every solver works with the surface's sparse Laplace-Beltrami matrix ``L``, so
 implicit steps and Poisson problems are sparse solves; one factorisation is
 reused for all steps.
 
-The SPH Laplacians are not symmetric. On near-uniform clouds their spectra lie
-in the closed left half-plane; on uniformly *random* samples the corrected
-schemes (cspm, msph, ncsph) have eigenvalues with large positive real parts, and
-time stepping with them grows without bound. :func:`stabilized_laplacian` gives
-two Laplacians whose spectra are provably in the left half-plane (``"taylor"``:
-the standard SPH Laplacian with Shepard area elements, a weighted graph
-Laplacian; ``"weak"``: ``-M^-1 G^T M G`` from the scheme's gradient), at a cost
-in accuracy; every solver accepts such a matrix through ``laplacian=``.
+Which Laplacian (``laplacian=`` of every solver):
+
+- ``"strong"``: the scheme's SPH Laplacian ``L`` (:meth:`Surface.laplacian_matrix`).
+  Not symmetric. On near-uniform clouds its spectrum lies in the closed left
+  half-plane; on uniformly *random* samples and scans the corrected schemes have
+  eigenvalues with large positive real parts (1e5 to 1e8 measured on random
+  sphere points), and time stepping with them grows without bound.
+- ``"stable"``: the weak form ``K u = -M Lap u`` from tangent-plane Voronoi cells
+  (:meth:`Surface.stiffness_matrix`, :meth:`Surface.mass_matrix`,
+  :mod:`manifold_sph.voronoi`): ``K`` symmetric positive semi-definite, ``M``
+  positive diagonal, on any cloud. Heat steps ``(M + dt K) u' = M u`` conserve
+  ``sum(M u)`` and (implicit Euler) obey the maximum principle exactly; the wave
+  scheme conserves a discrete energy; on open surfaces the natural (Neumann)
+  condition holds.
+- ``"auto"`` (the default): ``"strong"`` when :func:`strong_form_is_stable` shows its
+  spectrum free of growing modes, otherwise ``"stable"``, said once per surface in a
+  RuntimeWarning.
+- a sparse matrix: used as ``L``.
 """
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from typing import Callable, NamedTuple
 
@@ -31,6 +42,8 @@ __all__ = [
     "Snapshots",
     "spectral_radius",
     "spectrum_right_edge",
+    "strong_form_is_stable",
+    "choose_laplacian",
     "explicit_dt_limit",
     "stabilized_laplacian",
     "heat",
@@ -53,16 +66,126 @@ class Snapshots(NamedTuple):
 
 
 # ----------------------------------------------------------------------------- helpers
-def _laplacian(surface, laplacian) -> sp.csr_matrix:
+LAPLACIANS = ("auto", "strong", "stable")
+
+#: Above this many particles ``laplacian="auto"`` does not run the spectrum check and uses "stable".
+AUTO_CHECK_MAX = 200_000
+
+
+def _check_surface(surface) -> None:
     if not isinstance(surface, OperatorSet):
         raise TypeError(f"surface must be a Surface or Domain2D, got {type(surface).__name__}")
+
+
+def strong_form_is_stable(surface, *, maxiter: int = 50) -> bool:
+    """Whether the scheme's (strong-form) Laplacian has no growing mode (no eigenvalue with Re > 0).
+
+    ARPACK looks for the eigenvalues with the largest real parts (``maxiter`` restarts
+    at most). Growing modes of SPH Laplacians on irregular clouds are large and
+    isolated and are found in a few iterations; the check says True only when the
+    right edge converged at 0 (within ``1e-6`` of the Gershgorin bound of the
+    spectral radius), and False when a growing mode was found, the iteration did
+    not converge, or the cloud has more than :data:`AUTO_CHECK_MAX` particles. The
+    result is cached on the surface.
+
+    Examples
+    --------
+    >>> from manifold_sph import Surface, shapes
+    >>> strong_form_is_stable(Surface(shapes.sphere(2000)))     # Fibonacci points
+    True
+    """
+    _check_surface(surface)
+    maxiter = check_int("maxiter", maxiter, minimum=1)
+    key = ("strong_stable", maxiter)
+    if key in surface._cache:
+        return surface._cache[key][0]
+    L = surface.laplacian_matrix()
+    n = L.shape[0]
+    reason = ""
+    if n > AUTO_CHECK_MAX:
+        ok, reason = False, f"not checked above {AUTO_CHECK_MAX} particles"
+    else:
+        bound = float(abs(L).sum(axis=1).max())
+        v0 = np.random.default_rng(0).standard_normal(n)
+        try:
+            lam = spla.eigs(L, k=2, which="LR", v0=v0, tol=1e-6, maxiter=maxiter, return_eigenvectors=False)
+            converged = True
+        except spla.ArpackNoConvergence as exc:
+            lam, converged = exc.eigenvalues, False
+        except spla.ArpackError:
+            lam, converged = np.zeros(0), False
+        top = float(np.max(lam.real)) if lam.size else np.nan
+        if lam.size and top > 1e-6 * bound:
+            ok, reason = False, f"it has eigenvalues with positive real part up to {top:.3g} (growing modes)"
+        elif converged:
+            ok = True
+        else:
+            ok, reason = False, "its spectrum could not be shown free of growing modes"
+    surface._cache[key] = (ok, reason)
+    return ok
+
+
+def choose_laplacian(surface, laplacian="auto") -> str:
+    """The Laplacian the solvers use for ``laplacian``: ``"strong"``, ``"stable"`` or ``"matrix"``.
+
+    ``"auto"`` gives ``"strong"`` when :func:`strong_form_is_stable`, otherwise
+    ``"stable"`` with one RuntimeWarning per surface giving the reason.
+    """
+    _check_surface(surface)
     if laplacian is None:
-        return surface.laplacian_matrix()
-    L = sp.csr_matrix(laplacian)
+        laplacian = "auto"
+    if not isinstance(laplacian, str):
+        return "matrix"
+    check_in("laplacian", laplacian, LAPLACIANS)
+    if laplacian != "auto":
+        return laplacian
+    if strong_form_is_stable(surface):
+        return "strong"
+    if "auto_warned" not in surface._cache:
+        surface._cache["auto_warned"] = True
+        reason = surface._cache[("strong_stable", 50)][1]
+        warnings.warn(
+            f"laplacian='auto': the {surface.scheme.name!r} scheme's Laplacian is not used for this cloud "
+            f"({reason}); using the stable Voronoi Laplacian (laplacian='stable'). Pass laplacian='strong' "
+            "to force the scheme's operator",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+    return "stable"
+
+
+@dataclass
+class _Operator:
+    """The Laplacian a solver uses: ``L`` (products), and for "stable" also ``K`` and the mass ``m``."""
+
+    kind: str
+    L: sp.csr_matrix
+    m: np.ndarray
+    K: sp.csr_matrix | None = None
+
+
+def _operator(surface, laplacian) -> _Operator:
+    kind = choose_laplacian(surface, laplacian)
     n = surface.n_points
+    if kind == "stable":
+        K = surface.stiffness_matrix()
+        m = np.asarray(surface.mass_matrix().diagonal())
+        return _Operator("stable", surface.stable_laplacian_matrix(), m, K)
+    if kind == "strong":
+        return _Operator("strong", surface.laplacian_matrix(), surface.dV)
+    if sp.issparse(laplacian) or isinstance(laplacian, np.ndarray):
+        L = sp.csr_matrix(laplacian)
+    else:
+        raise TypeError(f"laplacian must be one of {list(LAPLACIANS)} or a sparse matrix, got {type(laplacian).__name__}")
     if L.shape != (n, n):
         raise ValueError(f"laplacian must have shape ({n}, {n}), got {L.shape}")
-    return L
+    if not np.all(np.isfinite(L.data)):
+        raise ValueError("laplacian must have finite entries")
+    return _Operator("matrix", L, surface.dV)
+
+
+def _laplacian(surface, laplacian) -> sp.csr_matrix:
+    return _operator(surface, laplacian).L
 
 
 def _fixed(fixed, fixed_values, n: int, u0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -173,20 +296,42 @@ def spectrum_right_edge(L, k: int = 6, *, seed: int = 0) -> np.ndarray:
     return lam[np.argsort(-lam.real)]
 
 
-def explicit_dt_limit(surface, *, k: float = 1.0, equation: str = "heat", laplacian=None) -> float:
+def _rho(surface, op: _Operator) -> float:
+    """Spectral radius of the operator's ``L`` (cached per surface for "strong" and "stable" only:
+    a matrix passed in is measured every time, never keyed by its ``id``)."""
+    key = ("rho", op.kind)
+    if op.kind != "matrix" and key in surface._cache:
+        return surface._cache[key]
+    if op.kind == "stable":  # M^-1 K is similar to the symmetric M^-1/2 K M^-1/2: Lanczos
+        d = 1.0 / np.sqrt(op.m)
+        S = (sp.diags(d) @ op.K @ sp.diags(d)).tocsr()
+        n = S.shape[0]
+        if n <= 3:
+            rho = float(np.abs(np.linalg.eigvalsh(S.toarray())).max())
+        else:
+            v0 = np.random.default_rng(0).standard_normal(n)
+            try:
+                rho = float(spla.eigsh(S, k=1, which="LA", v0=v0, tol=1e-6, return_eigenvectors=False)[0])
+            except spla.ArpackNoConvergence:
+                rho = float(abs(S).sum(axis=1).max())  # Gershgorin: an upper bound
+    else:
+        rho = spectral_radius(op.L)
+    if op.kind != "matrix":
+        surface._cache[key] = rho
+    return rho
+
+
+def explicit_dt_limit(surface, *, k: float = 1.0, equation: str = "heat", laplacian="auto") -> float:
     """Largest stable time step of the explicit schemes, from the spectral radius ``rho`` of ``L``.
 
     Heat (forward Euler): ``2 / (k rho)``. Wave (centred): ``2 / (c sqrt(rho))`` with ``c = k``.
-    Exact for eigenvalues on the negative real axis; complex eigenvalues near the
-    imaginary axis are not covered (use an implicit method).
+    Exact for eigenvalues on the negative real axis (always the case with
+    ``laplacian="stable"``); complex eigenvalues near the imaginary axis are not
+    covered (use an implicit method). ``laplacian`` as in :func:`heat`.
     """
-    L = _laplacian(surface, laplacian)
     check_in("equation", equation, ("heat", "wave"))
-    key = ("rho", id(laplacian))
-    cache = surface._cache
-    if key not in cache:
-        cache[key] = spectral_radius(L)
-    rho = cache[key]
+    op = _operator(surface, laplacian)
+    rho = _rho(surface, op)
     k = check_positive("k" if equation == "heat" else "c", k)
     if rho == 0:
         return np.inf
@@ -255,7 +400,7 @@ def heat(
     fixed_values=None,
     every: int | None = None,
     callback: Callable | None = None,
-    laplacian=None,
+    laplacian="auto",
     solver: str = "auto",
 ):
     """Heat equation ``u_t = k Lap_S u``.
@@ -282,8 +427,12 @@ def heat(
         Save the state every ``every`` steps (the initial and the final state included).
     callback : callable, optional
         ``callback(step, t, u)`` after every step.
-    laplacian : sparse matrix, optional
-        Use this Laplacian instead of the surface's (e.g. :func:`stabilized_laplacian`).
+    laplacian : {"auto", "strong", "stable"} or sparse matrix
+        Which Laplace-Beltrami (module notes). With ``"stable"`` the steps are
+        ``(M + theta dt k K) u' = (M - (1 - theta) dt k K) u``: without ``fixed``
+        particles ``sum(M u)`` is conserved to round-off, and implicit Euler keeps
+        ``u`` within the range of the initial values (discrete maximum principle;
+        Crank-Nicolson does so only for small ``dt``).
     solver : {"auto", "direct", "iterative"}
         Implicit steps: one sparse LU reused for all steps ("direct"), or
         Jacobi-preconditioned BiCGSTAB on both cores, started from the current
@@ -307,18 +456,21 @@ def heat(
     >>> bool(np.allclose(u, np.exp(-0.2) * z, atol=2e-3))
     True
     """
-    L = _laplacian(surface, laplacian)
-    n = L.shape[0]
+    _check_surface(surface)
+    n = surface.n_points
     u = as_field("u0", u0, n).copy()
     dt, steps, every = _check_steps(dt, steps, every)
     k = check_positive("k", k)
     check_in("method", method, HEAT_METHODS)
+    check_in("solver", solver, ("auto", "direct", "iterative"))
+    op = _operator(surface, laplacian)
+    L = op.L
     mask, values = _fixed(fixed, fixed_values, n, u)
     u[mask] = values
     free = ~mask
     a = k * dt
     if method == "explicit":
-        limit = explicit_dt_limit(surface, k=k, equation="heat", laplacian=laplacian)
+        limit = 2.0 / (k * _rho(surface, op)) if _rho(surface, op) > 0 else np.inf
         if dt > limit:
             raise ValueError(
                 f"dt = {dt:g} is above the explicit heat stability limit {limit:.4g} "
@@ -327,22 +479,24 @@ def heat(
         theta = 0.0
     else:
         theta = 1.0 if method == "implicit" else 0.5
-    check_in("solver", solver, ("auto", "direct", "iterative"))
     solve = None
+    # B u_t = -S u: (B, S) = (I, -L) for a strong-form L, (M, K) for the stable Laplacian
+    B = op.m if op.kind == "stable" else np.ones(n)
+    S = op.K if op.kind == "stable" else -L
     if theta > 0:
-        Lff = L[free][:, free]
-        A = (sp.identity(int(free.sum()), format="csr") - theta * a * Lff).tocsr()
+        Sf = S[free]
+        A = (sp.diags(B[free]) + theta * a * Sf[:, free]).tocsr()
         solve = _implicit_solver(A, solver)
-        rhs_fixed = theta * a * (L[free][:, mask] @ values) if mask.any() else 0.0
+        rhs_fixed = theta * a * (Sf[:, mask] @ values) if mask.any() else 0.0
     record = _Recorder("heat", u, dt, steps, every, callback)
-    Lb = RowBlocks(L)  # threaded products
+    Lb = RowBlocks(L if theta == 0 else S)  # threaded products
     for step in range(1, steps + 1):
-        Lu = Lb @ u
         if theta == 0:
-            u = u + a * Lu
+            u = u + a * (Lb @ u)
         else:
             new = u.copy()
-            new[free] = solve(u[free] + (1 - theta) * a * Lu[free] + rhs_fixed, u[free])
+            rhs = B * u - (1 - theta) * a * (Lb @ u) if theta < 1 else B * u
+            new[free] = solve(rhs[free] - rhs_fixed, u[free])
             u = new
         u[mask] = values
         record(step, u)
@@ -418,7 +572,7 @@ def wave(
     fixed_values=None,
     every: int | None = None,
     callback: Callable | None = None,
-    laplacian=None,
+    laplacian="auto",
 ):
     """Wave equation ``u_tt = c^2 Lap_S u`` with the centred scheme.
 
@@ -426,6 +580,10 @@ def wave(
     eq. 3.20 as printed is not consistent), started with
     ``u^1 = u^0 + dt v0 + c^2 dt^2 L u^0 / 2``. The scheme is explicit: a ``dt``
     above ``2 / (c sqrt(rho(L)))`` is refused with the limit in the message.
+
+    With ``laplacian="stable"`` (``L = -M^-1 K``) this is the leap-frog scheme of
+    ``M u_tt = -c^2 K u``, which conserves the discrete energy of :func:`wave_energy`
+    to round-off (without ``fixed`` particles).
 
     Parameters and return value as for :func:`heat` (``c`` the wave speed, ``v0``
     the initial velocity, default zero).
@@ -440,13 +598,16 @@ def wave(
     >>> bool(np.allclose(u, np.cos(np.sqrt(2.0)) * z, atol=1e-2))
     True
     """
-    L = _laplacian(surface, laplacian)
-    n = L.shape[0]
+    _check_surface(surface)
+    n = surface.n_points
     u = as_field("u0", u0, n).copy()
     v = np.zeros(n) if v0 is None else as_field("v0", v0, n)
     dt, steps, every = _check_steps(dt, steps, every)
     c = check_positive("c", c)
-    limit = explicit_dt_limit(surface, k=c, equation="wave", laplacian=laplacian)
+    op = _operator(surface, laplacian)
+    L = op.L
+    rho = _rho(surface, op)
+    limit = 2.0 / (c * np.sqrt(rho)) if rho > 0 else np.inf
     if dt > limit:
         raise ValueError(
             f"dt = {dt:g} is above the centred wave scheme's stability limit {limit:.4g} "
@@ -468,34 +629,50 @@ def wave(
     return record.result(u)
 
 
-def wave_energy(surface, u_prev, u_next, dt: float, c: float = 1.0, laplacian=None) -> float:
+def wave_energy(surface, u_prev, u_next, dt: float, c: float = 1.0, laplacian="auto") -> float:
     """Discrete energy of the centred scheme between two successive states.
 
-    ``E = 1/2 |(u^{n+1} - u^n)/dt|_M^2 - c^2/2 (u^{n+1})^T M L u^n`` with
-    ``M = diag(dV)``; exactly conserved when ``M L`` is symmetric, so its drift
-    measures the non-symmetry of the SPH Laplacian.
+    ``E = 1/2 |(u^{n+1} - u^n)/dt|_M^2 - c^2/2 (u^{n+1})^T M L u^n``, with ``M`` the
+    stable Laplacian's mass (``laplacian="stable"``: then ``-M L = K`` and ``E`` is
+    exactly conserved) or ``diag(dV)`` (strong form: ``E`` is conserved when ``M L``
+    is symmetric, so its drift measures the non-symmetry of the SPH Laplacian).
     """
-    L = _laplacian(surface, laplacian)
-    dV = surface.dV
+    op = _operator(surface, laplacian)
+    L, dV = op.L, op.m
     vel = (np.asarray(u_next) - np.asarray(u_prev)) / dt
     return float(0.5 * np.sum(dV * vel**2) - 0.5 * c**2 * np.dot(u_next * dV, L @ u_prev))
 
 
 # ----------------------------------------------------------------------------- Poisson
 def _has_boundary(surface) -> bool:
+    """A planar domain without mirroring, or a surface whose Voronoi cells found an open boundary."""
     from .domain import Domain2D
 
-    return isinstance(surface, Domain2D) and not surface.mirror
+    if isinstance(surface, Domain2D):
+        return not surface.mirror
+    return surface.stable_report["boundary"] > 0
 
 
-def poisson(surface, rhs, *, dirichlet=None, tol: float = 1e-3, laplacian=None) -> np.ndarray:
+def _components(A: sp.csr_matrix) -> tuple[int, np.ndarray]:
+    from scipy.sparse.csgraph import connected_components
+
+    return connected_components(A, directed=True, connection="weak")
+
+
+def poisson(surface, rhs, *, dirichlet=None, tol: float = 1e-3, laplacian="auto") -> np.ndarray:
     """Solve ``Lap_S u = rhs``.
 
-    On a closed surface the solution is defined up to a constant: the zero-mean one
-    (``sum dV u = 0``) is returned, and ``rhs`` must have zero mean,
-    ``|sum dV rhs| <= tol * sum dV |rhs|``, otherwise a ValueError quotes the mean.
-    With ``dirichlet=(indices, values)`` the given particles are held at the values
-    instead (needed on domains with a boundary).
+    Without ``dirichlet`` the solution is defined up to a constant on each connected
+    piece of the cloud: the one with zero mean (``sum m u = 0``) on every piece is
+    returned, and ``rhs`` must have zero mean on every piece,
+    ``|sum m rhs| <= tol * sum m |rhs|``, otherwise a ValueError quotes the worst
+    piece. ``m`` is the operator's mass (the Voronoi cell areas for the stable
+    Laplacian, the area elements ``dV`` for the strong form). With
+    ``dirichlet=(indices, values)`` the given particles are held at the values.
+
+    On a surface with an open boundary (or a planar domain), the stable Laplacian
+    solves the Neumann problem (zero normal derivative, its natural condition); the
+    strong form has no boundary condition of its own there and needs ``dirichlet``.
 
     Parameters
     ----------
@@ -504,6 +681,8 @@ def poisson(surface, rhs, *, dirichlet=None, tol: float = 1e-3, laplacian=None) 
     dirichlet : (array_like of int, array_like of float), optional
     tol : float
         Relative tolerance on the mean of ``rhs``.
+    laplacian : {"auto", "strong", "stable"} or sparse matrix
+        See :func:`heat`.
 
     Returns
     -------
@@ -519,9 +698,15 @@ def poisson(surface, rhs, *, dirichlet=None, tol: float = 1e-3, laplacian=None) 
     >>> bool(np.linalg.norm(u - x.prod(axis=1)) / np.linalg.norm(x.prod(axis=1)) < 0.02)
     True
     """
-    L = _laplacian(surface, laplacian)
-    n = L.shape[0]
+    _check_surface(surface)
+    n = surface.n_points
     f = as_field("rhs", rhs, n)
+    tol = check_positive("tol", tol)
+    op = _operator(surface, laplacian)
+    # -S u = B rhs: (S, B) = (K, M) for the stable Laplacian, (-L, I) otherwise
+    stable = op.kind == "stable"
+    S = op.K if stable else -op.L
+    Bf = op.m * f if stable else f
     if dirichlet is not None:
         try:
             idx, vals = dirichlet
@@ -533,34 +718,66 @@ def poisson(surface, rhs, *, dirichlet=None, tol: float = 1e-3, laplacian=None) 
         free = ~mask
         u = np.zeros(n)
         u[mask] = values
-        A = L[free][:, free].tocsc()
-        u[free] = spla.spsolve(A, f[free] - L[free][:, mask] @ values)
+        Sf = S[free]
+        ncomp, labels = _components(Sf[:, free])
+        touched = np.zeros(ncomp, dtype=bool)
+        coupled = np.asarray(abs(Sf[:, mask]).sum(axis=1)).ravel() > 0
+        touched[labels[coupled]] = True
+        if not touched.all():
+            raise ValueError(
+                f"poisson: {int((~touched).sum())} connected piece(s) of the cloud hold no Dirichlet particle and "
+                "touch none, so their solution is not unique; add held particles there"
+            )
+        with np.errstate(all="ignore"):
+            u[free] = spla.spsolve(Sf[:, free].tocsc(), -Bf[free] - Sf[:, mask] @ values)
         if not np.all(np.isfinite(u)):
             raise ValueError("poisson: the Dirichlet problem is singular for these held particles")
         return u
-    if _has_boundary(surface):
+    if op.kind == "strong" and _has_boundary(surface):
         raise ValueError(
-            "poisson on a domain with a boundary needs a constraint: pass dirichlet=(indices, values) "
-            "(the zero-mean solution is only defined on closed surfaces)"
+            "poisson with the strong-form Laplacian on a cloud with an open boundary needs a boundary condition: "
+            "pass dirichlet=(indices, values), or laplacian='stable' for the Neumann problem"
         )
-    dV = surface.dV
-    mean = float(np.dot(dV, f))
-    scale = float(np.dot(np.abs(dV), np.abs(f)))
-    if abs(mean) > tol * max(scale, 1e-300):
+    m = op.m
+    ncomp, labels = _components(S)
+    mean = np.bincount(labels, weights=m * f, minlength=ncomp)
+    scale = np.bincount(labels, weights=np.abs(m * f), minlength=ncomp)
+    rel = np.abs(mean) / np.maximum(scale, 1e-300)
+    bad = np.flatnonzero(np.abs(mean) > tol * np.maximum(scale, 1e-300))
+    if bad.size:
+        worst = bad[np.argmax(rel[bad])]
+        mn = "m" if stable else "dV"  # the stable Laplacian's cell areas, or the area elements
+        where = "" if ncomp == 1 else f" on {bad.size} of the cloud's {ncomp} connected pieces (worst: piece {worst})"
         raise ValueError(
-            f"rhs must have zero mean on a closed surface, but sum(dV * rhs) = {mean:.4g} "
-            f"({abs(mean) / scale:.2e} of sum(dV * |rhs|), tolerance {tol:g}); subtract its mean"
+            f"rhs must have zero mean{where}, but sum({mn} * rhs) = {mean[worst]:.4g} ({rel[worst]:.2e} of sum({mn} * |rhs|), "
+            f"tolerance {tol:g}); subtract its mean" + (" on each piece" if ncomp > 1 else "")
         )
-    # bordered system [[L, 1], [dV^T, 0]] [u, lam] = [rhs, 0]
-    K = sp.bmat([[L, np.ones((n, 1))], [dV[None, :], None]], format="csc")
-    sol = spla.spsolve(K, np.append(f, 0.0))
-    if not np.all(np.isfinite(sol)):
-        raise ValueError("poisson: the Laplacian has a null space beyond the constants (disconnected cloud?)")
-    return sol[:n]
+    # bordered system [[S, C], [C^T m, 0]] [u, lam] = [-B rhs, 0], one constraint per piece
+    C = sp.csr_matrix((np.ones(n), (np.arange(n), labels)), shape=(n, ncomp))
+    Cm = sp.csr_matrix((m, (labels, np.arange(n))), shape=(ncomp, n))
+    A = sp.bmat([[S, C], [Cm, None]], format="csc")
+    with np.errstate(all="ignore"):
+        sol = spla.spsolve(A, np.append(-Bf, np.zeros(ncomp)))
+    u = sol[:n]
+    if not np.all(np.isfinite(u)):
+        raise ValueError(
+            "poisson: the Laplacian is singular beyond one constant per connected piece (its scheme's operator "
+            "may have spurious null modes on this cloud); try laplacian='stable'"
+        )
+    rhs_full = np.append(-Bf, np.zeros(ncomp))
+    resid = np.linalg.norm(A @ sol - rhs_full) / max(np.linalg.norm(Bf), 1e-300)
+    if resid > 1e-6:
+        raise ValueError(
+            f"poisson: the solve did not converge (relative residual {resid:.2e}): the {op.kind} Laplacian is "
+            "(nearly) singular on this cloud; try laplacian='stable'"
+        )
+    return u
 
 
-def screened_poisson(surface, rhs, alpha: float, *, laplacian=None) -> np.ndarray:
+def screened_poisson(surface, rhs, alpha: float, *, laplacian="auto") -> np.ndarray:
     """Solve ``u - alpha Lap_S u = rhs`` (alpha > 0), a well-posed smoothing problem.
+
+    With the stable Laplacian: ``(M + alpha K) u = M rhs`` (symmetric positive definite).
 
     Examples
     --------
@@ -572,11 +789,14 @@ def screened_poisson(surface, rhs, alpha: float, *, laplacian=None) -> np.ndarra
     >>> bool(np.allclose(u, z, atol=5e-3))
     True
     """
-    L = _laplacian(surface, laplacian)
-    n = L.shape[0]
+    _check_surface(surface)
+    n = surface.n_points
     f = as_field("rhs", rhs, n)
     alpha = check_positive("alpha", alpha)
-    return spla.spsolve((sp.identity(n, format="csc") - alpha * L).tocsc(), f)
+    op = _operator(surface, laplacian)
+    if op.kind == "stable":
+        return spla.spsolve((sp.diags(op.m) + alpha * op.K).tocsc(), op.m * f)
+    return spla.spsolve((sp.identity(n, format="csc") - alpha * op.L).tocsc(), f)
 
 
 # ----------------------------------------------------------------------------- Hodge
@@ -617,11 +837,13 @@ def helmholtz_hodge(surface, F) -> HodgeDecomposition:
     F = as_field("F", F, surface.n_points, 3)
     F = F - np.einsum("ij,ij->i", F, n)[:, None] * n
 
-    def zero_mean(g):
-        return g - np.dot(surface.dV, g) / surface.dV.sum()
+    op = _operator(surface, "auto")
 
-    phi = poisson(surface, zero_mean(surface.divergence(F)))
-    psi = poisson(surface, zero_mean(-surface.divergence(np.cross(n, F))))
+    def zero_mean(g):
+        return g - np.dot(op.m, g) / op.m.sum()
+
+    phi = poisson(surface, zero_mean(surface.divergence(F)), laplacian=op.kind)
+    psi = poisson(surface, zero_mean(-surface.divergence(np.cross(n, F))), laplacian=op.kind)
     grad = surface.gradient(phi)
     cograd = np.cross(n, surface.gradient(psi))
     return HodgeDecomposition(gradient=grad, cogradient=cograd, harmonic=F - grad - cograd, phi=phi, psi=psi)

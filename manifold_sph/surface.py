@@ -134,6 +134,19 @@ class Surface(OperatorSet):
         """(N, 3) unit normals."""
         return self.cloud.normals
 
+    def _wider_candidates(self, rows: np.ndarray):
+        """The ``_WIDER_K`` nearest neighbours of ``rows`` (normal filter applied), projected."""
+        pts, nrm = self.points, self.normals
+        k = min(self._WIDER_K, pts.shape[0])
+        dist, idx = build_tree(pts).query(pts[rows], k=k)
+        keep = np.einsum("rkd,rd->rk", nrm[idx], nrm[rows]) > self.normal_threshold
+        keep[:, 0] = True  # the particle itself (distance 0) comes first
+        off = pts[idx] - pts[rows][:, None, :]
+        xy = np.stack([np.einsum("rkd,rd->rk", off, self.u[rows]), np.einsum("rkd,rd->rk", off, self.v[rows])], axis=-1)
+        indptr = np.concatenate([[0], np.cumsum(keep.sum(axis=1))])
+        radius = dist[:, -1] if k < pts.shape[0] else np.full(rows.size, np.inf)
+        return indptr, xy[keep], idx[keep], radius
+
     def _tangential(self, F: np.ndarray) -> np.ndarray:
         n = self.normals
         return F - np.einsum("ij,ij->i", F, n)[:, None] * n
