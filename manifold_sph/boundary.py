@@ -134,8 +134,10 @@ def angular_gaps(xy: np.ndarray, indptr: np.ndarray) -> np.ndarray:
     valid = idx[None, :] < m[:, None]
     with np.errstate(invalid="ignore"):  # inf - inf in the padding
         diffs = np.where(valid[:, 1:], np.diff(table, axis=1), -np.inf) if width > 1 else np.full((n, 0), -np.inf)
-    first = table[:, 0]
-    last = table[np.arange(n), np.maximum(m - 1, 0)]
+    # rows with no direction at all (every neighbour filtered out) hold only the inf
+    # padding: inf - inf would be NaN (a RuntimeWarning); they get 2 pi below anyway
+    first = np.where(m > 0, table[:, 0], 0.0)
+    last = np.where(m > 0, table[np.arange(n), np.maximum(m - 1, 0)], 0.0)
     wrap = first + 2 * np.pi - last
     gap = np.max(np.concatenate([diffs, wrap[:, None]], axis=1), axis=1)
     return np.where(m >= 2, gap, 2 * np.pi)
