@@ -302,12 +302,10 @@ class OperatorSet:
             "degenerate": int(degenerate.size),
             "near_duplicate": int(np.count_nonzero(flags & NEAR_DUPLICATE)),
         }
-        if degenerate.size or report["near_duplicate"]:
+        if degenerate.size:
             warnings.warn(
                 f"stable Laplacian: {degenerate.size} particle(s) have no Voronoi cell (collinear or too few "
-                f"neighbours: given the mean of their neighbours' areas and no flux of their own), "
-                f"{report['near_duplicate']} have near-duplicate neighbours (closer than "
-                f"1e-3 of the cell size: their distance is floored there); see .stable_report",
+                f"neighbours): given the mean of their neighbours' areas and no flux of their own; see .stable_report",
                 RuntimeWarning,
                 stacklevel=3,
             )

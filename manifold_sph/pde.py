@@ -747,7 +747,7 @@ def poisson(surface, rhs, *, dirichlet=None, tol: float = 1e-3, laplacian="auto"
     if bad.size:
         worst = bad[np.argmax(rel[bad])]
         mn = "m" if stable else "dV"  # the stable Laplacian's cell areas, or the area elements
-        where = "" if ncomp == 1 else f" on {bad.size} of the cloud's {ncomp} connected pieces (worst: piece {worst})"
+        where = " over the cloud" if ncomp == 1 else f" on {bad.size} of the cloud's {ncomp} connected pieces (worst: piece {worst})"
         raise ValueError(
             f"rhs must have zero mean{where}, but sum({mn} * rhs) = {mean[worst]:.4g} ({rel[worst]:.2e} of sum({mn} * |rhs|), "
             f"tolerance {tol:g}); subtract its mean" + (" on each piece" if ncomp > 1 else "")

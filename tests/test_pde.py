@@ -140,12 +140,14 @@ def test_poisson_on_a_domain_needs_dirichlet():
     g = (np.arange(30) + 0.5) / 30
     p = np.stack(np.meshgrid(g, g), -1).reshape(-1, 2) + rng.uniform(-0.005, 0.005, (900, 2))
     d = Domain2D(p, scheme="msph")
-    with pytest.raises(ValueError, match="needs a constraint"):
-        pde.poisson(d, np.ones(900))
+    with pytest.raises(ValueError, match="needs a boundary condition"):
+        pde.poisson(d, np.ones(900), laplacian="strong")
+    with pytest.raises(ValueError, match="rhs must have zero mean"):  # the Neumann problem needs a zero-mean rhs
+        pde.poisson(d, np.ones(900), laplacian="stable")
     x, y = p.T
     exact = x**2 + y**2  # Lap = 4, msph is exact on quadratics
     edge = np.flatnonzero((x < 0.05) | (x > 0.95) | (y < 0.05) | (y > 0.95))
-    u = pde.poisson(d, np.full(900, 4.0), dirichlet=(edge, exact[edge]))
+    u = pde.poisson(d, np.full(900, 4.0), dirichlet=(edge, exact[edge]), laplacian="strong")
     assert np.abs(u - exact).max() < 1e-8
 
 
