@@ -55,7 +55,7 @@ def test_consistent_is_consistent_and_none_is_raw():
     n = estimate_normals(c.points, orient="consistent")
     d = dots(n, c.normals)
     assert (d > 0).all() or (d < 0).all()
-    raw = estimate_normals(c.points, orient="none")
+    raw = estimate_normals(c.points, orient="none", method="pca")
     pca, _ = pca_normals(c.points, k=16)
     np.testing.assert_allclose(raw, pca)
 
@@ -89,10 +89,12 @@ def test_noisy_sphere_normals_stay_outward(noise):
     c = shapes.sphere(3000, sampling="poisson")
     spacing = np.sqrt(4 * np.pi / 3000)
     p = c.points + noise * spacing * np.random.default_rng(2).standard_normal(c.points.shape)
-    n = estimate_normals(p)
     radial = p / np.linalg.norm(p, axis=1)[:, None]
-    assert dots(n, radial).min() > 0.5  # all outward
-    assert np.degrees(np.arccos(np.clip(dots(n, radial), -1, 1))).mean() < 20 * noise + 0.5  # measured 1.7 and 5.1 degrees
+    for k, slope, measured in ((None, 30, (2.5, 8.3)), (24, 12, (1.1, 3.5))):
+        n = estimate_normals(p, k=k)
+        assert dots(n, radial).min() > 0.5  # all outward
+        # mean error (degrees); the default k = 12 fits the noise, a larger k averages it
+        assert np.degrees(np.arccos(np.clip(dots(n, radial), -1, 1))).mean() < slope * noise + 0.5, measured
 
 
 def test_deterministic():
