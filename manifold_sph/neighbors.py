@@ -185,7 +185,11 @@ def adaptive_smoothing_length(points, k: int = 27, support: float = 3.0, *, tree
     """Per-particle ``h_i`` so that exactly ``k`` particles (itself included) lie inside ``support * h_i``.
 
     The support radius is put midway between the k-th and the (k+1)-th nearest
-    distances, for variable-density clouds.
+    distances, for variable-density clouds, and at least at 1.5 times the nearest
+    neighbour's distance (so that it lies at ``R <= 2``, inside the kernel's working
+    range: where the neighbours form an equidistant ring, as at the pole of a UV
+    sphere, the midpoint would put the whole ring at the support's edge, where the
+    kernel and its derivatives vanish; such a particle gets more than ``k``).
 
     Returns
     -------
@@ -198,7 +202,8 @@ def adaptive_smoothing_length(points, k: int = 27, support: float = 3.0, *, tree
         raise ValueError(f"k must be smaller than the number of points {n}, got {k}")
     tree = build_tree(pts) if tree is None else tree
     dist, _ = _knn(tree, pts, k + 1, np.inf, workers)
-    return 0.5 * (dist[:, k - 1] + dist[:, k]) / support
+    radius = np.maximum(0.5 * (dist[:, k - 1] + dist[:, k]), 1.5 * dist[:, 1])
+    return radius / support
 
 
 def find_neighbors(

@@ -353,7 +353,7 @@ class OperatorSet:
             self._cache["stable_L"] = (-sp.diags(1.0 / st["area"]) @ st["K"]).tocsr()
         return self._cache["stable_L"]
 
-    def eigs(self, k: int = 50, *, sigma: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def eigs(self, k: int = 50, *, sigma: float | None = None, refine: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """The ``k`` smallest eigenpairs of ``K v = lambda M v`` (the stable Laplacian's spectrum).
 
         Parameters
@@ -363,6 +363,16 @@ class OperatorSet:
         sigma : float, optional
             Shift of the shift-invert Lanczos iteration (default ``-1e-2 / area``,
             just below the zero eigenvalue).
+        refine : bool
+            Rayleigh-Ritz with the scheme's own (strong-form) Laplacian in the span of
+            the first ``k + max(8, k // 4)`` stable eigenvectors: the eigenvalues of the
+            small matrix ``V^T M (-L) V``, real parts, ascending. It carries the
+            scheme's accuracy where that operator is accurate, and only there:
+            measured on the unit sphere with ``scheme="msph4"``, median error of
+            eigenvalues 1..48 on Fibonacci points 3.7e-6 (N = 8000) and 2.7e-7
+            (32000) against 2.0e-3 and 4.9e-4 unrefined; on uniformly random points
+            no gain (3.5e-3 at N = 8000) or a loss (1.9e-3 against 9.4e-4 at 32000).
+            The vectors are then the Ritz vectors, M-orthonormalised.
 
         Returns
         -------
@@ -395,6 +405,9 @@ class OperatorSet:
             sigma = -1e-2 / area.sum()
         elif not np.isfinite(sigma):
             raise ValueError(f"sigma must be finite, got {sigma!r}")
+        if refine:
+            wanted = k
+            k = min(n - 2, k + max(8, k // 4))
         if n <= 1500:
             lam, V = sla.eigh(K.toarray(), np.diag(area), subset_by_index=[0, k - 1])
         else:
@@ -403,6 +416,15 @@ class OperatorSet:
         order = np.argsort(lam)
         lam, V = lam[order], V[:, order]
         V = V / np.sqrt(np.einsum("ik,i,ik->k", V, area, V))
+        if refine:
+            A = V.T @ (area[:, None] * -(self.laplacian_matrix() @ V))
+            mu, C = np.linalg.eig(A)
+            order = np.argsort(mu.real)[:wanted]
+            lam = mu.real[order]
+            Y = V @ C[:, order].real
+            G = Y.T @ (area[:, None] * Y)  # M-orthonormalise the Ritz vectors
+            Lc = np.linalg.cholesky(0.5 * (G + G.T))
+            V = np.linalg.solve(Lc, Y.T).T
         return lam, V
 
     def laplacian(self, f) -> np.ndarray:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from .frames import check_frames, project_neighborhood, tangent_frames
@@ -114,7 +116,7 @@ class Surface(OperatorSet):
             knn=getattr(self, "_knn", None),
         )
         self._knn = None
-        self._check_isolated(nb, "increase neighbors or h, or remove outliers")
+        nb = self._widen_lonely(nb, pts, nrm, hv, normal_threshold, tree)
         self.normal_threshold = float(normal_threshold)
         self.u, self.v = tangent_frames(nrm)
         check_frames(nrm, self.u, self.v)
@@ -133,6 +135,44 @@ class Surface(OperatorSet):
     def normals(self) -> np.ndarray:
         """(N, 3) unit normals."""
         return self.cloud.normals
+
+    def _widen_lonely(self, nb, pts, nrm, hv, normal_threshold, tree):
+        """Particles with fewer than the scheme's minimum of neighbours (isolated points, sparse parts
+        of a scan) get a smoothing length whose support reaches ``neighbors`` normal-compatible
+        neighbours; a RuntimeWarning gives the count and :attr:`widened` the indices."""
+        need = max(self.scheme.min_neighbors, 2)
+        lonely = np.flatnonzero(nb.counts < need)
+        self.widened = lonely
+        if not lonely.size:
+            return nb
+        n = pts.shape[0]
+        k = min(n, 4 * self.neighbors)
+        dist, idx = tree.query(pts[lonely], k=k)
+        ok = np.einsum("rkd,rd->rk", nrm[idx], nrm[lonely]) > normal_threshold
+        ok[:, 0] = True
+        rank = np.cumsum(ok, axis=1)  # how many compatible neighbours up to each candidate
+        target = min(self.neighbors, n - 1)
+        reach = np.where(rank >= target, dist, np.inf).min(axis=1)
+        last = np.where(ok, dist, -np.inf).max(axis=1)  # fewer compatible ones: take them all
+        reach = np.where(np.isfinite(reach), reach, last)
+        none = lonely[rank[:, -1] < need]
+        if none.size:
+            raise ValueError(
+                f"{none.size} particle(s) have fewer than {need} neighbours whose normals agree with theirs "
+                f"(n_i . n_j > normal_threshold = {normal_threshold:g}) among their {k} nearest points (first "
+                f"indices {none[:8].tolist()}): their normals disagree with every nearby point (wrong "
+                "orientation?) or they are outliers; check the normals, lower normal_threshold, or remove them"
+            )
+        hv = np.array(np.broadcast_to(hv, (n,)), dtype=np.float64)
+        hv[lonely] = np.maximum(hv[lonely], 1.0001 * reach / self.kernel.support)
+        warnings.warn(
+            f"{lonely.size} particle(s) had fewer than {need} neighbours inside the kernel support (isolated "
+            f"points or sparse parts of the cloud, first indices {lonely[:8].tolist()}): their smoothing length "
+            f"was widened to reach {target} neighbours; see .widened",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+        return find_neighbors(pts, nrm, h=hv, support=self.kernel.support, normal_threshold=normal_threshold, tree=tree)
 
     def _wider_candidates(self, rows: np.ndarray):
         """The ``_WIDER_K`` nearest neighbours of ``rows`` (normal filter applied), projected."""
