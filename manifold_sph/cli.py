@@ -110,7 +110,7 @@ def _parser() -> argparse.ArgumentParser:
     conv = sub.add_parser("convergence", help="errors and fitted orders over several cloud sizes")
     common(conv)
     conv.add_argument("--sizes", type=_sizes, default=[1002, 2012, 4032, 8672, 15872, 32672])
-    conv.add_argument("--scheme", default="cspm", choices=schemes)
+    conv.add_argument("--scheme", default="msph", choices=schemes)
     conv.add_argument("--plot", default=None, help="also write a log-log plot to this PNG/PDF/SVG file")
     conv.add_argument("--overwrite", action="store_true", help="replace an existing --plot file")
 
@@ -119,7 +119,7 @@ def _parser() -> argparse.ArgumentParser:
         common(q, function=False)
         q.add_argument("--file", default=None, help="read the points (and normals) from this file")
         q.add_argument("--n", type=int, default=4032, help="number of points (default 4032)")
-        q.add_argument("--scheme", default="cspm", choices=schemes)
+        q.add_argument("--scheme", default="msph", choices=schemes)
         q.add_argument(
             "--init", default="hotspot",
             help="initial state: 'hotspot' (a Gaussian bump at the top), 'harmonic' (z + xy, exact solution "
@@ -140,7 +140,7 @@ def _parser() -> argparse.ArgumentParser:
     poi = sub.add_parser("poisson", help="solve Lap u = Lap f on a closed built-in shape and compare u with f")
     common(poi)
     poi.add_argument("--n", type=int, default=4032, help="number of points (default 4032)")
-    poi.add_argument("--scheme", default="cspm", choices=schemes)
+    poi.add_argument("--scheme", default="msph", choices=schemes)
     poi.add_argument("--out", default=None, help="folder for a picture: f | exact | solution | error")
     pictures(poi)
 
@@ -152,7 +152,7 @@ def _parser() -> argparse.ArgumentParser:
     )
     ren.add_argument("--operator", default="none", choices=["none", "laplacian", "gradient"],
                      help="draw the SPH Laplacian of the field, or the field with its gradient as arrows")
-    ren.add_argument("--scheme", default="cspm", choices=schemes)
+    ren.add_argument("--scheme", default="msph", choices=schemes)
     ren.add_argument("--out", default=None, help="PNG file to write (default: FILE with the field name and .png)")
     ren.add_argument("--clim", type=_pair, default=None, help="colour limits LOW,HIGH")
     ren.add_argument("--robust", type=float, default=None, help="clip this percentage at each end of the colour range")

@@ -93,7 +93,7 @@ class Domain2D(OperatorSet):
         self,
         points,
         *,
-        scheme="cspm",
+        scheme="msph",
         kernel="quintic",
         neighbors: int | None = None,
         h=None,

@@ -39,7 +39,12 @@ class Surface(OperatorSet):
         Unit (or unnormalised, non-zero) normals. When neither ``normals`` nor the
         PointCloud has them, they are estimated with
         :func:`manifold_sph.normals.estimate_normals` (PCA, consistently oriented).
-    scheme : {"cspm", "msph", "ncsph", "standard", "msph3", "msph4", "msph5"} or Scheme
+    scheme : {"msph", "cspm", "ncsph", "standard", "msph3", "msph4", "msph5"} or Scheme
+        ``"msph"`` by default: on uniformly random points cspm's Laplacian has
+        O(1) errors (relative error 410 at N = 100,000, 3.0 at 2,000,000, measured
+        on the unit sphere) because its second derivatives reuse first derivatives
+        that are only first-order accurate there; msph solves for both at once
+        (0.004 on the same points) and equals cspm on near-uniform clouds.
         ``msph3/4/5`` carry the corrected system to Taylor degree 3/4/5 (higher order,
         more neighbours by default, and they need accurate normals).
     kernel : {"quintic", "cubic", "gaussian", "wendland2", "quartic"} or Kernel
@@ -91,7 +96,7 @@ class Surface(OperatorSet):
         points,
         normals=None,
         *,
-        scheme="cspm",
+        scheme="msph",
         kernel="quintic",
         neighbors: int | None = None,
         h=None,

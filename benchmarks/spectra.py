@@ -1,0 +1,208 @@
+"""Laplace-Beltrami spectra on irregular clouds: ours against robust-laplacian and the cotan FEM.
+
+One table, same run, same points:
+
+1. Unit sphere, uniformly random (iid, seeded) and Fibonacci points, N = 2000, 8000,
+   32000, 131072: relative errors of the eigenvalues 1..48 of ``-Lap`` against the
+   exact ``l (l + 1)`` (median and max), build time and ``eigs(50)`` time, for
+   - ``stable``: our Voronoi stiffness and mass (:meth:`Surface.eigs`), exact normals;
+   - ``stable/pca``: the same with normals estimated from the points;
+   - the strong-form schemes (cspm, msph, msph4; eigenvalues of the non-symmetric
+     ``L``, real parts) up to N = 32000;
+   - robust-laplacian's ``point_cloud_laplacian`` (bench extra) and its eigsh;
+   - the cotan FEM on the convex hull of the same points (a Delaunay mesh of the
+     sphere, which a point cloud does not have), lumped mass.
+2. Closed models of ../shared/data/models (vertices only, normals estimated): the
+   20 smallest non-zero eigenvalues against the cotan FEM of the model's own mesh,
+   median and max relative distance, for ours and for robust-laplacian.
+
+Usage: ``python benchmarks/spectra.py [--quick] [--sizes 2000,8000] [--json]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from manifold_sph import Surface, estimate_normals, shapes
+
+EXACT = np.concatenate([[l * (l + 1)] * (2 * l + 1) for l in range(1, 7)])  # 48 eigenvalues
+MODELS = Path(__file__).resolve().parents[2] / "shared" / "data" / "models"
+
+
+def random_sphere(n, seed=0):
+    x = np.random.default_rng(seed).standard_normal((n, 3))
+    return x / np.linalg.norm(x, axis=1)[:, None]
+
+
+def cotan(verts, faces):
+    """Cotan stiffness and barycentric lumped mass of a triangle mesh."""
+    v = verts[faces]
+    K = sp.csr_matrix((len(verts), len(verts)))
+    rows, cols, vals = [], [], []
+    for a in range(3):
+        i, j, k = faces[:, a], faces[:, (a + 1) % 3], faces[:, (a + 2) % 3]
+        e1, e2 = v[:, (a + 1) % 3] - v[:, a], v[:, (a + 2) % 3] - v[:, a]
+        cot = np.einsum("ij,ij->i", e1, e2) / np.linalg.norm(np.cross(e1, e2), axis=1)
+        rows += [j, k]
+        cols += [k, j]
+        vals += [-0.5 * cot, -0.5 * cot]
+    W = sp.coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(len(verts),) * 2).tocsr()
+    K = W - sp.diags(np.asarray(W.sum(axis=1)).ravel())
+    area = 0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1)
+    m = np.bincount(faces.ravel(), weights=np.repeat(area / 3, 3), minlength=len(verts))
+    return K.tocsr(), m
+
+
+def sym_eigs(K, m, k):
+    n = K.shape[0]
+    sigma = -1e-2 / m.sum()
+    v0 = np.random.default_rng(0).standard_normal(n)
+    lam = spla.eigsh(K.tocsc(), k=k, M=sp.diags(m).tocsc(), sigma=sigma, which="LM", v0=v0, return_eigenvectors=False)
+    return np.sort(lam)
+
+
+def strong_eigs(L, k):
+    n = L.shape[0]
+    v0 = np.random.default_rng(0).standard_normal(n)
+    lam = spla.eigs(L.tocsc(), k=k, sigma=1e-3, which="LM", v0=v0, return_eigenvectors=False)
+    return np.sort(-lam.real)
+
+
+def errors(lam, exact):
+    e = np.abs(lam - exact) / exact
+    return float(np.median(e)), float(e.max())
+
+
+def quiet(fn, *a, **kw):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return fn(*a, **kw)
+
+
+def sphere_rows(sizes, strong_max):
+    rows = []
+    try:
+        import robust_laplacian
+    except ImportError:
+        robust_laplacian = None
+    from scipy.spatial import ConvexHull
+
+    for sampling in ("random", "fibonacci"):
+        for n in sizes:
+            P = random_sphere(n) if sampling == "random" else shapes.sphere(n).points
+            cases = []
+
+            def ours(normals, label, scheme="msph"):
+                t = time.perf_counter()
+                s = quiet(Surface, P, normals, scheme=scheme, area="shepard")
+                s.stiffness_matrix()
+                tb = time.perf_counter() - t
+                t = time.perf_counter()
+                lam, _ = s.eigs(49)
+                return label, lam[1:], tb, time.perf_counter() - t
+
+            cases.append(ours(P.copy(), "stable"))
+            cases.append(ours(quiet(estimate_normals, P), "stable/pca"))
+            if n <= strong_max:
+                for scheme in ("cspm", "msph", "msph4"):
+                    t = time.perf_counter()
+                    s = quiet(Surface, P, P.copy(), scheme=scheme)
+                    tb = time.perf_counter() - t
+                    t = time.perf_counter()
+                    try:
+                        lam = strong_eigs(s.laplacian_matrix(), 50)[1:49]
+                    except Exception:  # noqa: BLE001 - ARPACK failure is a result too
+                        lam = np.full(48, np.nan)
+                    cases.append((f"strong {scheme}", lam, tb, time.perf_counter() - t))
+            if robust_laplacian is not None:
+                t = time.perf_counter()
+                L, M = robust_laplacian.point_cloud_laplacian(P)
+                tb = time.perf_counter() - t
+                t = time.perf_counter()
+                lam = sym_eigs(L, M.diagonal(), 49)[1:]
+                cases.append(("robust-laplacian", lam, tb, time.perf_counter() - t))
+            t = time.perf_counter()
+            hull = ConvexHull(P)
+            K, m = cotan(P, hull.simplices)
+            tb = time.perf_counter() - t
+            t = time.perf_counter()
+            lam = sym_eigs(K, m, 49)[1:]
+            cases.append(("cotan FEM on hull", lam, tb, time.perf_counter() - t))
+            for label, lam, tb, te in cases:
+                med, mx = errors(lam, EXACT)
+                rows.append(dict(cloud=f"sphere {sampling}", n=n, method=label, median=med, max=mx, build_s=tb, eigs_s=te))
+                print(f"{'sphere ' + sampling:18s} {n:7d} {label:20s} {med:10.2e} {mx:10.2e} {tb:8.2f} {te:8.2f}", flush=True)
+    return rows
+
+
+def model_rows():
+    rows = []
+    if not MODELS.is_dir():
+        print(f"(models folder {MODELS} absent: skipped)")
+        return rows
+    import trimesh
+
+    try:
+        import robust_laplacian
+    except ImportError:
+        robust_laplacian = None
+    for name in ("cow", "homer", "rocker-arm", "cheburashka"):
+        path = MODELS / f"{name}.obj"
+        if not path.exists():
+            continue
+        mesh = trimesh.load(path, process=False, force="mesh")
+        V, F = np.asarray(mesh.vertices, dtype=float), np.asarray(mesh.faces)
+        K, m = cotan(V, F)
+        ref = sym_eigs(K, m, 21)[1:]
+        cand = []
+        t = time.perf_counter()
+        s = quiet(Surface, V, scheme="msph", area="shepard")
+        lam, _ = s.eigs(21)
+        cand.append(("stable (pca normals)", lam[1:], time.perf_counter() - t))
+        t = time.perf_counter()
+        s = quiet(Surface, V, np.asarray(mesh.vertex_normals), scheme="msph", area="shepard")
+        lam, _ = s.eigs(21)
+        cand.append(("stable (mesh normals)", lam[1:], time.perf_counter() - t))
+        if robust_laplacian is not None:
+            t = time.perf_counter()
+            L, M = robust_laplacian.point_cloud_laplacian(V)
+            cand.append(("robust-laplacian", sym_eigs(L, M.diagonal(), 21)[1:], time.perf_counter() - t))
+        for label, lam, tt in cand:
+            med, mx = errors(lam, ref)
+            rows.append(dict(cloud=name, n=len(V), method=label, median=med, max=mx, seconds=tt))
+            print(f"{name:18s} {len(V):7d} {label:22s} {med:10.2e} {mx:10.2e} {tt:8.2f}", flush=True)
+    return rows
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="N = 2000 and 8000 only")
+    ap.add_argument("--sizes", default=None, help="comma-separated sphere sizes")
+    ap.add_argument("--strong-max", type=int, default=32000, help="largest N for the strong-form schemes")
+    ap.add_argument("--json", default=None, help="also write the rows to this JSON file")
+    args = ap.parse_args(argv)
+    sizes = [2000, 8000] if args.quick else [2000, 8000, 32000, 131072]
+    if args.sizes:
+        sizes = [int(v) for v in args.sizes.split(",")]
+    print(f"{'cloud':18s} {'N':>7s} {'method':20s} {'median':>10s} {'max':>10s} {'build s':>8s} {'eigs s':>8s}")
+    rows = sphere_rows(sizes, args.strong_max)
+    print(f"\n{'model':18s} {'N':>7s} {'method':22s} {'median':>10s} {'max':>10s} {'seconds':>8s}"
+          "   (20 smallest eigenvalues against the mesh's cotan FEM)")
+    rows += model_rows()
+    if args.json:
+        path = Path(args.json)
+        if path.exists():
+            raise SystemExit(f"{path} exists: not overwritten")
+        path.write_text(json.dumps(rows, indent=1))
+
+
+if __name__ == "__main__":
+    main()
