@@ -267,7 +267,7 @@ def jet_normals(points, k: int | None = None, *, degree: int = 2, neighbors=None
     >>> from manifold_sph import shapes
     >>> c = shapes.sphere(2000)
     >>> n = jet_normals(c.points, degree=2)
-    >>> bool(np.abs(np.einsum("ij,ij->i", n, c.normals)).min() > 1 - 1e-8)
+    >>> bool(np.abs(np.einsum("ij,ij->i", n, c.normals)).min() > np.cos(np.radians(0.05)))
     True
     """
     pts = as_points("points", points)
