@@ -121,7 +121,9 @@ class Surface(OperatorSet):
             knn=getattr(self, "_knn", None),
         )
         self._knn = None
-        nb = self._widen_lonely(nb, pts, nrm, hv, normal_threshold, tree)
+        nb, nrm = self._widen_lonely(nb, pts, nrm, hv, normal_threshold, tree)
+        if nrm is not cloud.normals:  # some normals were flipped to agree with their neighbours
+            self.cloud = cloud = PointCloud(cloud.points, nrm, shape=cloud.shape)
         self.normal_threshold = float(normal_threshold)
         self.u, self.v = tangent_frames(nrm)
         check_frames(nrm, self.u, self.v)
@@ -148,8 +150,9 @@ class Surface(OperatorSet):
         need = max(self.scheme.min_neighbors, 2)
         lonely = np.flatnonzero(nb.counts < need)
         self.widened = lonely
+        self.flipped = np.zeros(0, dtype=np.int64)
         if not lonely.size:
-            return nb
+            return nb, nrm
         n = pts.shape[0]
         k = min(n, 4 * self.neighbors)
         dist, idx = tree.query(pts[lonely], k=k)
@@ -161,6 +164,26 @@ class Surface(OperatorSet):
         last = np.where(ok, dist, -np.inf).max(axis=1)  # fewer compatible ones: take them all
         reach = np.where(np.isfinite(reach), reach, last)
         none = lonely[rank[:, -1] < need]
+        if none.size:  # a normal that disagrees with every nearby point: flipped, if that makes it agree
+            sel = rank[:, -1] < need
+            flip_ok = (np.einsum("rkd,rd->rk", nrm[idx[sel]], -nrm[none]) > normal_threshold).sum(axis=1) >= need
+            if flip_ok.any():
+                nrm = nrm.copy()
+                nrm[none[flip_ok]] *= -1.0
+                self.flipped = none[flip_ok]
+                warnings.warn(
+                    f"{int(flip_ok.sum())} normal(s) disagreed with every nearby point's (n_i . n_j <= "
+                    f"{normal_threshold:g}; first indices {none[flip_ok][:8].tolist()}) and were flipped; see .flipped",
+                    RuntimeWarning,
+                    stacklevel=3,
+                )
+                widened = self.widened
+                nb = find_neighbors(pts, nrm, h=hv, support=self.kernel.support, normal_threshold=normal_threshold, tree=tree)
+                nb, nrm = self._widen_lonely(nb, pts, nrm, hv, normal_threshold, tree)
+                self.widened = np.union1d(widened, self.widened)
+                self.flipped = np.union1d(none[flip_ok], self.flipped)
+                return nb, nrm
+            none = none[~flip_ok]
         if none.size:
             raise ValueError(
                 f"{none.size} particle(s) have fewer than {need} neighbours whose normals agree with theirs "
@@ -177,7 +200,7 @@ class Surface(OperatorSet):
             RuntimeWarning,
             stacklevel=3,
         )
-        return find_neighbors(pts, nrm, h=hv, support=self.kernel.support, normal_threshold=normal_threshold, tree=tree)
+        return find_neighbors(pts, nrm, h=hv, support=self.kernel.support, normal_threshold=normal_threshold, tree=tree), nrm
 
     def _wider_candidates(self, rows: np.ndarray):
         """The ``_WIDER_K`` nearest neighbours of ``rows`` (normal filter applied), projected."""

@@ -181,10 +181,14 @@ def test_isolated_point_gets_a_wider_support():
     assert s.widened.tolist() == [400]
     assert s.neighborhood.counts[400] >= 27
     assert np.all(np.isfinite(s.laplacian_matrix().data))
-    # a particle whose normal disagrees with every nearby point cannot be helped: a clear error
+    # a normal that disagrees with every nearby point's is flipped (said), one that fits neither way is an error
     nn[400] = [-1.0, 0.0, 0.0]
+    with pytest.warns(RuntimeWarning, match=r"1 normal\(s\) disagreed with every nearby point's .* flipped"):
+        s = Surface(p, nn)
+    assert s.flipped.tolist() == [400] and s.normals[400, 0] == 1.0
+    nn[400] = [0.0, 0.0, 1.0]
     with pytest.raises(ValueError, match=r"fewer than 6 neighbours whose normals agree .*first indices \[400\]\): their normals disagree"):
-        Surface(p, nn)
+        Surface(p, nn, normal_threshold=0.9)
 
 
 @pytest.mark.parametrize("name", ["linear", "nonlinear", "trigonometric"])
