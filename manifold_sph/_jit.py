@@ -215,11 +215,15 @@ def quintic_values(lo, hi, indptr, xy, h, alpha, out):
 # ----------------------------------------------------------------- small systems
 @_inline
 def _norm1(A, m):
+    """1-norm of ``A[:m, :m]``; NaN when an entry is NaN (as numpy's max: a NaN column sum must not
+    be skipped, or a singular system, whose inverse holds 0 / 0, would get a finite condition number)."""
     best = 0.0
     for c in range(m):
         s = 0.0
         for r in range(m):
             s += abs(A[r, c])
+        if s != s:
+            return s
         if s > best:
             best = s
     return best

@@ -189,7 +189,7 @@ def _weights_with_fallback(pairs: LocalPairs, scheme: Scheme, max_condition: flo
     counts = pairs.counts
     res = scheme.weights(pairs, max_condition)
     grad, lap = res.grad, res.lap
-    failed = res.failed | (counts < scheme.min_neighbors) | _nonfinite_rows(grad, lap)
+    failed = res.failed | (counts < scheme.min_neighbors)
     used = np.zeros(n, dtype=np.int8)
     todo = np.flatnonzero(failed)
     current = scheme
@@ -198,21 +198,13 @@ def _weights_with_fallback(pairs: LocalPairs, scheme: Scheme, max_condition: flo
         current = get_scheme(current.fallback)
         level += 1
         r = current.weights(pairs.take(todo), max_condition)
-        sub_failed = r.failed | (counts[todo] < current.min_neighbors) | _nonfinite_rows(r.grad, r.lap)
+        sub_failed = r.failed | (counts[todo] < current.min_neighbors)
         ok = todo[~sub_failed]
         grad[ok] = r.grad[~sub_failed]
         lap[ok] = r.lap[~sub_failed]
         used[ok] = level
         todo = todo[sub_failed]
     return grad, lap, res.condition, used
-
-
-def _nonfinite_rows(grad: np.ndarray, lap: np.ndarray) -> np.ndarray:
-    """(n,) rows with a non-finite weight (``grad`` (n, 2, K), ``lap`` (n, K)): a singular local system
-    that the condition test let through (exactly collinear neighbours: 0 / 0 gives NaN, and NaN passes
-    every comparison)."""
-    n = lap.shape[0]
-    return ~(np.isfinite(grad).reshape(n, -1).all(axis=1) & np.isfinite(lap).reshape(n, -1).all(axis=1))
 
 
 def assemble(
@@ -283,9 +275,6 @@ def assemble(
             workers,
         )
         # particles the first scheme fails on: the numpy schemes, down the fallback chain
-        bad = ~(np.isfinite(gx) & np.isfinite(gy) & np.isfinite(lp))
-        if bad.any():  # a singular system that passed the condition test (NaN compares false)
-            failed[np.unique(nb.rows[bad])] = True
         redo = np.flatnonzero(failed | (nb.counts < scheme.min_neighbors))
         step = CHUNK_ROWS if CHUNK_ROWS is not None else scheme.chunk_rows  # bounded padded arrays, as above
         run_chunks(lambda c: numpy_rows(redo[c * step : (c + 1) * step]), -(-redo.size // step), workers)

@@ -166,6 +166,24 @@ def test_non_finite_local_systems_fail_and_fall_back():
     assert set(range(600, 604)) <= set(np.flatnonzero(d.scheme_used != "cspm"))
 
 
+@pytest.mark.parametrize("axis", [0, 1])
+def test_exactly_collinear_neighbours_fail_the_condition_test(axis):
+    """Offsets on an exact line make M1 singular with a zero row: 0 / 0 in its inverse must give an
+    infinite condition number, not a finite one (a NaN column sum was once skipped: the teapot)."""
+    t = np.array([0.0, -0.09, 0.10, -0.16, 0.21, -0.21, 0.05])
+    xy = np.zeros((7, 2))
+    xy[:, axis] = t
+    out = [np.zeros(7) for _ in range(3)]
+    cond, failed = np.zeros(1), np.zeros(1, dtype=bool)
+    _jit.cspm_rows(0, 1, np.array([0, 7]), xy, np.full(7, 0.01), np.array([0.08]), QuinticSpline().alpha(2),
+                   1e8, *out, cond, failed)
+    assert failed[0] and not cond[0] <= 1e8
+    assert all(np.all(o == 0) for o in out)
+    p = np.column_stack([np.zeros(9), np.linspace(0, 0.4, 9)])[:, ::1 - 2 * axis]  # the whole cloud on a line
+    d = Domain2D(np.vstack([sampling.square(400, seed=1), p + 3.0]), scheme="cspm", area="shepard", h=0.05)
+    assert np.all(np.isfinite(d.laplacian_matrix().data))
+
+
 def test_environment_variable_turns_the_kernels_off():
     code = "from manifold_sph import _jit; print(_jit.ENABLED)"
     env = dict(os.environ, MANIFOLD_SPH_JIT="0")
