@@ -83,7 +83,7 @@ class AreaElements:
         partition-of-unity defect for the other methods).
     n_merged : int
         Particles that were near-duplicates of another (closer than
-        :data:`DUPLICATE_TOL` times ``h``): the numerical system was solved with each
+        :data:`MERGE_TOL` times ``h``): the numerical system was solved with each
         such group merged into one unknown, whose element the group then shares.
     fell_back : bool
         The numerical solve did not converge within its iteration budget and the
@@ -145,63 +145,63 @@ def area_elements(
     elif method == "shepard":
         dV = 1.0 / np.asarray(A.sum(axis=1)).ravel()
     else:
-        n_merged, fell_back = 0, False
-        cols = nb.indices if columns is None else np.asarray(columns)
-        rows = nb.rows
-        close = (np.hypot(xy[:, 0], xy[:, 1]) < DUPLICATE_TOL * nb.h[rows]) & (cols != rows)
-        if close.any():  # near-duplicates make the system (nearly) singular: merge them
-            from scipy.sparse.csgraph import connected_components
-
-            G = sp.coo_matrix((np.ones(int(close.sum())), (rows[close], cols[close])), shape=(n, n))
-            ncl, label = connected_components(G, directed=False)
-            size = np.bincount(label, minlength=ncl)
-            rep = np.full(ncl, n)
-            np.minimum.at(rep, label, np.arange(n))
-            P = sp.csr_matrix((np.ones(n), (np.arange(n), label)), shape=(n, ncl))
-            Ared = (A[rep] @ P).tocsr()
-            dVc, _ = _solve_partition_of_unity(Ared)
-            dV = None if dVc is None else dVc[label] / size[label]
-            residual = np.inf if dV is None else float(np.abs(A @ dV - 1.0).max())
-            n_merged = int(n - ncl)
-            warnings.warn(
-                f"area='numerical': {n_merged + int((size > 1).sum())} particle(s) in {int((size > 1).sum())} group(s) "
-                f"are near-duplicates (closer than {DUPLICATE_TOL:g} h); each group was solved as one particle and "
-                "shares its area element",
-                RuntimeWarning,
-                stacklevel=4,
-            )
-        else:
-            dV, residual = _solve_partition_of_unity(A)
-        if dV is None or not np.all(np.isfinite(dV)):
-            if n > LU_MAX_ROWS or residual == np.inf:
-                warnings.warn(
-                    f"area='numerical': the kernel system sum_j W_ij dV_j = 1 was not solved within "
-                    f"{NUMERICAL_MAXITER} BiCGSTAB iterations ({n} particles{', too many for a direct solve' if n > LU_MAX_ROWS else ''}"
-                    "; an irregular cloud); using the Shepard elements (area='shepard') instead",
-                    RuntimeWarning,
-                    stacklevel=4,
-                )
-                dV, fell_back = 1.0 / np.asarray(A.sum(axis=1)).ravel(), True
-            else:
-                raise ValueError(
-                    "area='numerical': the kernel system sum_j W_ij dV_j = 1 is singular for this cloud; use area='shepard'"
-                )
-        if not fell_back:
-            return AreaElements(dV=dV, method=method, n_negative=int((dV < 0).sum()), residual=residual, n_merged=n_merged)
+        return _numerical(A, nb, xy, columns)
     residual = float(np.abs(A @ dV - 1.0).max())
-    return AreaElements(dV=dV, method=method, n_negative=int((dV < 0).sum()), residual=residual,
-                        fell_back=method == "numerical")
+    return AreaElements(dV=dV, method=method, n_negative=int((dV < 0).sum()), residual=residual)
+
+
+def _numerical(A: sp.csr_matrix, nb: Neighborhood, xy: np.ndarray, columns) -> AreaElements:
+    """Solve ``A dV = 1``, near-duplicates merged into one unknown; Shepard if the solve fails."""
+    n = A.shape[0]
+    rows = nb.rows
+    cols = nb.indices if columns is None else np.asarray(columns)
+    close = (np.hypot(xy[:, 0], xy[:, 1]) < MERGE_TOL * nb.h[rows]) & (cols != rows)
+    n_merged = 0
+    if close.any():  # near-duplicates make the system (nearly) singular: one unknown per group
+        from scipy.sparse.csgraph import connected_components
+
+        G = sp.coo_matrix((np.ones(int(close.sum())), (rows[close], cols[close])), shape=(n, n))
+        ncl, label = connected_components(G, directed=False)
+        size = np.bincount(label, minlength=ncl)
+        rep = np.full(ncl, n)
+        np.minimum.at(rep, label, np.arange(n))  # the first particle of each group stands for it
+        P = sp.csr_matrix((np.ones(n), (np.arange(n), label)), shape=(n, ncl))
+        dVc, _ = _solve_partition_of_unity((A[rep] @ P).tocsr())
+        dV = None if dVc is None else dVc[label] / size[label]
+        n_merged = n - ncl
+        groups = int((size > 1).sum())
+        warnings.warn(
+            f"area='numerical': {n_merged + groups} particle(s) in {groups} group(s) are near-duplicates (closer "
+            f"than {MERGE_TOL:g} h); each group was solved as one particle and shares its area element",
+            RuntimeWarning,
+            stacklevel=4,
+        )
+    else:
+        dV, _ = _solve_partition_of_unity(A)
+    fell_back = dV is None or not np.all(np.isfinite(dV))
+    if fell_back:
+        warnings.warn(
+            f"area='numerical': the kernel system sum_j W_ij dV_j = 1 was not solved within {NUMERICAL_MAXITER} "
+            f"BiCGSTAB iterations ({n} particles{', too many for a direct solve' if n > LU_MAX_ROWS else ''}; an "
+            "irregular cloud) or is singular; using the Shepard elements (area='shepard') instead",
+            RuntimeWarning,
+            stacklevel=4,
+        )
+        dV = 1.0 / np.asarray(A.sum(axis=1)).ravel()
+    residual = float(np.abs(A @ dV - 1.0).max())
+    return AreaElements(dV=dV, method="numerical", n_negative=int((dV < 0).sum()), residual=residual,
+                        n_merged=n_merged, fell_back=fell_back)
 
 
 #: Near-duplicate particles (closer than this times h) are merged in the numerical area solve.
-DUPLICATE_TOL = 1e-2
+MERGE_TOL = 1e-2
 
 #: BiCGSTAB iterations of the numerical area solve (Fibonacci and Poisson-disk clouds converge in
 #: well under 100; an irregular cloud that needs more falls back to Shepard or a direct solve).
 NUMERICAL_MAXITER = 400
 
 #: Above this many particles a failed iterative area solve is not retried with a sparse LU
-#: (134,345 rows already took 21 s), and ``area='numerical'`` raises instead.
+#: (134,345 rows already took 21 s), and ``area='numerical'`` falls back to Shepard instead.
 LU_MAX_ROWS = 200_000
 
 

@@ -17,10 +17,12 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
+import scipy.linalg as sla
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
 from ._sparse import RowBlocks
-from ._validation import as_field, check_positive
+from ._validation import as_field, check_int, check_positive
 from .area import AreaElements, area_elements, check_area_method
 from .assembly import Assembled, assemble
 from .kernels import get_kernel
@@ -281,9 +283,10 @@ class OperatorSet:
                 weights = np.concatenate([weights[keep], more.weights])
                 area[redo], flags[redo] = more.area, more.flags
                 n_widened = int(redo.size)
-        degenerate = np.flatnonzero(area <= 0)
+        area_was_zero = area <= 0
+        degenerate = np.flatnonzero(area_was_zero)
         if degenerate.size:  # no cell: a mass from the neighbours' cells, and no flux of its own
-            good = area > 0
+            good = ~area_was_zero
             if not good.any():
                 raise ValueError(
                     "stable Laplacian: no particle has a proper Voronoi cell (all neighbourhoods are "
@@ -293,7 +296,7 @@ class OperatorSet:
             cnt = np.bincount(rows, weights=good[cols].astype(float), minlength=n)
             fill = np.where(cnt[degenerate] > 0, sums[degenerate] / np.maximum(cnt[degenerate], 1), np.median(area[good]))
             area[degenerate] = fill
-            weights = np.where(np.isin(rows, degenerate), 0.0, weights)
+            weights = np.where(area_was_zero[rows], 0.0, weights)
         K = stiffness_matrix(rows, cols, weights, n)
         report = {
             "boundary": int(np.count_nonzero(flags & BOUNDARY)),
@@ -390,11 +393,6 @@ class OperatorSet:
         >>> np.round(lam, 1).tolist()
         [0.0, 2.0, 2.0, 2.0]
         """
-        import scipy.linalg as sla
-        import scipy.sparse.linalg as spla
-
-        from ._validation import check_int
-
         n = self.n_points
         k = check_int("k", k, minimum=1)
         if k >= n - 1:

@@ -6,7 +6,7 @@ import warnings
 
 import numpy as np
 
-from .frames import check_frames, project_neighborhood, tangent_frames
+from .frames import check_frames, project_neighborhood, project_pairs, tangent_frames
 from .neighbors import build_tree, find_neighbors
 from .operators import OperatorSet
 from .pointcloud import PointCloud
@@ -114,7 +114,7 @@ class Surface(OperatorSet):
         self.cloud = cloud
         self._resolve(kernel, scheme, neighbors, max_condition)
         pts, nrm = cloud.points, cloud.normals
-        tree = build_tree(pts)
+        tree = self._tree = build_tree(pts)  # kept for the stable Laplacian's wider searches
         hv = self._smoothing_length(h, pts, tree)
         nb = find_neighbors(
             pts, nrm, h=hv, support=self.kernel.support, normal_threshold=normal_threshold, tree=tree,
@@ -144,53 +144,47 @@ class Surface(OperatorSet):
         return self.cloud.normals
 
     def _widen_lonely(self, nb, pts, nrm, hv, normal_threshold, tree):
-        """Particles with fewer than the scheme's minimum of neighbours (isolated points, sparse parts
-        of a scan) get a smoothing length whose support reaches ``neighbors`` normal-compatible
-        neighbours; a RuntimeWarning gives the count and :attr:`widened` the indices."""
+        """Give particles with fewer than the scheme's minimum of neighbours (isolated points, sparse
+        parts of a scan) a support reaching ``neighbors`` normal-compatible neighbours.
+
+        A normal that agrees with none of its nearest points is flipped first when the flip makes it
+        agree. RuntimeWarnings give the counts, :attr:`widened` and :attr:`flipped` the indices.
+        Returns the neighbourhood and the (possibly flipped) normals.
+        """
         need = max(self.scheme.min_neighbors, 2)
         lonely = np.flatnonzero(nb.counts < need)
-        self.widened = lonely
-        self.flipped = np.zeros(0, dtype=np.int64)
+        self.widened, self.flipped = lonely, lonely[:0]
         if not lonely.size:
             return nb, nrm
         n = pts.shape[0]
         k = min(n, 4 * self.neighbors)
         dist, idx = tree.query(pts[lonely], k=k)
-        ok = np.einsum("rkd,rd->rk", nrm[idx], nrm[lonely]) > normal_threshold
-        ok[:, 0] = True
-        rank = np.cumsum(ok, axis=1)  # how many compatible neighbours up to each candidate
-        target = min(self.neighbors, n - 1)
-        reach = np.where(rank >= target, dist, np.inf).min(axis=1)
-        last = np.where(ok, dist, -np.inf).max(axis=1)  # fewer compatible ones: take them all
-        reach = np.where(np.isfinite(reach), reach, last)
-        none = lonely[rank[:, -1] < need]
-        if none.size:  # a normal that disagrees with every nearby point: flipped, if that makes it agree
-            sel = rank[:, -1] < need
-            flip_ok = (np.einsum("rkd,rd->rk", nrm[idx[sel]], -nrm[none]) > normal_threshold).sum(axis=1) >= need
-            if flip_ok.any():
-                nrm = nrm.copy()
-                nrm[none[flip_ok]] *= -1.0
-                self.flipped = none[flip_ok]
-                warnings.warn(
-                    f"{int(flip_ok.sum())} normal(s) disagreed with every nearby point's (n_i . n_j <= "
-                    f"{normal_threshold:g}; first indices {none[flip_ok][:8].tolist()}) and were flipped; see .flipped",
-                    RuntimeWarning,
-                    stacklevel=3,
-                )
-                widened = self.widened
-                nb = find_neighbors(pts, nrm, h=hv, support=self.kernel.support, normal_threshold=normal_threshold, tree=tree)
-                nb, nrm = self._widen_lonely(nb, pts, nrm, hv, normal_threshold, tree)
-                self.widened = np.union1d(widened, self.widened)
-                self.flipped = np.union1d(none[flip_ok], self.flipped)
-                return nb, nrm
-            none = none[~flip_ok]
-        if none.size:
+        dots = np.einsum("rkd,rd->rk", nrm[idx], nrm[lonely])
+        dots[:, 0] = np.inf  # the particle itself
+        flip = ((dots > normal_threshold).sum(axis=1) < need) & ((-dots > normal_threshold).sum(axis=1) >= need)
+        if flip.any():
+            nrm = nrm.copy()
+            nrm[lonely[flip]] *= -1.0
+            dots[flip] *= -1.0
+            self.flipped = lonely[flip]
+            warnings.warn(
+                f"{int(flip.sum())} normal(s) disagreed with every nearby point's (n_i . n_j <= {normal_threshold:g}; "
+                f"first indices {self.flipped[:8].tolist()}) and were flipped; see .flipped",
+                RuntimeWarning,
+                stacklevel=3,
+            )
+        rank = np.cumsum(dots > normal_threshold, axis=1)  # compatible neighbours up to each candidate
+        hopeless = lonely[rank[:, -1] < need]
+        if hopeless.size:
             raise ValueError(
-                f"{none.size} particle(s) have fewer than {need} neighbours whose normals agree with theirs "
+                f"{hopeless.size} particle(s) have fewer than {need} neighbours whose normals agree with theirs "
                 f"(n_i . n_j > normal_threshold = {normal_threshold:g}) among their {k} nearest points (first "
-                f"indices {none[:8].tolist()}): their normals disagree with every nearby point (wrong "
+                f"indices {hopeless[:8].tolist()}): their normals disagree with every nearby point (wrong "
                 "orientation?) or they are outliers; check the normals, lower normal_threshold, or remove them"
             )
+        target = min(self.neighbors, n - 1)
+        enough = np.minimum(target, rank[:, -1])  # all compatible ones when fewer than the target
+        reach = dist[np.arange(lonely.size), np.argmax(rank >= enough[:, None], axis=1)]
         hv = np.array(np.broadcast_to(hv, (n,)), dtype=np.float64)
         hv[lonely] = np.maximum(hv[lonely], 1.0001 * reach / self.kernel.support)
         warnings.warn(
@@ -200,20 +194,22 @@ class Surface(OperatorSet):
             RuntimeWarning,
             stacklevel=3,
         )
-        return find_neighbors(pts, nrm, h=hv, support=self.kernel.support, normal_threshold=normal_threshold, tree=tree), nrm
+        nb = find_neighbors(pts, nrm, h=hv, support=self.kernel.support, normal_threshold=normal_threshold, tree=tree)
+        self._check_isolated(nb, "their normals disagree with their neighbours'")  # a flip elsewhere can only add
+        return nb, nrm
 
     def _wider_candidates(self, rows: np.ndarray):
         """The ``_WIDER_K`` nearest neighbours of ``rows`` (normal filter applied), projected."""
         pts, nrm = self.points, self.normals
         k = min(self._WIDER_K, pts.shape[0])
-        dist, idx = build_tree(pts).query(pts[rows], k=k)
+        dist, idx = self._tree.query(pts[rows], k=k)
         keep = np.einsum("rkd,rd->rk", nrm[idx], nrm[rows]) > self.normal_threshold
         keep[:, 0] = True  # the particle itself (distance 0) comes first
-        off = pts[idx] - pts[rows][:, None, :]
-        xy = np.stack([np.einsum("rkd,rd->rk", off, self.u[rows]), np.einsum("rkd,rd->rk", off, self.v[rows])], axis=-1)
+        pair_rows = np.repeat(rows, keep.sum(axis=1))
+        xy = project_pairs(pts, self.u, self.v, pair_rows, idx[keep])
         indptr = np.concatenate([[0], np.cumsum(keep.sum(axis=1))])
         radius = dist[:, -1] if k < pts.shape[0] else np.full(rows.size, np.inf)
-        return indptr, xy[keep], idx[keep], radius
+        return indptr, xy, idx[keep], radius
 
     def _tangential(self, F: np.ndarray) -> np.ndarray:
         n = self.normals
