@@ -71,13 +71,16 @@ LAPLACIANS = ("auto", "strong", "stable")
 #: Above this many particles ``laplacian="auto"`` does not run the spectrum check and uses "stable".
 AUTO_CHECK_MAX = 200_000
 
+#: ARPACK restarts of the spectrum check behind ``laplacian="auto"``.
+AUTO_MAXITER = 50
+
 
 def _check_surface(surface) -> None:
     if not isinstance(surface, OperatorSet):
         raise TypeError(f"surface must be a Surface or Domain2D, got {type(surface).__name__}")
 
 
-def strong_form_is_stable(surface, *, maxiter: int = 50) -> bool:
+def strong_form_is_stable(surface, *, maxiter: int = AUTO_MAXITER) -> bool:
     """Whether the scheme's (strong-form) Laplacian has no growing mode (no eigenvalue with Re > 0).
 
     ARPACK looks for the eigenvalues with the largest real parts (``maxiter`` restarts
@@ -143,7 +146,7 @@ def choose_laplacian(surface, laplacian="auto") -> str:
         return "strong"
     if "auto_warned" not in surface._cache:
         surface._cache["auto_warned"] = True
-        reason = surface._cache[("strong_stable", 50)][1]
+        reason = surface._cache[("strong_stable", AUTO_MAXITER)][1]
         warnings.warn(
             f"laplacian='auto': the {surface.scheme.name!r} scheme's Laplacian is not used for this cloud "
             f"({reason}); using the stable Voronoi Laplacian (laplacian='stable'). Pass laplacian='strong' "
@@ -182,10 +185,6 @@ def _operator(surface, laplacian) -> _Operator:
     if not np.all(np.isfinite(L.data)):
         raise ValueError("laplacian must have finite entries")
     return _Operator("matrix", L, surface.dV)
-
-
-def _laplacian(surface, laplacian) -> sp.csr_matrix:
-    return _operator(surface, laplacian).L
 
 
 def _fixed(fixed, fixed_values, n: int, u0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -330,9 +329,12 @@ def explicit_dt_limit(surface, *, k: float = 1.0, equation: str = "heat", laplac
     covered (use an implicit method). ``laplacian`` as in :func:`heat`.
     """
     check_in("equation", equation, ("heat", "wave"))
-    op = _operator(surface, laplacian)
-    rho = _rho(surface, op)
     k = check_positive("k" if equation == "heat" else "c", k)
+    return _dt_limit(surface, _operator(surface, laplacian), k, equation)
+
+
+def _dt_limit(surface, op: _Operator, k: float, equation: str) -> float:
+    rho = _rho(surface, op)
     if rho == 0:
         return np.inf
     return 2.0 / (k * rho) if equation == "heat" else 2.0 / (k * np.sqrt(rho))
@@ -470,7 +472,7 @@ def heat(
     free = ~mask
     a = k * dt
     if method == "explicit":
-        limit = 2.0 / (k * _rho(surface, op)) if _rho(surface, op) > 0 else np.inf
+        limit = _dt_limit(surface, op, k, "heat")
         if dt > limit:
             raise ValueError(
                 f"dt = {dt:g} is above the explicit heat stability limit {limit:.4g} "
@@ -606,8 +608,7 @@ def wave(
     c = check_positive("c", c)
     op = _operator(surface, laplacian)
     L = op.L
-    rho = _rho(surface, op)
-    limit = 2.0 / (c * np.sqrt(rho)) if rho > 0 else np.inf
+    limit = _dt_limit(surface, op, c, "wave")
     if dt > limit:
         raise ValueError(
             f"dt = {dt:g} is above the centred wave scheme's stability limit {limit:.4g} "
