@@ -15,6 +15,7 @@ __all__ = [
     "as_field",
     "check_finite",
     "check_positive",
+    "check_bool",
     "check_in",
     "check_int",
 ]
@@ -88,6 +89,13 @@ def check_int(name: str, value, *, minimum: int | None = None) -> int:
     if minimum is not None and v < minimum:
         raise ValueError(f"{name} must be at least {minimum}, got {v}")
     return v
+
+
+def check_bool(name: str, value) -> bool:
+    """Return ``value`` as bool, raising TypeError unless it is True or False."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{name} must be True or False, got {type(value).__name__} {value!r}")
+    return bool(value)
 
 
 def check_in(name: str, value, allowed) -> str:

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._validation import check_finite, check_in, check_int, check_positive
+from ._validation import check_bool, check_finite, check_in, check_int, check_positive
 
 __all__ = [
     "absolute_error",
@@ -185,12 +185,6 @@ def phase_error(approx, exact, floor: float = 1e-12) -> np.ndarray:
 # --- global measures --------------------------------------------------------------
 
 
-def _check_bool(name: str, value) -> bool:
-    if not isinstance(value, (bool, np.bool_)):
-        raise TypeError(f"{name} must be True or False, got {type(value).__name__} {value!r}")
-    return bool(value)
-
-
 def _zero_exact(kind: str) -> ValueError:
     return ValueError(f"the relative {kind} error is undefined: exact is identically zero; use relative=False")
 
@@ -219,7 +213,7 @@ def l2_error(approx, exact, relative: bool = True) -> float:
     >>> round(l2_error([1.0, 3.0], [0.0, 4.0], relative=False), 6)
     1.0
     """
-    relative = _check_bool("relative", relative)
+    relative = check_bool("relative", relative)
     a, e = _pair(approx, exact)
     diff2 = np.square(_pointwise_norm(a - e))
     if not relative:
@@ -245,7 +239,7 @@ def linf_error(approx, exact, relative: bool = True) -> float:
     >>> linf_error([1.0, 3.0], [0.0, 4.0], relative=False)
     1.0
     """
-    relative = _check_bool("relative", relative)
+    relative = check_bool("relative", relative)
     a, e = _pair(approx, exact)
     num = float(_pointwise_norm(a - e).max())
     if not relative:

@@ -22,7 +22,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ._sparse import RowBlocks
-from ._validation import as_field, check_int, check_positive
+from ._validation import as_field, check_bool, check_int, check_positive
 from .area import AreaElements, area_elements, check_area_method
 from .assembly import Assembled, assemble
 from .kernels import get_kernel
@@ -397,12 +397,16 @@ class OperatorSet:
         k = check_int("k", k, minimum=1)
         if k >= n - 1:
             raise ValueError(f"k must be smaller than the number of points minus 1 ({n - 1}), got {k}")
+        refine = check_bool("refine", refine)
+        if sigma is not None:
+            if isinstance(sigma, bool) or not isinstance(sigma, (int, float, np.integer, np.floating)):
+                raise TypeError(f"sigma must be a real number or None, got {type(sigma).__name__} {sigma!r}")
+            if not np.isfinite(sigma):
+                raise ValueError(f"sigma must be finite, got {sigma!r}")
         st = self._stable()
         K, area = st["K"], st["area"]
         if sigma is None:
             sigma = -1e-2 / area.sum()
-        elif not np.isfinite(sigma):
-            raise ValueError(f"sigma must be finite, got {sigma!r}")
         if refine:
             wanted = k
             k = min(n - 2, k + max(8, k // 4))

@@ -41,7 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._validation import as_field, as_points, check_in, check_int, check_positive
+from ._validation import as_field, as_points, check_bool, check_in, check_int, check_positive
 
 __all__ = [
     "CAMERAS",
@@ -98,14 +98,8 @@ def _check_window(window_size) -> tuple[int, int]:
     return w, h
 
 
-def _check_bool(name: str, value) -> bool:
-    if not isinstance(value, (bool, np.bool_)):
-        raise TypeError(f"{name} must be True or False, got {type(value).__name__} {value!r}")
-    return bool(value)
-
-
 def _check_target(filename, overwrite: bool, suffixes: tuple[str, ...]) -> Path:
-    overwrite = _check_bool("overwrite", overwrite)
+    overwrite = check_bool("overwrite", overwrite)
     if not isinstance(filename, (str, os.PathLike)):
         raise TypeError(f"filename must be a str or path, got {type(filename).__name__}")
     path = Path(filename)
@@ -605,7 +599,7 @@ def render_field(
     """
     pts, fld, vec, ws = _prepare(points, field, vectors, window_size, filename, overwrite)
     zoom = check_positive("zoom", zoom)
-    transparent = _check_bool("transparent", transparent)
+    transparent = check_bool("transparent", transparent)
     spacing = _spacing(pts)
     ps = _point_size(pts, spacing, ws) * zoom if point_size is None else check_positive("point_size", point_size)
     if vec is not None and point_size is None:
@@ -615,7 +609,7 @@ def render_field(
         try:
             _add_cloud(
                 p, pts, fld, vec, spacing=spacing, point_size=ps, cmap=cmap, clim=clim, robust=robust,
-                bar_title=bar_title, show_scalar_bar=_check_bool("show_scalar_bar", show_scalar_bar),
+                bar_title=bar_title, show_scalar_bar=check_bool("show_scalar_bar", show_scalar_bar),
                 vector_scale=vector_scale, vector_color=vector_color, normals=_normals_of(points, len(pts)),
             )
             _title_text(p, title, _font(ws, 12))
@@ -693,7 +687,7 @@ def render_panels(
             if t not in flds:
                 raise ValueError(f"shared_clim names {t!r}, which is not a panel title; titles are {titles!r}")
     group_lim = color_limits(np.concatenate([flds[t] for t in group]), clim, robust) if group else None
-    transparent = _check_bool("transparent", transparent)
+    transparent = check_bool("transparent", transparent)
     zoom = check_positive("zoom", zoom)
     spacing = _spacing(pts)
     ps = _point_size(pts, spacing, (w, h)) * zoom if point_size is None else check_positive("point_size", point_size)
@@ -812,7 +806,7 @@ def animate(
     if times is not None:
         times = as_field("times", times, snaps.shape[0])
     fps = check_positive("fps", fps)
-    progress = _check_bool("progress", progress)
+    progress = check_bool("progress", progress)
     ws = _check_window(window_size)
     path = _check_target(filename, overwrite, (".gif", ".mp4"))
     if path.suffix.lower() == ".mp4":

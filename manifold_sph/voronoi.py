@@ -48,6 +48,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from . import _jit
+from ._validation import _describe, as_points, check_finite, check_int, check_positive
 
 __all__ = ["VoronoiCells", "voronoi_cells", "stiffness_matrix", "DUPLICATE_TOL"]
 
@@ -127,9 +128,19 @@ def voronoi_cells(indptr, xy, radius, *, dup_tol: float = DUPLICATE_TOL) -> Voro
     (1.0, [1.0, 1.0, 1.0, 1.0], 0)
     """
     indptr = np.ascontiguousarray(indptr)
-    xy = np.ascontiguousarray(xy, dtype=np.float64)
-    radius = np.ascontiguousarray(radius, dtype=np.float64)
+    if indptr.ndim != 1 or indptr.size < 1 or not np.issubdtype(indptr.dtype, np.integer):
+        raise ValueError(f"indptr must be a 1-D integer array of row offsets (N + 1,), got {_describe(indptr)}")
+    xy = as_points("xy", xy, dim=2)
+    if indptr[0] != 0 or indptr[-1] != xy.shape[0] or np.any(np.diff(indptr) < 0):
+        raise ValueError(
+            f"indptr must rise from 0 to the number of pairs {xy.shape[0]}, got {indptr[0]} .. {indptr[-1]}"
+            + (" (decreasing somewhere)" if np.any(np.diff(indptr) < 0) else "")
+        )
     n = indptr.size - 1
+    radius = np.ascontiguousarray(radius, dtype=np.float64)
+    if radius.shape != (n,) or np.any(np.isnan(radius)) or np.any(radius <= 0):
+        raise ValueError(f"radius must have shape ({n},) with positive values (inf allowed), got {_describe(radius)}")
+    dup_tol = check_positive("dup_tol", dup_tol, allow_zero=True)
     w = np.zeros(xy.shape[0])
     area = np.zeros(n)
     flags = np.zeros(n, dtype=np.uint8)
@@ -164,6 +175,18 @@ def stiffness_matrix(rows, cols, weights, n: int) -> sp.csr_matrix:
     -------
     scipy.sparse.csr_matrix, shape (N, N)
     """
+    rows, cols = np.asarray(rows), np.asarray(cols)
+    weights = np.asarray(weights, dtype=np.float64)
+    n = check_int("n", n, minimum=1)
+    if not (rows.shape == cols.shape == weights.shape and rows.ndim == 1):
+        raise ValueError(
+            f"rows, cols and weights must be 1-D of one length, got shapes {rows.shape}, {cols.shape}, {weights.shape}"
+        )
+    if rows.size and (min(rows.min(), cols.min()) < 0 or max(rows.max(), cols.max()) >= n):
+        raise ValueError(f"rows and cols must index particles in [0, {n})")
+    check_finite("weights", weights)
+    if np.any(weights < 0):
+        raise ValueError(f"weights must be non-negative (flux weights), got minimum {weights.min():g}")
     keep = (weights != 0) & (rows != cols)
     r, c, w = rows[keep], cols[keep], 0.5 * weights[keep]
     W = sp.coo_matrix((np.concatenate([w, w]), (np.concatenate([r, c]), np.concatenate([c, r]))), shape=(n, n)).tocsr()

@@ -238,3 +238,50 @@ def test_voronoi_cells_flags():
     xy = np.vstack([[0, 0], np.c_[np.cos(ang), np.sin(ang)]])
     c = voronoi_cells(np.array([0, 10]), xy, np.array([5.0]))
     assert c.flags[0] & 2 and 0 < c.area[0] < np.pi * 0.25
+
+
+def test_bad_input_to_the_new_entry_points(rand2000):
+    from manifold_sph.voronoi import stiffness_matrix
+
+    with pytest.raises(TypeError, match="sigma must be a real number or None, got str"):
+        rand2000.eigs(4, sigma="low")
+    with pytest.raises(ValueError, match="sigma must be finite, got nan"):
+        rand2000.eigs(4, sigma=float("nan"))
+    with pytest.raises(TypeError, match="refine must be True or False, got str"):
+        rand2000.eigs(4, refine="yes")
+    with pytest.raises(TypeError, match="k must be an integer"):
+        rand2000.eigs(2.5)
+    n = rand2000.n_points
+    bad = sp.diags(np.full(n, -1.0)).tocsr()
+    bad.data[0] = np.nan
+    with pytest.raises(ValueError, match="laplacian must have finite entries"):
+        pde.heat(rand2000, np.zeros(n), 1e-3, 1, laplacian=bad)
+    with pytest.raises(ValueError, match=r"laplacian must have shape \(2000, 2000\)"):
+        pde.poisson(rand2000, np.zeros(n), laplacian=sp.identity(3))
+    with pytest.raises(TypeError, match="maxiter must be an integer"):
+        pde.strong_form_is_stable(rand2000, maxiter=1.5)
+    with pytest.raises(TypeError, match="surface must be a Surface or Domain2D"):
+        pde.choose_laplacian("sphere")
+    with pytest.raises(ValueError, match="tol must be a finite positive number"):
+        pde.poisson(rand2000, np.zeros(n), tol=-1.0)
+    xy = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    with pytest.raises(ValueError, match=r"xy must have shape \(N, 2\)"):
+        voronoi_cells(np.array([0, 3]), np.zeros((3, 3)), np.array([1.0]))
+    with pytest.raises(ValueError, match="xy must be finite"):
+        voronoi_cells(np.array([0, 3]), np.where(xy == 1.0, np.nan, xy), np.array([1.0]))
+    with pytest.raises(ValueError, match="indptr must rise from 0 to the number of pairs 3, got 0 .. 2"):
+        voronoi_cells(np.array([0, 2]), xy, np.array([1.0]))
+    with pytest.raises(ValueError, match="indptr must be a 1-D integer array"):
+        voronoi_cells(np.array([0.0, 3.0]), xy, np.array([1.0]))
+    with pytest.raises(ValueError, match=r"radius must have shape \(1,\) with positive values"):
+        voronoi_cells(np.array([0, 3]), xy, np.array([-1.0]))
+    with pytest.raises(ValueError, match="dup_tol must be a finite non-negative number"):
+        voronoi_cells(np.array([0, 3]), xy, np.array([1.0]), dup_tol=-1.0)
+    with pytest.raises(ValueError, match="weights must be non-negative"):
+        stiffness_matrix(np.array([0]), np.array([1]), np.array([-1.0]), 2)
+    with pytest.raises(ValueError, match=r"rows and cols must index particles in \[0, 2\)"):
+        stiffness_matrix(np.array([0]), np.array([5]), np.array([1.0]), 2)
+    with pytest.raises(ValueError, match="rows, cols and weights must be 1-D of one length"):
+        stiffness_matrix(np.array([0, 1]), np.array([1]), np.array([1.0]), 2)
+    with pytest.raises(ValueError, match="weights must be finite"):
+        stiffness_matrix(np.array([0]), np.array([1]), np.array([np.inf]), 2)
