@@ -64,11 +64,6 @@ from . import _jit as _jitmod
 from ._validation import as_points, check_int
 from .threads import get_num_threads, run_chunks
 
-try:
-    import numba
-except ImportError:  # pragma: no cover
-    numba = None
-
 __all__ = [
     "estimate_normals",
     "pca_normals",
@@ -281,35 +276,6 @@ def jet_normals(points, k: int | None = None, *, degree: int = 2, neighbors=None
 
 
 # ----------------------------------------------------------------------------- winding number
-def _wn_rows_py(lo, hi, Q, P, An, eps2, label, order, cstart, ccen, crad2, aptr, alab, apos, adip, theta2, out):
-    """Winding number per label at queries ``lo:hi``: exact over near cells, one dipole per (cell, label) far."""
-    c4 = 1.0 / (4.0 * np.pi)
-    for i in range(lo, hi):
-        qx, qy, qz = Q[i, 0], Q[i, 1], Q[i, 2]
-        for c in range(ccen.shape[0]):
-            dx = ccen[c, 0] - qx
-            dy = ccen[c, 1] - qy
-            dz = ccen[c, 2] - qz
-            if (dx * dx + dy * dy + dz * dz) * theta2 > crad2[c]:
-                for a in range(aptr[c], aptr[c + 1]):
-                    rx = apos[a, 0] - qx
-                    ry = apos[a, 1] - qy
-                    rz = apos[a, 2] - qz
-                    r2 = rx * rx + ry * ry + rz * rz
-                    out[i, alab[a]] += c4 * (adip[a, 0] * rx + adip[a, 1] * ry + adip[a, 2] * rz) / (r2 * np.sqrt(r2))
-            else:
-                for s in range(cstart[c], cstart[c + 1]):
-                    j = order[s]
-                    rx = P[j, 0] - qx
-                    ry = P[j, 1] - qy
-                    rz = P[j, 2] - qz
-                    r2 = rx * rx + ry * ry + rz * rz + eps2[j]
-                    out[i, label[j]] += c4 * (An[j, 0] * rx + An[j, 1] * ry + An[j, 2] * rz) / (r2 * np.sqrt(r2))
-
-
-_wn_rows = numba.njit(nogil=True, cache=True, fastmath=True, error_model="numpy")(_wn_rows_py) if numba is not None else None
-
-
 def _winding_numbers(queries, points, normals, area, eps, label, n_labels, theta=0.5, per_cell=32):
     """``out[q, l]``: generalised winding number at ``queries[q]`` of the particles labelled ``l``.
 
@@ -323,7 +289,7 @@ def _winding_numbers(queries, points, normals, area, eps, label, n_labels, theta
     eps2 = np.ascontiguousarray(eps**2)
     label = np.ascontiguousarray(label, dtype=np.int64)
     out = np.zeros((Q.shape[0], n_labels))
-    if _wn_rows is None or not _jitmod.ENABLED:
+    if not _jitmod.ENABLED:
         onehot = sp.csr_matrix((np.ones(P.shape[0]), (np.arange(P.shape[0]), label)), shape=(P.shape[0], n_labels))
         for lo in range(0, Q.shape[0], 256):
             r = P[None, :, :] - Q[lo : lo + 256, None, :]
@@ -360,7 +326,7 @@ def _winding_numbers(queries, points, normals, area, eps, label, n_labels, theta
     bounds = np.linspace(0, nq, n_chunks + 1).astype(np.int64)
 
     def job(c):
-        _wn_rows(bounds[c], bounds[c + 1], Q, P, An, eps2, label, order, cstart, ccen, crad2, aptr, alab, apos, adip, theta**2, out)
+        _jitmod.winding_rows(bounds[c], bounds[c + 1], Q, P, An, eps2, label, order, cstart, ccen, crad2, aptr, alab, apos, adip, theta**2, out)
 
     run_chunks(job, n_chunks)
     return out
