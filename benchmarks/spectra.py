@@ -7,6 +7,8 @@ One table, same run, same points:
    exact ``l (l + 1)`` (median and max), build time and ``eigs(50)`` time, for
    - ``stable``: our Voronoi stiffness and mass (:meth:`Surface.eigs`), exact normals;
    - ``stable/pca``: the same with normals estimated from the points;
+   - ``stable/noise 0.1h`` and ``0.3h`` (random points only): points moved by Gaussian
+     noise of 0.1 and 0.3 mean spacings, normals estimated (``k=24``);
    - the strong-form schemes (cspm, msph, msph4; eigenvalues of the non-symmetric
      ``L``, real parts) up to N = 32000;
    - robust-laplacian's ``point_cloud_laplacian`` (bench extra) and its eigsh;
@@ -111,6 +113,17 @@ def sphere_rows(sizes, strong_max):
 
             cases.append(ours(P.copy(), "stable"))
             cases.append(ours(quiet(estimate_normals, P), "stable/pca"))
+            if sampling == "random":  # noisy copies: points moved off the sphere, normals estimated
+                spacing = np.sqrt(4 * np.pi / n)
+                for sig in (0.1, 0.3):
+                    Q = P + sig * spacing * np.random.default_rng(1).standard_normal(P.shape)
+                    t = time.perf_counter()
+                    s = quiet(Surface, Q, quiet(estimate_normals, Q, k=24), area="shepard")
+                    s.stiffness_matrix()
+                    tb = time.perf_counter() - t
+                    t = time.perf_counter()
+                    lam, _ = s.eigs(49)
+                    cases.append((f"stable/noise {sig}h", lam[1:], tb, time.perf_counter() - t))
             if n <= strong_max:
                 for scheme in ("cspm", "msph", "msph4"):
                     t = time.perf_counter()
