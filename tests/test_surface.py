@@ -215,7 +215,7 @@ def test_numerical_area_without_convergence_falls_back_for_large_clouds(monkeypa
 
     monkeypatch.setattr(area_mod, "LU_MAX_ROWS", 100)
     monkeypatch.setattr(area_mod, "bicgstab_csr", lambda A, b, *a, **k: (np.zeros(b.shape), 5))
-    with pytest.warns(RuntimeWarning, match=r"not solved within 400 BiCGSTAB iterations \(500 particles.*using the Shepard"):
+    with pytest.warns(RuntimeWarning, match=r"not solved within 150 BiCGSTAB iterations \(500 particles.*using the Shepard"):
         s = Surface(_shapes.sphere(500), scheme="cspm", area="numerical")
     assert s.area.fell_back and np.all(s.dV > 0)
     shep = Surface(_shapes.sphere(500), scheme="cspm", area="shepard")
