@@ -34,6 +34,10 @@ It is second-order accurate in the spacing ``h`` for eigenvalues (measured on
 uniformly random sphere points: ``benchmarks/spectra.py``), not the higher order
 of the corrected SPH schemes on near-uniform clouds.
 
+The cells are computed by the compiled kernel :func:`manifold_sph._jit.voronoi_rows`, or
+by its numpy twin (gift-wrapped hulls and Sutherland-Hodgman clipping on all rows of a
+chunk at once) when the compiled kernels are off; ``tests/test_jit.py`` compares them.
+
 A cell is exact when every point that could cut it was among the candidates: the
 candidates of row ``i`` are all particles within ``radius[i]``, and a cell whose
 farthest vertex lies within ``radius[i] / 2`` cannot be cut by any other point.
@@ -49,6 +53,7 @@ import scipy.sparse as sp
 
 from . import _jit
 from ._validation import _describe, as_points, check_finite, check_int, check_positive
+from .threads import run_chunks
 
 __all__ = ["VoronoiCells", "voronoi_cells", "stiffness_matrix", "DUPLICATE_TOL"]
 
@@ -57,7 +62,7 @@ __all__ = ["VoronoiCells", "voronoi_cells", "stiffness_matrix", "DUPLICATE_TOL"]
 #: points 1e-12 apart couple strongly but finitely.
 DUPLICATE_TOL = 1e-3
 
-#: Rows per chunk of the compiled kernel.
+#: Rows per chunk (the numpy twin pads a chunk to its largest neighbourhood: ~1.6 kB per row).
 _ROWS = 4096
 
 INCOMPLETE, BOUNDARY, DEGENERATE, NEAR_DUPLICATE = 1, 2, 4, 8
@@ -90,10 +95,134 @@ class VoronoiCells:
         return int(np.count_nonzero(self.flags & bit))
 
 
-def _cells_numpy(indptr, xy, radius, dup_tol, w, area, flags, lo, hi):
-    """The compiled kernel run as plain Python (``MANIFOLD_SPH_JIT=0`` or no numba)."""
-    fn = getattr(_jit.voronoi_rows, "py_func", _jit.voronoi_rows)
-    fn(lo, hi, indptr, xy, radius, dup_tol, w, area, flags)
+def _hull_numpy(X, Y, valid):
+    """Convex hulls (counter-clockwise) of each row's valid points, by gift wrapping on all rows at once.
+
+    Returns ``(HX, HY, size)``: (n, K) vertex coordinates and (n,) hull sizes (0 when degenerate).
+    """
+    n, K = X.shape
+    rows = np.arange(n)
+    big = np.inf
+    # start: the lowest point (smallest y, then smallest x), which is on the hull
+    key_y = np.where(valid, Y, big)
+    ymin = key_y.min(axis=1)
+    start = np.argmin(np.where(valid & (Y == ymin[:, None]), X, big), axis=1)
+    HX, HY = np.zeros((n, K)), np.zeros((n, K))
+    size = np.zeros(n, dtype=np.int64)
+    cur = start.copy()
+    active = valid.sum(axis=1) >= 3
+    for step in range(K):
+        HX[rows[active], step] = X[active, cur[active]]
+        HY[rows[active], step] = Y[active, cur[active]]
+        size[active] += 1
+        # next: the point q such that every other point is left of cur -> q (the most clockwise one)
+        px, py = X[rows, cur][:, None], Y[rows, cur][:, None]
+        dx, dy = X - px, Y - py
+        d2 = dx * dx + dy * dy
+        usable = valid & (d2 > 0)
+        nxt = np.argmax(usable, axis=1)  # any usable candidate, improved below
+        for j in range(K):  # keep the candidate that has every other one on its left (ties: the farthest)
+            cx, cy = X[rows, nxt] - px[:, 0], Y[rows, nxt] - py[:, 0]
+            cross = cx * dy[:, j] - cy * dx[:, j]
+            better = usable[:, j] & ((cross < 0) | ((cross == 0) & (d2[:, j] > cx * cx + cy * cy)))
+            nxt = np.where(better, j, nxt)
+        cur = nxt
+        active &= cur != start
+        if not active.any():
+            break
+    return HX, HY, size
+
+
+def _clip_numpy(PX, PY, lab, cnt, nx, ny, c, j, use):
+    """Clip every row's polygon (``cnt`` vertices, edge labels ``lab``) by ``x . (nx, ny) <= c``, labelling
+    new edges ``j``; rows where ``use`` is False are left unchanged. Sutherland-Hodgman on all rows at once."""
+    n, V = PX.shape
+    idx = np.arange(V)
+    live = idx[None, :] < cnt[:, None]
+    nxt = np.where(idx[None, :] + 1 < cnt[:, None], idx[None, :] + 1, 0)
+    rows = np.arange(n)[:, None]
+    AX, AY, BX, BY = PX, PY, PX[rows, nxt], PY[rows, nxt]
+    sa = AX * nx[:, None] + AY * ny[:, None] - c[:, None]
+    sb = BX * nx[:, None] + BY * ny[:, None] - c[:, None]
+    with np.errstate(all="ignore"):  # edges that do not cross: t is unused there
+        t = sa / (sa - sb)
+        IX, IY = AX + t * (BX - AX), AY + t * (BY - AY)
+    # each edge emits up to two points: (the start if inside, the crossing if the edge crosses)
+    emit_a = live & (sa <= 0)
+    emit_i = live & (((sa <= 0) & (sb > 0)) | ((sa > 0) & (sb <= 0)))
+    OX = np.stack([AX, IX], axis=2).reshape(n, 2 * V)
+    OY = np.stack([AY, IY], axis=2).reshape(n, 2 * V)
+    OL = np.stack([lab, np.where(sa <= 0, j, lab)], axis=2).reshape(n, 2 * V)
+    keep = np.stack([emit_a, emit_i], axis=2).reshape(n, 2 * V)
+    order = np.argsort(~keep, axis=1, kind="stable")
+    new_cnt = keep.sum(axis=1)
+    OX, OY, OL = (np.take_along_axis(a, order, axis=1) for a in (OX, OY, OL))
+    dead = np.arange(2 * V)[None, :] >= new_cnt[:, None]  # slots past the polygon: no stale inf or NaN
+    OX, OY, OL = np.where(dead, 0.0, OX), np.where(dead, 0.0, OY), np.where(dead, -1, OL)
+    u = use & (cnt >= 3)
+    out_x = np.where(u[:, None], OX[:, :V * 2], np.pad(PX, ((0, 0), (0, V))))
+    out_y = np.where(u[:, None], OY[:, :V * 2], np.pad(PY, ((0, 0), (0, V))))
+    out_l = np.where(u[:, None], OL[:, :V * 2], np.pad(lab, ((0, 0), (0, V)), constant_values=-1))
+    return out_x, out_y, out_l, np.where(u, new_cnt, cnt)
+
+
+def _cells_numpy(lo, hi, indptr, xy, radius, dup_tol, w, area, flags):
+    """numpy twin of :func:`manifold_sph._jit.voronoi_rows` (``MANIFOLD_SPH_JIT=0`` or no numba):
+    the same cells, all rows at once (padded to the largest neighbourhood)."""
+    counts = np.diff(indptr[lo : hi + 1])
+    n, K = hi - lo, int(counts.max()) if hi > lo else 0
+    if n == 0 or K == 0:
+        return
+    rows = np.arange(n)
+    slot = np.arange(K)
+    valid = slot[None, :] < counts[:, None]
+    pair = np.where(valid, indptr[lo:hi][:, None] + slot[None, :], 0)
+    X, Y = np.where(valid, xy[pair, 0], 0.0), np.where(valid, xy[pair, 1], 0.0)
+    HX, HY, hsize = _hull_numpy(X, Y, valid)
+    hx1, hy1 = np.roll(HX, -1, axis=1), np.roll(HY, -1, axis=1)
+    hx1[rows, np.maximum(hsize - 1, 0)] = HX[:, 0]
+    hy1[rows, np.maximum(hsize - 1, 0)] = HY[:, 0]
+    a2 = np.where(slot[None, :] < hsize[:, None], HX * hy1 - hx1 * HY, 0.0).sum(axis=1)
+    scale2 = np.where(valid, X * X + Y * Y, 0.0).max(axis=1)
+    ok = (hsize >= 3) & (a2 > 1e-12 * scale2)
+    V = 2 * K + 8
+    PX = np.zeros((n, V))
+    PY = np.zeros((n, V))
+    PX[:, :K], PY[:, :K] = HX, HY
+    lab = np.full((n, V), -1, dtype=np.int64)
+    cnt = np.where(ok, hsize, 0)
+    for j in range(K):
+        d2 = X[:, j] ** 2 + Y[:, j] ** 2
+        use = valid[:, j] & (d2 > 0) & ok & (cnt >= 3)
+        d = np.sqrt(np.where(use, d2, 1.0))
+        PX, PY, lab, cnt = _clip_numpy(PX, PY, lab, cnt, X[:, j] / d, Y[:, j] / d, 0.5 * d, j, use)
+        PX, PY, lab = PX[:, :V], PY[:, :V], lab[:, :V]
+    idx = np.arange(V)
+    live = idx[None, :] < cnt[:, None]
+    nxt = np.where(idx[None, :] + 1 < cnt[:, None], idx[None, :] + 1, 0)
+    BX, BY = PX[rows[:, None], nxt], PY[rows[:, None], nxt]
+    A = np.where(cnt >= 3, 0.5 * np.where(live, PX * BY - BX * PY, 0.0).sum(axis=1), 0.0)
+    A = np.where(ok, A, 0.0)
+    rmax2 = np.where(live, PX * PX + PY * PY, 0.0).max(axis=1)
+    good = A > 0
+    fl = np.where(good, 0, 4).astype(np.uint8)
+    edge = live & good[:, None]
+    hull_edge = edge & (lab < 0)
+    fl[hull_edge.any(axis=1)] |= 3
+    L = np.hypot(BX - PX, BY - PY)
+    has = edge & (lab >= 0)
+    jl = np.where(has, lab, 0)
+    dj = np.sqrt(X[rows[:, None], jl] ** 2 + Y[rows[:, None], jl] ** 2)
+    floor = dup_tol * np.sqrt(np.where(good, A, 0.0))[:, None]
+    near = has & (dj < floor)
+    fl[near.any(axis=1)] |= 8
+    contrib = np.where(has, L / np.where(near, floor, np.where(has, dj, 1.0)), 0.0)
+    wrow = np.zeros((n, K))
+    np.add.at(wrow, (np.broadcast_to(rows[:, None], jl.shape)[has], jl[has]), contrib[has])
+    fl[good & (4.0 * rmax2 > radius[lo:hi] ** 2)] |= 1
+    w[pair[valid]] = wrow[valid]
+    area[lo:hi] = np.where(good, A, 0.0)
+    flags[lo:hi] = fl
 
 
 def voronoi_cells(indptr, xy, radius, *, dup_tol: float = DUPLICATE_TOL) -> VoronoiCells:
@@ -145,15 +274,11 @@ def voronoi_cells(indptr, xy, radius, *, dup_tol: float = DUPLICATE_TOL) -> Voro
     area = np.zeros(n)
     flags = np.zeros(n, dtype=np.uint8)
     starts = list(range(0, n, _ROWS))
-    if _jit.ENABLED:
-        from .threads import run_chunks
-
-        run_chunks(
-            lambda c: _jit.voronoi_rows(starts[c], min(starts[c] + _ROWS, n), indptr, xy, radius, float(dup_tol), w, area, flags),
-            len(starts),
-        )
-    else:
-        _cells_numpy(indptr, xy, radius, float(dup_tol), w, area, flags, 0, n)
+    kernel = _jit.voronoi_rows if _jit.ENABLED else _cells_numpy
+    run_chunks(
+        lambda c: kernel(starts[c], min(starts[c] + _ROWS, n), indptr, xy, radius, float(dup_tol), w, area, flags),
+        len(starts),
+    )
     return VoronoiCells(weights=w, area=area, flags=flags)
 
 

@@ -184,6 +184,33 @@ def test_exactly_collinear_neighbours_fail_the_condition_test(axis):
     assert np.all(np.isfinite(d.laplacian_matrix().data))
 
 
+@pytest.mark.parametrize("cloud", ["random", "open", "planar"])
+def test_voronoi_cells_equal_numpy(monkeypatch, cloud):
+    """The compiled Voronoi cells and their numpy twin: same weights, areas and flags (to round-off)."""
+    from manifold_sph.voronoi import voronoi_cells
+
+    rng = np.random.default_rng(3)
+    if cloud == "planar":
+        s = Domain2D(sampling.square(900, seed=2), area="shepard")
+    else:
+        p = rng.standard_normal((1500, 3))
+        p /= np.linalg.norm(p, axis=1)[:, None]
+        if cloud == "open":
+            p = p[p[:, 2] > -0.2]
+        p[-1] = p[0] + 1e-9 * np.cross(p[0], [0.0, 0.0, 1.0])  # a near-duplicate pair
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            s = Surface(p, p / np.linalg.norm(p, axis=1)[:, None], area="shepard")
+    nb = s.neighborhood
+    fast, plain = _both(monkeypatch, lambda: voronoi_cells(nb.indptr, s._xy, nb.support * nb.h))
+    np.testing.assert_array_equal(fast.flags, plain.flags)
+    np.testing.assert_allclose(fast.area, plain.area, rtol=0, atol=1e-13 * fast.area.max())
+    np.testing.assert_allclose(fast.weights, plain.weights, rtol=0, atol=1e-12 * fast.weights.max())
+    assert (fast.flags & 1).any()  # cells to recompute with a wider search (gaps, open boundaries)
+    if cloud != "planar":
+        assert (fast.flags & 8).any()
+
+
 def test_environment_variable_turns_the_kernels_off():
     code = "from manifold_sph import _jit; print(_jit.ENABLED)"
     env = dict(os.environ, MANIFOLD_SPH_JIT="0")
