@@ -155,3 +155,20 @@ def test_models_lose_almost_nothing(name):
     r = clean(q)
     assert 100 * (~r.keep_mask[:-m]).mean() <= 0.1
     assert (~r.keep_mask[-m:]).mean() >= min_caught  # the 95 % target is not met (see remove_outliers)
+
+
+def test_far_outliers_of_a_dense_cloud_are_caught():
+    """50,000 Fibonacci points and 1 % outliers uniform in the bounding box: far from the surface the
+    outliers have only each other as neighbours (a volumetric clump), and are caught; points within
+    two spacings of the sphere look like samples and may stay."""
+    from manifold_sph import shapes
+
+    p = shapes.sphere(50000).points
+    rng = np.random.default_rng(5)
+    q = rng.uniform(-1.0, 1.0, (500, 3))
+    r = clean(np.vstack([p, q]))
+    spacing = np.sqrt(4 * np.pi / 50000)
+    far = np.abs(np.linalg.norm(q, axis=1) - 1.0) > 2 * spacing
+    caught = ~r.keep_mask[-500:]
+    assert (~r.keep_mask[:-500]).mean() <= 1e-3
+    assert caught[far].mean() >= 0.95, caught[far].mean()  # measured 0.978 (0.80 when only clumps of <= k points counted)
