@@ -1,6 +1,16 @@
 """Real and synthetic scans: the figures of issue 6.
 
-Run:  /work/venv/bin/python benchmarks/scans.py [--scans DIR] [--only bunny,igea,noise,density] [--picture PATH]
+Run:  python benchmarks/scans.py [--scans DIR] [--only models,bunny,igea,noise,density] [--picture PATH]
+
+``models`` (first): one table over every model of ../shared/data/models plus the bunny
+and Igea, vertices as bare points: normals from the points against the mesh's
+(median angle; share pointing inward on closed one-shell models, share agreeing
+on the others), then for the default scheme (msph), cspm and msph4 with all other
+defaults (normals estimated): build time, particles that fell back, supports
+widened, default heat (``laplacian="auto"``) bounded by the initial range, and the
+stable Laplacian's 20 smallest non-zero eigenvalues against the cotan FEM of the
+model's own mesh (closed one-shell models; median relative distance, with
+robust-laplacian's beside it when the bench extra is installed).
 
 Prints, for the Stanford bunny and Igea (../shared/data/scans, skipped when absent):
 reading, cleaning, normal estimation (agreement with the mesh's vertex normals),
@@ -16,6 +26,7 @@ versus adaptive h).
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 import warnings
 from pathlib import Path
@@ -33,6 +44,66 @@ from manifold_sph.pde import heat
 
 SCHEMES = ["standard", "cspm", "msph", "ncsph"]
 DEFAULT_SCANS = Path(__file__).resolve().parents[2] / "shared" / "data" / "scans"
+MODEL_SCHEMES = ["msph", "cspm", "msph4"]
+
+
+def models_table(scans: Path):
+    """The table of every model and scan (see the module notes)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from normals import MODELS, mesh_reference  # benchmarks/normals.py
+    from spectra import cotan, sym_eigs  # benchmarks/spectra.py
+
+    from manifold_sph.io import read_mesh
+
+    try:
+        import robust_laplacian
+    except ImportError:
+        robust_laplacian = None
+    paths = MODELS + [scans / "stanford-bunny.obj", scans / "igea.ply"]
+    head = " ".join(f"{s + ' s/fb/wid/heat':>22s}" for s in MODEL_SCHEMES)
+    print(f"{'model':12s} {'points':>7s} {'median':>7s} {'orientation':>15s} {head} {'eigs: stable':>13s} {'robust':>8s}")
+    for path in paths:
+        if not path.exists():
+            print(f"{path.stem:12s} (missing, skipped)")
+            continue
+        P, ref, closed, shells = mesh_reference(path)
+        nrm = estimate_normals(P)
+        d = np.einsum("ij,ij->i", nrm, ref)
+        ang = np.degrees(np.arccos(np.clip(np.abs(d), 0.0, 1.0)))
+        orient = f"{100 * np.mean(d < 0):.2f} % inward" if closed and shells == 1 else f"{100 * np.mean(d > 0):.2f} % agree"
+        cols, surf = [], None
+        for scheme in MODEL_SCHEMES:
+            t = time.perf_counter()
+            try:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")
+                    s = Surface(P, nrm, scheme=scheme)
+                    tb = time.perf_counter() - t
+                    z = P[:, 1] - P[:, 1].mean()
+                    u = heat(s, z, dt=1e-3 * np.ptp(P) ** 2, steps=20)
+                bounded = bool(np.all(np.isfinite(u)) and np.abs(u).max() <= np.abs(z).max() * (1 + 1e-9))
+                fb = sum(len(v) for v in s.fallback.values())
+                cols.append(f"{tb:6.2f}/{fb:4d}/{len(s.widened):4d}/{'yes' if bounded else 'NO':>3s}")
+                surf = s if scheme == "msph" else surf
+            except Exception as exc:  # noqa: BLE001 - a failure is a result
+                cols.append(f"{'FAILED ' + type(exc).__name__:>22s}")
+        eig_ours = eig_rl = "-"
+        if closed and shells == 1 and surf is not None and len(P) <= 40000:
+            V, F = read_mesh(str(path))
+            U, inv = np.unique(V, axis=0, return_inverse=True)
+            Fm = inv.ravel()[F]
+            Fm = Fm[(Fm[:, 0] != Fm[:, 1]) & (Fm[:, 1] != Fm[:, 2]) & (Fm[:, 0] != Fm[:, 2])]
+            if len(U) == len(P):
+                K, m = cotan(U, Fm)
+                exact = sym_eigs(K, m, 21)[1:]
+                lam, _ = surf.eigs(21)
+                eig_ours = f"{np.median(np.abs(lam[1:] - exact) / exact):.2e}"
+                if robust_laplacian is not None:
+                    L, M = robust_laplacian.point_cloud_laplacian(P)  # P and U: the same sorted unique positions
+                    lr = sym_eigs(L, M.diagonal(), 21)[1:]
+                    eig_rl = f"{np.median(np.abs(lr - exact) / exact):.2e}"
+        print(f"{path.stem:12s} {len(P):7d} {np.median(ang):6.2f}d {orient:>15s} {' '.join(f'{c:>22s}' for c in cols)} "
+              f"{eig_ours:>13s} {eig_rl:>8s}", flush=True)
 
 
 def components(surface) -> np.ndarray:
@@ -170,10 +241,14 @@ def density_study(n=4000, ratio=4.0, seed=0):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scans", type=Path, default=DEFAULT_SCANS)
-    ap.add_argument("--only", default="bunny,igea,noise,density")
+    ap.add_argument("--only", default="models,bunny,igea,noise,density")
     ap.add_argument("--picture", default=None, help="PNG of the Igea heat flow (needs off-screen rendering)")
     args = ap.parse_args(argv)
     only = set(args.only.split(","))
+    if "models" in only:
+        print("== every model and scan, vertices as bare points, all defaults (normals estimated)")
+        print("   per scheme: build seconds / particles fallen back / supports widened / default heat bounded")
+        models_table(args.scans)
     if "bunny" in only:
         p = args.scans / "stanford-bunny.obj"
         if p.is_file():
