@@ -6,6 +6,7 @@ import warnings
 
 import numpy as np
 
+from . import geometry
 from .frames import check_frames, project_neighborhood, project_pairs, tangent_frames
 from .neighbors import build_tree, find_neighbors
 from .operators import OperatorSet
@@ -109,6 +110,8 @@ class Surface(OperatorSet):
             cloud = points if normals is None else PointCloud(points.points, normals, shape=points.shape)
         else:
             cloud = PointCloud(points, normals)
+        #: Whether the normals were estimated here from the points (none were given).
+        self.normals_estimated = cloud.normals is None
         if cloud.normals is None:
             cloud = PointCloud(cloud.points, _estimate_normals(cloud.points), shape=cloud.shape)
         self.cloud = cloud
@@ -142,6 +145,27 @@ class Surface(OperatorSet):
     def normals(self) -> np.ndarray:
         """(N, 3) unit normals."""
         return self.cloud.normals
+
+    # ------------------------------------------------------------- geometry
+    def shape_operator(self) -> np.ndarray:
+        """(N, 2, 2) shape operator in the frames ``(u, v)``; see :func:`manifold_sph.geometry.shape_operator`."""
+        return geometry.shape_operator(self)
+
+    def mean_curvature(self, method: str = "auto") -> np.ndarray:
+        """(N,) mean curvature ``(k1 + k2) / 2``; see :func:`manifold_sph.geometry.mean_curvature`."""
+        return geometry.mean_curvature(self, method)
+
+    def gaussian_curvature(self) -> np.ndarray:
+        """(N,) Gaussian curvature ``k1 k2``; see :func:`manifold_sph.geometry.gaussian_curvature`."""
+        return geometry.gaussian_curvature(self)
+
+    def principal_curvatures(self):
+        """``(k1, k2, d1, d2)``; see :func:`manifold_sph.geometry.principal_curvatures`."""
+        return geometry.principal_curvatures(self)
+
+    def geodesic_distance(self, sources, **options) -> np.ndarray:
+        """(N,) geodesic distance from ``sources``; see :func:`manifold_sph.geometry.geodesic_distance`."""
+        return geometry.geodesic_distance(self, sources, **options)
 
     def _widen_lonely(self, nb, pts, nrm, hv, normal_threshold, tree):
         """Give particles with fewer than the scheme's minimum of neighbours (isolated points, sparse
