@@ -15,14 +15,14 @@ on ``Surface`` call them) and uses only its operators:
   estimated ones; from the Laplacian 1.4e-5 with either).
 - **Geodesic distance** by the heat method (Crane, Weischedel and Wardetzky 2013):
   a heat step ``(M + t K) u = delta_source`` with the stable Laplacian and
-  ``t = h^2`` (``h^2`` the mean Voronoi cell area), the unit field
-  ``X = -grad u / |grad u|`` from the scheme's (high-order) gradient, then the
+  ``t = 4 h^2`` (``h^2`` the mean Voronoi cell area), the unit field
+  ``X = -grad u / |grad u|`` from the scheme's gradient, then the
   Poisson problem ``K phi = -M div X`` (the divergence from the stable Laplacian's own
   fluxes, or the scheme's: :class:`GeodesicSolver`). Particles within ``3 h`` of a source are
   held at their straight-line distance to it (the distance's cone singularity at the
   source otherwise costs first-order accuracy everywhere: 4.4e-3 -> 2.4e-4 at
   N = 40,000 on the unit sphere with msph4). Factorisations are kept for later
-  queries.
+  queries. Measured in ``benchmarks/geometry.py``.
 - **Spectral descriptors** from :meth:`Surface.eigs`: heat kernel signature
   (Sun, Ovsjanikov and Guibas 2009) and wave kernel signature (Aubry, Schlickewei
   and Cremers 2011).
@@ -149,47 +149,50 @@ class GeodesicSolver:
     ----------
     surface : Surface
     t : float, optional
-        Heat time (default ``h^2``, the mean Voronoi cell area). Much smaller values
-        let ``u`` underflow far from the source; larger ones smooth the direction field.
+        Heat time (default ``4 h^2``, ``h^2`` the mean Voronoi cell area). Much smaller
+        values let ``u`` underflow far from the source, where its gradient's direction
+        is then lost; larger ones smooth the direction field. Chosen by measurement:
+        against the exact polyhedral geodesics of the test models (homer, cheburashka,
+        rocker-arm) ``4 h^2`` gave mean errors of 3.2e-2, 2.9e-2, 2.2e-2 against 5.1e-2,
+        5.0e-2, 3.1e-2 with ``h^2``; on random sphere points 2.6e-3 against 8.0e-3
+        (N = 40,000).
     source_radius : float
         Particles within ``source_radius * h`` of a source are held at their
         straight-line distance to the nearest source (``h`` the square root of the
         mean cell area).
-    divergence : {"auto", "weak", "strong"}
-        How the right-hand side ``-M div X`` is formed. ``"weak"``: from the stable
-        Laplacian's own fluxes, ``sum_j w_ij (X_i + X_j) / 2 . (x_i - x_j)``, so that a
-        field that is the gradient of a linear function gives that function back;
-        robust on any cloud. ``"strong"``: ``M`` times the scheme's divergence, more
-        accurate with msph4 on near-uniform clouds and useless on random ones
-        (relative errors of 0.5 to 50 measured). ``"auto"``: ``"strong"`` for the
-        schemes msph3/4/5 when :func:`manifold_sph.pde.strong_form_is_stable`, else ``"weak"``.
+    divergence : {"weak", "strong"}
+        How the right-hand side ``-M div X`` is formed. ``"weak"`` (default): from the
+        stable Laplacian's own fluxes, ``sum_j w_ij (X_i + X_j) / 2 . (x_i - x_j)``, so
+        that the gradient of a linear function gives that function back; robust on any
+        cloud. ``"strong"``: ``M`` times the scheme's divergence: with msph4 on
+        near-uniform clouds more accurate (2.4e-4 against 4.2e-4 on the 40,000-point
+        Fibonacci sphere), on uniformly random points useless (relative errors of 0.5 to
+        50 measured).
 
     Notes
     -----
-    Measured on the unit sphere (one source, relative L2 error against
-    ``arccos(x . x_s)``): Fibonacci points, msph4 ("strong") 4.6e-4 / 2.4e-4 / 3.4e-4 at
-    N = 10,000 / 40,000 / 160,000, msph ("weak") 9.8e-4 / 4.4e-4 at 10,000 / 40,000;
-    uniformly random points, msph ("weak") 1.9e-2 / 8.2e-3 at 10,000 / 40,000. The
-    error does not keep falling at second order: the heat step's direction field is
-    only first-order accurate where ``u`` is tiny (far from the source), which sets a
-    floor near 2e-4 to 3e-4. Where two sources' fronts meet the distance has a kink,
-    and the error there is larger (1.2e-2 with two sources at N = 4000).
+    Measured (``benchmarks/geometry.py``), unit sphere, one source, relative L2 error
+    against ``arccos(x . x_s)``: Fibonacci points 9.3e-4 / 4.2e-4 at N = 10,000 / 40,000
+    (potpourri3d's point-cloud heat method on the same points: 1.5e-2 / 1.3e-2), uniformly
+    random points 5.5e-3 / 2.6e-3 (potpourri3d 1.9e-2 / 1.7e-2), with msph; the first
+    query takes about as long as potpourri3d's. With msph4 and ``divergence="strong"`` the
+    40,000-point Fibonacci sphere reaches 2.4e-4, and 160,000 points 3.4e-4: the error
+    stops falling near 2e-4 to 3e-4, where the heat step's direction field is only
+    first-order accurate (far from the source ``u`` is tiny). Against the exact
+    polyhedral geodesics of the test models (mean relative error, bare points): rocker-arm
+    2.2e-2 (potpourri3d 2.8e-2), homer 3.2e-2 (2.2e-2), cheburashka 3.4e-2 (2.1e-2), cow
+    0.38 (0.30). Where two sources' fronts meet the distance has a kink, smoothed over
+    ``t``: 2.2e-2 with two sources at N = 4000.
     """
 
-    def __init__(self, surface, *, t: float | None = None, source_radius: float = 3.0, divergence: str = "auto"):
+    def __init__(self, surface, *, t: float | None = None, source_radius: float = 3.0, divergence: str = "weak"):
         _check_surface(surface)
         self.surface = surface
-        check_in("divergence", divergence, ("auto", "weak", "strong"))
-        if divergence == "auto":
-            from .pde import strong_form_is_stable
-
-            high = surface.scheme.name in ("msph3", "msph4", "msph5")
-            divergence = "strong" if high and strong_form_is_stable(surface) else "weak"
-        self.divergence = divergence
+        self.divergence = check_in("divergence", divergence, ("weak", "strong"))
         K = surface.stiffness_matrix().tocsr()
         m = np.asarray(surface.mass_matrix().diagonal())
         h2 = float(m.mean())
-        self.t = h2 if t is None else check_positive("t", t)
+        self.t = 4.0 * h2 if t is None else check_positive("t", t)
         self.source_radius = check_positive("source_radius", source_radius) * np.sqrt(h2)
         self._K, self._m = K, m
         self._heat = spla.splu((sp.diags(m) + self.t * K).tocsc())
