@@ -14,7 +14,7 @@ import warnings
 import numpy as np
 
 from manifold_sph import shapes
-from manifold_sph.accuracy import convergence, format_rows, operator_errors, planar_errors
+from manifold_sph.accuracy import convergence, curvature_errors, format_rows, operator_errors, planar_errors
 
 SPHERE = [1002, 2012, 4032, 8672, 15872, 32672, 65536, 131072]
 OTHERS = [2000, 4000, 8000, 16000, 32000, 64000]
@@ -41,6 +41,17 @@ def main() -> None:
         print(f"## {shape}, Poisson-disk points, f = {fn}\n")
         for scheme in ("cspm", "msph", "ncsph"):
             print(f"### {scheme}\n{convergence(shape, others, scheme, fn).to_text()}\n")
+
+    print("## Curvature: relative L2 errors of H and K, Poisson-disk points, exact normals (bare points: estimated)\n")
+    print(f"{'shape':<13} {'N':>6} {'scheme':<7} {'normals':<8} {'H L2':>9} {'K L2':>9} {'s':>6}")
+    for shape in ("torus", "double_torus", "sausage"):
+        for n in others[:3]:
+            cloud = getattr(shapes, shape)(n)
+            for est in (False, True):
+                for r in curvature_errors(cloud, ("msph", "msph4"), estimated_normals=est):
+                    print(f"{shape:<13} {n:>6} {r['scheme']:<7} {'bare' if est else 'exact':<8} {r['H_l2']:>9.2e} "
+                          f"{r['K_l2']:>9.2e} {r['seconds']:>6.2f}")
+    print()
 
     print("## Sausage N = 2652, f = xyz: normal filter on (threshold 0) and off (threshold -1)\n")
     cloud = shapes.sausage(2652)
