@@ -172,3 +172,108 @@ def test_spem_subcommand_through_the_main_cli(capsys):
     assert cli_main(["spem", "cavity", "--n-radial", "10", "--json"]) == 0
     out = _json.loads(capsys.readouterr().out)
     assert out["case"] == "cavity" and out["particles"] > 0 and 0 < out["error"] < 0.05
+
+
+# --- geometry: curvature and geodesic (issue 18) -------------------------------------------------
+
+
+@pytest.fixture
+def unit_sphere_file(tmp_path):
+    """800 Fibonacci points of the unit sphere with their exact normals, as a PLY file."""
+    from manifold_sph import shapes
+    from manifold_sph.io import write
+
+    path = tmp_path / "sphere.ply"
+    write(path, shapes.sphere(800))
+    return path
+
+
+def test_curvature_on_the_unit_sphere(unit_sphere_file, tmp_path, capsys):
+    src = str(unit_sphere_file)
+    assert main(["curvature", src, "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["n"] == 800 and out["quantity"] == "mean" and out["normals_estimated"] is False
+    assert out["method"] == "normals"  # normals from the file: the normals' gradient
+    assert abs(out["median"] - 1.0) < 0.02 and 0.95 < out["min"] <= out["max"] < 1.05
+    assert out["seconds"] >= 0
+    for quantity in ("gaussian", "k1", "k2"):
+        assert main(["curvature", src, "--quantity", quantity, "--json"]) == 0
+        out = json.loads(capsys.readouterr().out)
+        assert out["quantity"] == quantity and abs(out["median"] - 1.0) < 0.05
+    # the table: N, min, median, max and the time
+    assert main(["curvature", src, "--scheme", "cspm"]) == 0
+    text = capsys.readouterr().out
+    assert text.startswith("mean curvature of") and "N = 800" in text and "cspm" in text
+    assert "median 1" in text and " s)" in text
+
+
+def test_curvature_with_estimated_normals(tmp_path, capsys):
+    from manifold_sph import shapes
+    from manifold_sph.io import write
+
+    path = tmp_path / "bare.xyz"
+    write(path, shapes.sphere(800).points)  # no normals in the file: Surface estimates them
+    assert main(["curvature", str(path), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["normals_estimated"] is True and out["method"] == "laplacian"
+    assert abs(out["median"] - 1.0) < 0.05
+
+
+def test_geodesic_on_the_unit_sphere(unit_sphere_file, capsys):
+    src = str(unit_sphere_file)
+    assert main(["geodesic", src, "--source", "0", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["n"] == 800 and out["sources"] == [0] and out["unreached"] == 0
+    assert abs(out["max"] - np.pi) < 0.2  # the antipode
+    # two sources: distances can only shrink
+    assert main(["geodesic", src, "--source", "0", "--source", "799", "--json"]) == 0
+    two = json.loads(capsys.readouterr().out)
+    assert two["sources"] == [0, 799] and two["max"] < out["max"]
+    assert main(["geodesic", src, "--source", "0"]) == 0
+    text = capsys.readouterr().out
+    assert "N = 800" in text and "from particle(s) 0" in text and "max 3." in text
+
+
+@pytest.mark.parametrize("source", ["800", "-1"])
+def test_geodesic_bad_source_exit_2(unit_sphere_file, capsys, source):
+    assert main(["geodesic", str(unit_sphere_file), "--source", "3", "--source", source]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("manifold-sph: error:") and err.count("\n") == 1
+    assert f"--source {source} is out of range" in err and "800 points" in err and "0 to 799" in err
+
+
+def test_geometry_user_mistakes_exit_2(unit_sphere_file, tmp_path, capsys):
+    src = str(unit_sphere_file)
+    assert main(["curvature", src, "--quantity", "gaussian", "--method", "laplacian"]) == 2
+    assert "--method applies to --quantity mean only" in capsys.readouterr().err
+    assert main(["curvature", src, "--png", str(tmp_path / "c.jpg")]) == 2
+    assert "--png must name a .png file" in capsys.readouterr().err
+    assert main(["curvature", src, "--png", str(tmp_path / "no" / "c.png")]) == 2
+    assert "does not exist" in capsys.readouterr().err
+    assert main(["geodesic", str(tmp_path / "missing.ply"), "--source", "0"]) == 2
+    assert "no such file" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exc:
+        main(["geodesic", src])  # --source is required
+    assert exc.value.code == 2
+
+
+@pytest.mark.skipif(not _GL, reason="off-screen rendering is not available here")
+@pytest.mark.parametrize("cmd", [["curvature"], ["geodesic", "--source", "0"]])
+def test_geometry_png_and_overwrite(unit_sphere_file, tmp_path, capsys, cmd):
+    from PIL import Image
+
+    png = tmp_path / f"{cmd[0]}.png"
+    args = [cmd[0], str(unit_sphere_file), *cmd[1:], "--png", str(png), "--size", "160x120"]
+    assert main([*args, "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["png"] == str(png)
+    img = np.asarray(Image.open(png))
+    assert img.shape == (120, 160, 3) and img.std() > 10
+    # an existing picture is not replaced without --overwrite: one line, exit 2, file untouched
+    before = png.read_bytes()
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "pass --overwrite to replace" in err and err.count("\n") == 1
+    assert png.read_bytes() == before
+    assert main([*args, "--overwrite", "--camera", "north_pole"]) == 0
+    assert f"wrote {png}" in capsys.readouterr().out
+    assert png.read_bytes() != before

@@ -25,7 +25,7 @@ def _load(name):
 
 def test_examples_exist():
     assert {"area_elements", "sausage_neighbourhood", "sphere_operators", "torus_laplacians", "heat_sphere",
-            "wave_sphere", "sausage_outliers", "planar_schemes"} <= set(NAMES)
+            "wave_sphere", "sausage_outliers", "planar_schemes", "scan_geometry"} <= set(NAMES)
 
 
 @pytest.mark.parametrize("name", NAMES)
