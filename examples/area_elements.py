@@ -1,4 +1,4 @@
-"""Area elements on the sphere (seed 1, Fig. 40): numerical (partition of unity) vs Shepard.
+"""Area elements on the sphere ([1] Fig. 40; docs/method.md): numerical (partition of unity) vs Shepard.
 
     python examples/area_elements.py --out pictures [--quick]
 

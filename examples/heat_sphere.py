@@ -1,4 +1,4 @@
-"""Heat equation on the sphere from a hot spot at the north pole (seed 1, Fig. 51), as a GIF.
+"""Heat equation on the sphere from a hot spot at the north pole ([1] Fig. 51; docs/method.md), as a GIF.
 
     python examples/heat_sphere.py --out pictures [--quick] [--mp4]
 

@@ -1,4 +1,4 @@
-"""The planar schemes of seed 1, chapter 2: four schemes on [-1, 1]^2, with and without mirroring.
+"""The planar schemes of [1] (docs/method.md), chapter 2: four schemes on [-1, 1]^2, with and without mirroring.
 
     python examples/planar_schemes.py --out pictures [--quick]
 

@@ -1,4 +1,4 @@
-"""Neighbourhood of a particle at a tip of the sausage (seed 1, Fig. 39): the normal filter.
+"""Neighbourhood of a particle at a tip of the sausage ([1] Fig. 39; docs/method.md): the normal filter.
 
     python examples/sausage_neighbourhood.py --out pictures [--quick]
 

@@ -1,4 +1,4 @@
-"""The sausage's high-curvature outliers (seed 1, Figs. 54-55).
+"""The sausage's high-curvature outliers ([1] Figs. 54-55; docs/method.md).
 
     python examples/sausage_outliers.py --out pictures [--quick]
 

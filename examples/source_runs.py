@@ -1,9 +1,9 @@
-"""The seed's heat and wave runs on the sphere (seed 1, 3.5; Figs. 51-53) with its parameters.
+"""The heat and wave runs on the sphere of [1] (docs/method.md; sec. 3.5, Figs. 51-53) with its parameters.
 
     python examples/source_runs.py --out pictures [--quick]
 
-Heat: 8672 points, CSPM, explicit Euler with dt = 0.001 and k = 1.5 (the seed's
-choice; stable, the limit is printed), a source held at 1 at the north pole,
+Heat: 8672 points, CSPM, explicit Euler with dt = 0.001 and k = 1.5 (the choice
+of [1]; stable, the limit is printed), a source held at 1 at the north pole,
 snapshots at t = 0, 3.5, 7 and 10. Wave: c = 0.5, dt = 0.005, to t = 2, with one
 source (a bump at the north pole) and with two sources in the northern
 hemisphere. Writes the snapshots as PNG panels (when off-screen rendering works)

@@ -1,4 +1,4 @@
-"""Gradient, divergence and Laplace-Beltrami on the sphere, four schemes (seed 1, Figs. 43, 45, 47).
+"""Gradient, divergence and Laplace-Beltrami on the sphere, four schemes ([1] Figs. 43, 45, 47; docs/method.md).
 
     python examples/sphere_operators.py --out pictures [--quick]
 

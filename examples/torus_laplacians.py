@@ -1,4 +1,4 @@
-"""Laplace-Beltrami on the torus and the double torus (seed 1, Figs. 49-50).
+"""Laplace-Beltrami on the torus and the double torus ([1] Figs. 49-50; docs/method.md).
 
     python examples/torus_laplacians.py --out pictures [--quick]
 

@@ -1,4 +1,4 @@
-"""Wave equation on the sphere (seed 1, Figs. 52-53), as a GIF, and its energy drift.
+"""Wave equation on the sphere ([1] Figs. 52-53; docs/method.md), as a GIF, and its energy drift.
 
     python examples/wave_sphere.py --out pictures [--quick] [--mp4]
 

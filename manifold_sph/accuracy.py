@@ -192,7 +192,7 @@ def format_rows(rows: list[dict]) -> str:
 
 
 def planar_errors(points, schemes=None, *, bounds=(-1.0, 1.0, -1.0, 1.0), mirror: bool = False, **domain_kwargs) -> list[dict]:
-    """The seed's chapter-2 cases in a planar domain, relative L2 and Linf errors per scheme.
+    """The chapter-2 cases of [1] (docs/method.md) in a planar domain, relative L2 and Linf errors per scheme.
 
     Gradient of ``xy``, divergence of ``(sin pi x, sin pi y)``, Laplacian of
     ``sin(pi x) cos(pi y)``.

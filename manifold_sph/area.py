@@ -1,4 +1,4 @@
-"""Area elements dV (METHOD.md section 3).
+"""Area elements dV (docs/method.md section 3).
 
 - ``"geometric"``: ``|S| / N`` when the surface area is known;
 - ``"numerical"``: solve ``sum_j W_ij dV_j = 1`` (sparse, not symmetric); some

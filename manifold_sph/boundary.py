@@ -3,7 +3,7 @@
 A scan with holes (the bunny is open at the bottom) has particles on the rim of
 each hole. In the tangent plane of such a particle its neighbours all lie on one
 side. Two measures of that, per particle, from the projected neighbour offsets
-``x_ij`` (METHOD.md section 2.3):
+``x_ij`` (docs/method.md section 2.3):
 
 - ``gap``: the largest angle between consecutive neighbour directions around the
   particle (radians). Interior particles of a cloud with ~20 neighbours have gaps

@@ -21,7 +21,7 @@ import numpy as np
 
 __all__ = ["main", "run_demo", "FOUR_SCHEMES"]
 
-#: The four schemes of the source (seed 1) compared by ``demo`` and ``operators --scheme all``.
+#: The four schemes of the thesis [1] (docs/method.md section 4) compared by ``demo`` and ``operators --scheme all``.
 FOUR_SCHEMES = ("standard", "cspm", "msph", "ncsph")
 
 

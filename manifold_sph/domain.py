@@ -72,7 +72,7 @@ class Domain2D(OperatorSet):
         ``area="geometric"``.
     mirror : bool
         Add ghost copies of the strips of width ``kappa h`` along each side,
-        translated periodically (METHOD.md section 3): the domain behaves as a
+        translated periodically (docs/method.md section 3): the domain behaves as a
         periodic one, which suits periodic functions.
 
     Examples

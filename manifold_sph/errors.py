@@ -1,9 +1,9 @@
-"""Error measures and convergence studies (METHOD.md section 5; seed 1 eqs. 2.32, 2.35).
+"""Error measures and convergence studies (docs/method.md section 5; [1] eqs. 2.32, 2.35).
 
 Pointwise measures (one value per point): :func:`absolute_error`,
 :func:`relative_error`, :func:`phase_error`. Global measures (one number):
 :func:`l2_error`, :func:`linf_error`, :func:`error_summary`. Distribution of
-pointwise errors: :func:`boxplot_summary` (Tukey boxplot, as in seed 1).
+pointwise errors: :func:`boxplot_summary` (Tukey boxplot, as in the thesis [1]).
 Convergence: :func:`fit_order` and :func:`convergence_study`.
 
 Fields are scalar ``(N,)`` or vector ``(N, d)``; for vector fields the
@@ -83,7 +83,7 @@ def _pointwise_norm(a: np.ndarray) -> np.ndarray:
 
 
 def absolute_error(approx, exact) -> np.ndarray:
-    """Pointwise absolute error ``e_a = |approx - exact|`` (seed 1, eq. 2.32).
+    """Pointwise absolute error ``e_a = |approx - exact|`` ([1] eq. 2.32).
 
     Parameters
     ----------
@@ -113,7 +113,7 @@ def absolute_error(approx, exact) -> np.ndarray:
 def relative_error(approx, exact, floor: float = 1e-6) -> np.ndarray:
     """Pointwise relative error ``|approx - exact| / max(|exact|, floor)``.
 
-    Seed 1 (eq. 2.32) uses a lower bound of ``1e-6`` on ``|exact|`` to avoid
+    The thesis [1] (eq. 2.32) uses a lower bound of ``1e-6`` on ``|exact|`` to avoid
     dividing by (nearly) zero; that is the ``floor`` here. Where
     ``|exact| < floor`` the value is the absolute error divided by ``floor``.
 
@@ -139,13 +139,13 @@ def relative_error(approx, exact, floor: float = 1e-6) -> np.ndarray:
 
 
 def phase_error(approx, exact, floor: float = 1e-12) -> np.ndarray:
-    """Pointwise angle, in radians, between approximate and exact vectors (seed 1, eq. 2.35).
+    """Pointwise angle, in radians, between approximate and exact vectors ([1] eq. 2.35).
 
     ``e_f = arccos(<a, e> / (|a| |e|))``, evaluated as
     ``2 atan2(|a^ - e^|, |a^ + e^|)`` on the unit vectors (accurate also
     for tiny and near-pi angles). Values lie in ``[0, pi]``.
 
-    The angle is undefined when a vector is zero (the seed leaves it out).
+    The angle is undefined when a vector is zero ([1] leaves it out).
     NaN-free rule used here, with ``|v| < floor`` meaning "zero":
 
     - both vectors zero: 0 (they agree);
@@ -314,7 +314,7 @@ def error_summary(approx, exact, mask=None) -> dict:
 
 @dataclass(frozen=True)
 class BoxplotSummary:
-    """Tukey boxplot statistics of a sample of pointwise errors (seed 1, fig. 14).
+    """Tukey boxplot statistics of a sample of pointwise errors ([1] fig. 14).
 
     Attributes
     ----------
@@ -369,7 +369,7 @@ def boxplot_summary(errors) -> BoxplotSummary:
     """Tukey boxplot of a sample: quartiles, whiskers and outliers.
 
     Outliers are the values above ``q3 + 1.5 (q3 - q1)`` or below
-    ``q1 - 1.5 (q3 - q1)`` (seed 1, section 2.3); the whiskers are the most
+    ``q1 - 1.5 (q3 - q1)`` ([1] sec. 2.3); the whiskers are the most
     extreme values that are not outliers.
 
     Parameters

@@ -1,6 +1,6 @@
-"""Tangent frames and projection to local 2D coordinates (METHOD.md section 2).
+"""Tangent frames and projection to local 2D coordinates (docs/method.md section 2).
 
-The frame at a particle with unit normal ``n`` follows the seed's construction:
+The frame at a particle with unit normal ``n`` follows the construction of the thesis [1] (sec. 3.2.1):
 ``u`` spans the intersection of the tangent plane with the plane ``y = y_i``,
 ``u ~ (n_z, 0, -n_x)``; when ``n`` is (nearly) parallel to ``e_y`` the plane
 ``x = x_i`` is used instead, ``u ~ (0, n_z, -n_y)``. Then ``v = n x u``.

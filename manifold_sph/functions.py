@@ -1,4 +1,4 @@
-"""Test functions and vector fields with exact ambient derivatives (seed 1).
+"""Test functions and vector fields with exact ambient derivatives (the thesis [1], docs/method.md section 5).
 
 Scalar functions give ``value`` (N,), ``gradient`` (N, d) and ``hessian``
 (N, d, d); vector fields give ``value`` (N, d) and ``jacobian`` (N, d, d) with
@@ -6,13 +6,13 @@ Scalar functions give ``value`` (N,), ``gradient`` (N, d) and ``hessian``
 :mod:`manifold_sph.shapes` they give the exact surface references
 (``f.laplace_beltrami(shape, x)`` etc.).
 
-3D functions (seed 1, chapter 3): :data:`linear` ``x + y + z``, :data:`xyz`,
+3D functions ([1] chapter 3): :data:`linear` ``x + y + z``, :data:`xyz`,
 :data:`cos_xz_sin_y` ``cos(xz - sin y)``, :data:`z_cos_xy` ``z cos(xy)``.
-Planar functions (seed 1, chapter 2; inputs (N, 2)): :data:`xy_2d`,
+Planar functions ([1] chapter 2; inputs (N, 2)): :data:`xy_2d`,
 :data:`sin_pi_x_cos_pi_y`, and the field :data:`sin_pi_field_2d`
 ``(sin pi x, sin pi y)``.
 
-Sphere fields (seed 1, section 3.3): ``F = F1 x_u + F2 x_v`` in the coordinate
+Sphere fields ([1] sec. 3.3): ``F = F1 x_u + F2 x_v`` in the coordinate
 basis of the parametrisation (1.14) of the unit sphere, with exact divergence
 (3.13); see :class:`SphereField` and :func:`sphere_field`.
 """
@@ -221,7 +221,7 @@ z_cos_xy = ScalarFunction(
     expression="z cos(x y)",
 )
 
-# coordinate functions of the seed's sphere fields
+# coordinate functions of the sphere fields of [1]
 xy = ScalarFunction(
     "xy",
     lambda x, y, z: x * y,
@@ -281,7 +281,7 @@ cos_z_minus_sin_xy = ScalarFunction(
 )
 
 # ----------------------------------------------------------------------------
-# planar functions and field (seed 1, chapter 2, domain [-1, 1]^2)
+# planar functions and field ([1] chapter 2, domain [-1, 1]^2)
 # ----------------------------------------------------------------------------
 _PI = math.pi
 
@@ -390,7 +390,7 @@ def sphere_basis(x):
 
 
 class SphereField:
-    """Tangent field ``F = F1 x_u + F2 x_v`` on the unit sphere (seed 1, eq. 3.10).
+    """Tangent field ``F = F1 x_u + F2 x_v`` on the unit sphere ([1] eq. 3.10).
 
     ``F1``, ``F2`` are functions of (x, y, z); ``x_u``, ``x_v`` the coordinate
     basis (1.16) of the parametrisation (1.14) (``u`` polar angle, ``v``
@@ -488,7 +488,7 @@ SPHERE_FIELDS = {
 
 
 def sphere_field(name: str) -> SphereField:
-    """The seed's sphere fields: "linear", "nonlinear" or "trigonometric".
+    """The sphere fields of [1]: "linear", "nonlinear" or "trigonometric".
 
     ``(F1, F2) = (x+y+z, x+y+z)``, ``(xy, yz)``, ``(sin(x+yz), cos(z - sin(xy)))``.
 

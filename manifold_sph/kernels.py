@@ -1,4 +1,4 @@
-"""Radial SPH smoothing kernels (METHOD.md, section 1).
+"""Radial SPH smoothing kernels (docs/method.md section 1; references [1], [2] there).
 
 A kernel is radial: ``W_h(x) = alpha_d(h) * w(R)`` with ``R = |x| / h`` and
 support ``R < kappa``. Each kernel class provides the dimensionless profile
@@ -12,11 +12,11 @@ Kernels available (see :data:`KERNELS`):
 ========== ========================================= =======
 name       profile w(R)                              kappa
 ========== ========================================= =======
-quintic    quintic spline, seed 1 eq. 2.12            3
-cubic      cubic spline (Monaghan M4), seed 2 eq. 2.9 2
-gaussian   exp(-R^2) truncated, seed 2 eq. 2.13       3
+quintic    quintic spline, [1] eq. 2.12               3
+cubic      cubic spline (Monaghan M4), [2] eq. 2.9    2
+gaussian   exp(-R^2) truncated, [2] eq. 2.13          3
 wendland2  Wendland C2, (1 - R/2)^4 (2R + 1)           2
-quartic    seed 2 eq. 2.10 ("quadratic spline")        2
+quartic    [2] eq. 2.10 ("quadratic spline")           2
 ========== ========================================= =======
 
 Examples
@@ -430,15 +430,15 @@ def _pos(a):
 
 
 class QuinticSpline(Kernel):
-    """Quintic spline, seed 1 eqs. 2.12-2.15, support kappa = 3.
+    """Quintic spline, [1] eqs. 2.12-2.15, support kappa = 3.
 
     ``w = (3-R)^5 - 6(2-R)^5 + 15(1-R)^5`` on [0,1), ``(3-R)^5 - 6(2-R)^5`` on
     [1,2), ``(3-R)^5`` on [2,3), 0 after; written as
     ``(3-R)_+^5 - 6(2-R)_+^5 + 15(1-R)_+^5``. ``alpha_1 = 1/(120h)``,
     ``alpha_2 = 7/(478 pi h^2)``, ``alpha_3 = 1/(120 pi h^3)``.
 
-    Note on d = 3: the value ``3/(359 pi h^3)`` quoted in METHOD.md (and
-    widely in the literature) is 0.28 % off. Since
+    Note on d = 3: the value ``3/(359 pi h^3)`` widely quoted in the literature
+    ([1] gives d = 1 and 2 only) is 0.28 % off. Since
     ``int_0^a R^2 (a-R)^5 dR = a^8/168``, the radial moment is
     ``(3^8 - 6*2^8 + 15)/168 = 5040/168 = 30`` exactly, so
     ``alpha_3 = 1/(4 pi * 30 h^3) = 1/(120 pi h^3)``; the numerical
@@ -506,12 +506,12 @@ class CubicSpline(Kernel):
     ``w = 1 - 1.5 R^2 + 0.75 R^3`` on [0,1), ``0.25 (2-R)^3`` on [1,2), 0 after;
     ``alpha_1 = 2/(3h)``, ``alpha_2 = 10/(7 pi h^2)``, ``alpha_3 = 1/(pi h^3)``.
 
-    Seed 2's eq. 2.9 writes the same spline in ``dbar = r/(alpha h)`` with
+    [2] eq. 2.9 writes the same spline in ``dbar = r/(alpha h)`` with
     scale factor ``alpha = 2`` (support ``dbar <= 1``):
     ``W(dbar) = 2/3 - 4 dbar^2 + 4 dbar^3`` (dbar <= 1/2),
     ``4/3 (1 - dbar)^3`` (1/2 <= dbar <= 1). With ``dbar = R/2`` this is
     ``2/3 - R^2 + R^3/2 = (2/3)(1 - 1.5R^2 + 0.75R^3)`` and
-    ``(4/3)(2-R)^3/8 = (2/3) 0.25 (2-R)^3``: the seed's profile is
+    ``(4/3)(2-R)^3/8 = (2/3) 0.25 (2-R)^3``: the profile of [2] is
     ``(2/3) w(R)``, identical after normalisation.
 
     Examples
@@ -542,10 +542,10 @@ class CubicSpline(Kernel):
 
 
 class Gaussian(Kernel):
-    """Gaussian ``w = exp(-R^2)`` truncated at ``R = kappa`` (seed 2, eq. 2.13).
+    """Gaussian ``w = exp(-R^2)`` truncated at ``R = kappa`` ([2] eq. 2.13).
 
     The normalisation is that of the truncated profile (the untruncated
-    ``1/(pi^(d/2) h^d)`` of the seed is off by about ``exp(-kappa^2)``).
+    ``1/(pi^(d/2) h^d)`` of [2] is off by about ``exp(-kappa^2)``).
     Closed forms of the truncated moments: ``sqrt(pi)/2 erf(k)`` (d=1),
     ``(1 - exp(-k^2))/2`` (d=2), ``sqrt(pi)/4 erf(k) - k exp(-k^2)/2`` (d=3).
     Note ``w`` jumps by ``exp(-kappa^2)`` (1.2e-4 for kappa = 3) at the cut.
@@ -553,7 +553,7 @@ class Gaussian(Kernel):
     Parameters
     ----------
     support : float, optional
-        Truncation radius kappa (default 3; the seed suggests up to ~5).
+        Truncation radius kappa (default 3; [2] suggests up to ~5).
 
     Examples
     --------
@@ -623,9 +623,9 @@ class WendlandC2(Kernel):
 
 
 class QuarticSpline(Kernel):
-    """Seed 2's "quadratic spline" (eq. 2.10), a quartic in ``q = R / kappa``.
+    """The "quadratic spline" of [2] (eq. 2.10), a quartic in ``q = R / kappa``.
 
-    ``w = 1 - 6q^2 + 8q^3 - 3q^4 = (1 - q)^3 (1 + 3q)`` for ``q < 1``. The seed
+    ``w = 1 - 6q^2 + 8q^3 - 3q^4 = (1 - q)^3 (1 + 3q)`` for ``q < 1``. [2]
     writes it in ``dbar = r/(alpha h)``; here ``kappa`` plays the role of the
     scale factor alpha (default 2). For kappa = 2: ``alpha_1 = 5/(8h)``,
     ``alpha_2 = 5/(4 pi h^2)``, ``alpha_3 = 105/(128 pi h^3)`` (general kappa:

@@ -4,7 +4,7 @@ A neighbourhood is stored CSR-style: the neighbours of particle ``i`` are
 ``indices[indptr[i]:indptr[i + 1]]``, sorted by distance, the particle itself
 first. ``j`` belongs to particle ``i``'s neighbourhood iff
 ``|p_i - p_j| < support * h_i`` and ``n_i . n_j > normal_threshold``
-(METHOD.md section 2.1).
+(docs/method.md section 2.1).
 """
 
 from __future__ import annotations
@@ -123,7 +123,7 @@ def smoothing_length_for_count(
 ):
     """Uniform ``h`` such that the mean number of particles inside ``support * h`` is ``target``.
 
-    The particle itself is counted (METHOD.md section 2.1).
+    The particle itself is counted (docs/method.md section 2.1).
 
     Parameters
     ----------

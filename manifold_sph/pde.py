@@ -1,4 +1,4 @@
-"""PDEs on point-cloud surfaces (METHOD.md section 6): heat, wave, Poisson, Helmholtz-Hodge.
+"""PDEs on point-cloud surfaces (docs/method.md section 6): heat, wave, Poisson, Helmholtz-Hodge.
 
 Every solver works with the surface's sparse Laplace-Beltrami matrix ``L``, so
 implicit steps and Poisson problems are sparse solves; one factorisation is
@@ -420,7 +420,7 @@ def heat(
         Diffusivity.
     method : {"implicit", "crank-nicolson", "explicit"}
         Backward Euler, Crank-Nicolson (one sparse LU reused for all steps) or the
-        seed's forward Euler.
+        forward Euler of [1] (docs/method.md section 6).
     fixed : array_like of int or bool mask, optional
         Particles held at ``fixed_values`` (default: their initial values), e.g. a
         heat source at the north pole.
@@ -578,8 +578,8 @@ def wave(
 ):
     """Wave equation ``u_tt = c^2 Lap_S u`` with the centred scheme.
 
-    ``u^{n+1} = 2 u^n - u^{n-1} + c^2 dt^2 L u^n`` (METHOD.md section 6; the seed's
-    eq. 3.20 as printed is not consistent), started with
+    ``u^{n+1} = 2 u^n - u^{n-1} + c^2 dt^2 L u^n`` (docs/method.md section 6; eq. 3.20
+    of [1] as printed is not consistent), started with
     ``u^1 = u^0 + dt v0 + c^2 dt^2 L u^0 / 2``. The scheme is explicit: a ``dt``
     above ``2 / (c sqrt(rho(L)))`` is refused with the limit in the message.
 

@@ -1,11 +1,11 @@
 """Matplotlib figures of accuracy studies (no display needed; no pyplot state).
 
 - :func:`convergence_plot`: errors against N or h in log-log, one line per
-  error and study, the fitted order in the legend (the source's convergence
-  figures).
+  error and study, the fitted order in the legend (the convergence figures
+  of the thesis [1], docs/method.md).
 - :func:`error_boxplot`: Tukey boxplots of pointwise errors, one box per scheme
-  (the source's Figures 14-34 and 41-49).
-- :func:`area_histogram`: histograms of the area elements ``dV`` (Fig. 40).
+  ([1] Figures 14-34 and 41-49).
+- :func:`area_histogram`: histograms of the area elements ``dV`` ([1] Fig. 40).
 - :func:`save_figure`: write a figure, refusing to overwrite unless asked.
 
 Every function returns a :class:`matplotlib.figure.Figure` (built without

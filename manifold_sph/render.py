@@ -13,7 +13,7 @@ given ``filename``; an existing file is never overwritten unless
 - :func:`animate`: a time series (snapshots of a PDE solver) to GIF (Pillow)
   or MP4 (``imageio`` with ``imageio-ffmpeg``), with an optional progress bar.
 - :data:`CAMERAS`: the fixed views ``"iso"``, ``"equator"`` and
-  ``"north_pole"`` (the source's views of the sphere).
+  ``"north_pole"`` (the views of the sphere in the thesis [1], docs/method.md).
 - :func:`detect_up_axis`: the up axis guessed from a cloud (``up="auto"``).
 - :func:`color_limits`: explicit or robust (percentile-clipped) colour limits.
 - :func:`rendering_available`: whether off-screen rendering works here.

@@ -3,19 +3,19 @@
 Every shape is a closed surface ``S = {x : phi(x) = 0}`` with ``phi < 0`` inside,
 so ``n = grad phi / |grad phi|`` is the OUTWARD unit normal. From ``grad phi`` and
 the Hessian of ``phi`` the shapes give, at any point, the exact references of
-METHOD.md section 5 for a smooth function ``f`` (or field ``F``) defined in R^3:
+docs/method.md section 5 for a smooth function ``f`` (or field ``F``) defined in R^3:
 
 * ``div n = (tr H - n^T H n) / |grad phi|`` (sum of principal curvatures),
 * ``grad_S f = grad f - (n . grad f) n``,
 * ``Lap_S f = Lap f - n^T (Hess f) n - (div n)(n . grad f)``,
 * ``div_S(P F) = tr(DF) - n^T DF n - (F . n)(div n)`` with ``P = I - n n^T``.
 
-Shapes: :class:`Sphere`, :class:`Torus` (seed 1, eq. 1.15), :class:`DoubleTorus`
-(the seed's "Bitoro", genus 2) and :class:`Sausage` (a bent capsule whose two
+Shapes: :class:`Sphere`, :class:`Torus` ([1] eq. 1.15), :class:`DoubleTorus`
+("Bitoro" in [1], genus 2) and :class:`Sausage` (a bent capsule whose two
 ends nearly touch). The functions :func:`sphere`, :func:`torus`,
 :func:`double_torus` and :func:`sausage` return sampled
 :class:`~manifold_sph.pointcloud.PointCloud` objects with exact normals;
-:func:`square` samples the planar domain of seed 1, chapter 2.
+:func:`square` samples the planar domain of [1], chapter 2.
 """
 
 from __future__ import annotations
@@ -132,7 +132,7 @@ class ImplicitShape:
 
     Subclasses implement ``_phi``, ``_grad`` and ``_hess`` on validated (N, 3)
     arrays; everything else (normals, curvature, projection, the reference
-    operators of METHOD.md section 5, sampling) is generic. The operators are
+    operators of docs/method.md section 5, sampling) is generic. The operators are
     evaluated with the normal of the level set of ``phi`` through ``x``, so they
     are the exact surface operators when ``x`` lies on the surface.
 
@@ -591,7 +591,7 @@ class Sphere(ImplicitShape):
 class Torus(ImplicitShape):
     """Ring torus about the z axis: tube radius ``r`` around a circle of radius ``R``.
 
-    Parametrisation (seed 1, eq. 1.15): ``((R + r cos t) cos p, (R + r cos t) sin p,
+    Parametrisation ([1] eq. 1.15): ``((R + r cos t) cos p, (R + r cos t) sin p,
     r sin t)``. ``phi = ((rho - R)^2 + z^2 - r^2) / (2 r)`` with ``rho`` the
     distance to the z axis. Area ``4 pi^2 R r``; principal curvatures ``1 / r``
     and ``cos t / (R + r cos t)``. Projection is the exact closest point.
@@ -711,7 +711,7 @@ class Torus(ImplicitShape):
 # double torus ("Bitoro")
 # ----------------------------------------------------------------------------
 class DoubleTorus(ImplicitShape):
-    """Genus-2 surface ``(x (x-1)^2 (x-2) + y^2)^2 + z^2 = c`` (the seed's "Bitoro").
+    """Genus-2 surface ``(x (x-1)^2 (x-2) + y^2)^2 + z^2 = c`` ("Bitoro" in [1]).
 
     With ``g(x, y) = x (x-1)^2 (x-2) + y^2`` the surface is a tube of half-height
     ``sqrt(c)`` around the figure-eight curve ``g = 0`` (lobes over x in [0, 1]
@@ -724,7 +724,7 @@ class DoubleTorus(ImplicitShape):
     half-width in the plane ranges from ``sqrt(c)/2 = 0.1`` (at the ends x ~ 0
     and x ~ 2, where ``|grad g| = 2``) upwards; ``|grad phi| >= 0.17`` on the
     surface (no pinch). The flattened ends carry the largest principal
-    curvature, about 22 (radius 0.046): at the seed's 3070 points with 27
+    curvature, about 22 (radius 0.046): at the 3070 points of [1] with 27
     neighbours (``rho_s = 0.135``) the kernel support spans about three
     curvature radii there. Smaller c makes that worse (c = 0.01: 41) and
     c -> 1/16 closes the holes; 0.04 is the compromise. The area (6.53091) is
@@ -836,12 +836,12 @@ class Sausage(ImplicitShape):
     ``theta0 = pi - 0.045``. Area 9.4837 (quadrature, :attr:`area`); the tips
     have radius of curvature ``tube_radius^2 power / (2 theta0 arc_radius)``
     = 0.161 and the largest principal curvature on the surface is about 6.8
-    (the seed's "region of high curvature"). The gap between the two ends,
+    (the "region of high curvature" of [1]). The gap between the two ends,
     :attr:`gap`, is 0.0896. For ``N = 2652`` points with 27 neighbours per
     support disc, ``rho_s = sqrt(27 area / (pi N)) = 0.1753``, so the gap is
     ``0.51 rho_s``: a plain radius search joins the ends, while the normals of
     the facing end caps point at each other (``n_i . n_j < 0``) so the normal
-    test of METHOD.md section 2 separates them. The "variable" sampling
+    test of docs/method.md section 2.1 separates them. The "variable" sampling
     coordinate is ``s = theta / theta0`` (one end against the other).
 
     Examples
@@ -1057,7 +1057,7 @@ def sphere(n, radius=1.0, center=(0.0, 0.0, 0.0), sampling="fibonacci", seed=0, 
 
 
 def torus(n, R=0.8, r=0.2, center=(0.0, 0.0, 0.0), sampling="poisson", seed=0, density_ratio=4.0) -> PointCloud:
-    """Sample a torus (seed 1: ``R = 0.8``, ``r = 0.2``, 4800 points).
+    """Sample a torus ([1]: ``R = 0.8``, ``r = 0.2``, 4800 points).
 
     Examples
     --------
@@ -1069,7 +1069,7 @@ def torus(n, R=0.8, r=0.2, center=(0.0, 0.0, 0.0), sampling="poisson", seed=0, d
 
 
 def double_torus(n, c=0.04, sampling="poisson", seed=0, density_ratio=4.0) -> PointCloud:
-    """Sample the genus-2 :class:`DoubleTorus` (seed 1's "Bitoro", 3070 points).
+    """Sample the genus-2 :class:`DoubleTorus` ("Bitoro" in [1], 3070 points).
 
     Examples
     --------
@@ -1090,7 +1090,7 @@ def sausage(
     seed=0,
     density_ratio=4.0,
 ) -> PointCloud:
-    """Sample the bent capsule :class:`Sausage` (seed 1: 2652 points).
+    """Sample the bent capsule :class:`Sausage` ([1]: 2652 points).
 
     Examples
     --------

@@ -1,4 +1,4 @@
-"""Differential operators on a point-cloud surface (METHOD.md sections 2-4)."""
+"""Differential operators on a point-cloud surface (docs/method.md sections 2-4)."""
 
 from __future__ import annotations
 
@@ -57,7 +57,7 @@ class Surface(OperatorSet):
         average; ``"adaptive"`` a per-particle ``h_i`` giving exactly ``neighbors``
         to every particle (variable density).
     area : {"numerical", "geometric", "shepard"}
-        Area elements (METHOD.md section 3). ``"geometric"`` needs ``total_area``
+        Area elements (docs/method.md section 3). ``"geometric"`` needs ``total_area``
         or a cloud with a known shape.
     normal_threshold : float
         Neighbours need ``n_i . n_j > normal_threshold``.

@@ -1,4 +1,4 @@
-"""Tangent frames (the seed's construction) and the projection to local coordinates."""
+"""Tangent frames (the construction of [1], docs/method.md section 2.2) and the projection to local coordinates."""
 
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""Tests of manifold_sph.functions: exact derivatives and the seed's sphere fields."""
+"""Tests of manifold_sph.functions: exact derivatives and the sphere fields of [1] (docs/method.md)."""
 
 import math
 
@@ -53,7 +53,7 @@ def test_closed_forms():
 
 
 # ----------------------------------------------------------------------------
-# sphere fields (seed 1, eqs. 1.14, 1.16, 3.13)
+# sphere fields ([1] eqs. 1.14, 1.16, 3.13)
 # ----------------------------------------------------------------------------
 def _uv(u, v):
     return np.stack([np.sin(u) * np.cos(v), np.sin(u) * np.sin(v), np.cos(u)], axis=-1)

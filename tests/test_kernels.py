@@ -79,7 +79,7 @@ def test_quintic_closed_forms_exact_values():
     h = 0.5
     assert k.alpha(1, h) == pytest.approx(1 / (120 * h), rel=1e-12)
     assert k.alpha(2, h) == pytest.approx(7 / (478 * math.pi * h**2), rel=1e-12)
-    # 3D: the exact moment int_0^3 R^2 w dR is 30 (METHOD.md's 3/(359 pi) is 0.28 % off).
+    # 3D: the exact moment int_0^3 R^2 w dR is 30 (the often quoted 3/(359 pi) is 0.28 % off, docs/method.md section 1).
     assert k.moment(3) == pytest.approx(30.0, rel=1e-12)
     assert k.alpha(3, h) == pytest.approx(1 / (120 * math.pi * h**3), rel=1e-12)
     assert abs(k.alpha(3) / (3 / (359 * math.pi)) - 1) > 2e-3
@@ -219,7 +219,7 @@ def test_quintic_matches_seed_formula_pieces():
 
 
 def test_cubic_equals_seed2_eq29_up_to_constant():
-    # Seed 2 eq. 2.9 in dbar = r / (2h): W = (2/3) w_M4(R).
+    # [2] eq. 2.9 in dbar = r / (2h): W = (2/3) w_M4(R).
     def seed(dbar):
         return np.where(dbar <= 0.5, 2 / 3 - 4 * dbar**2 + 4 * dbar**3,
                         np.where(dbar <= 1, 4 / 3 - 4 * dbar + 4 * dbar**2 - 4 / 3 * dbar**3, 0.0))

@@ -8,7 +8,7 @@ Independent checks:
 * double torus and sausage: a local height-function chart at the point (tangent
   frame, surface height solved from phi by Newton), where the metric is I with
   vanishing first derivatives, so Lap_S f = f_uu + f_vv and
-  div_S F = d_u(F.t1) + d_v(F.t2) (METHOD.md section 2), by finite differences.
+  div_S F = d_u(F.t1) + d_v(F.t2) (docs/method.md section 2.3), by finite differences.
 """
 
 import math

@@ -99,7 +99,7 @@ def test_pec_cavity_conserves_energy_and_fixed_particles_stay_zero():
 
 
 def test_line1d_matches_the_travelling_sine_within_one_percent():
-    r = run_line1d()  # the source's sizes: [0, pi], 1.8 GHz, dr = 1.66e-3, t = 4.75 ns
+    r = run_line1d()  # the sizes of [2]: [0, pi], 1.8 GHz, dr = 1.66e-3, t = 4.75 ns
     assert r["error"] <= 1e-2
     assert r["error"] <= 5e-3  # measured 3.1e-3
 
@@ -205,7 +205,7 @@ def test_yee_fdtd_reference_formula_matches_a_small_yee_solver_and_method_md():
         v, ppw_exact = _yee_fdtd_phase_velocity_measured(ppw)
         assert v == pytest.approx(yee_fdtd_phase_velocity(ppw_exact, courant=1 / math.sqrt(2)), abs=1e-9)
         assert v < 1.0
-    assert 9.0 <= ppw_for_phase_error(0.01, fdtd=True) <= 10.0  # METHOD.md: about 9-10 cells
+    assert 9.0 <= ppw_for_phase_error(0.01, fdtd=True) <= 10.0  # docs/method.md section 7: about 9-10 cells
 
 
 def test_particles_per_wavelength_for_one_percent_phase_error():
@@ -233,7 +233,7 @@ def test_pml_full_size():
 
 
 def test_source_truncated_line_excites_alternating_lines_on_the_staggered_layout_only():
-    # the source's set-up: the line source covers only the interior, its ends diffract
+    # the set-up of [2]: the line source covers only the interior, its ends diffract
     st = run_planewave(size=0.2, ppw=20, layout="staggered", source_span="interior")
     yee = run_planewave(size=0.2, ppw=20, layout="yee", source_span="interior")
     assert st["alternating_amplitude"] > 5 * yee["alternating_amplitude"]  # measured 3.5e-2 vs 4.1e-3
@@ -351,7 +351,7 @@ def test_materials_conductivity_damping_and_eps_mu_symmetry():
 
 
 def test_line1d_with_the_source_wide_kernel_needs_a_source_region():
-    single = run_line1d(h=3e-3)  # the source's h/dr = 1.81 with one driven particle
+    single = run_line1d(h=3e-3)  # the h/dr = 1.81 of [2] with one driven particle
     region = run_line1d(h=3e-3, source_width=6e-3)  # exact outgoing wave imposed within 2h
     assert single["error"] > 0.3  # measured 0.60: the lone particle radiates weakly
     assert region["error"] < 0.05  # measured 0.038, the wide kernel's dispersion (v/c = 0.998)

@@ -193,7 +193,7 @@ def test_isolated_point_gets_a_wider_support():
 
 @pytest.mark.parametrize("name", ["linear", "nonlinear", "trigonometric"])
 def test_seed_sphere_field_divergence_order_away_from_poles(name):
-    """The seed's coordinate-basis fields: second order where |z| < 0.9 (the basis is singular at the poles)."""
+    """The coordinate-basis fields of [1]: second order where |z| < 0.9 (the basis is singular at the poles)."""
     fld = functions.sphere_field(name)
     sizes, errs = [1002, 4032, 16032], []
     for n in sizes:

@@ -144,7 +144,7 @@ class Scheme:
     fallback: str | None = None
     #: Fewest particles in a neighbourhood (itself included) the scheme needs.
     min_neighbors: int = 2
-    #: Mean neighbour count used when the caller gives none (27: the seeds' choice for
+    #: Mean neighbour count used when the caller gives none (27: the choice of [1] and [2] for
     #: second-order schemes with the quintic spline).
     default_neighbors: int = 27
     #: Whether the weights depend on the area elements dV.

@@ -1,4 +1,4 @@
-"""CSPM, the corrective smoothed particle method (seed 1, 2.4.1; METHOD.md section 4).
+"""CSPM, the corrective smoothed particle method ([1] sec. 2.4.1; docs/method.md section 4).
 
 First derivatives from the 2x2 system ``M1 g = b1``,
 ``M1[a, c] = S[x_c W_a]``, ``b1[a] = S[(f_j - f_i) W_a]``; second derivatives

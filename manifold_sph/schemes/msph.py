@@ -1,4 +1,4 @@
-"""MSPH, the modified SPH (seed 1, 2.4.2; METHOD.md section 4).
+"""MSPH, the modified SPH ([1] sec. 2.4.2; docs/method.md section 4).
 
 One 6x6 system per particle: rows weighted by ``W, W_x, W_y, W_xx, W_xy, W_yy``,
 columns ``1, x, y, x^2/2, xy, y^2/2``, unknowns ``f, f_x, f_y, f_xx, f_xy, f_yy``,

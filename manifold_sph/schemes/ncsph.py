@@ -1,4 +1,4 @@
-"""NCSPH (seed 1, 2.4.3), with the final system the seed omits (METHOD.md section 4).
+"""NCSPH ([1] sec. 2.4.3), with the final system [1] omits (docs/method.md section 4).
 
 With ``f_i`` known, the second-order terms are kept in the first-derivative rows:
 ``M1 g + M2 H = b1``, ``N1 g + N2 H = b2``, i.e.
@@ -6,7 +6,7 @@ With ``f_i`` known, the second-order terms are kept in the first-derivative rows
 system for ``(g, H)`` directly (rows ``W_x, W_y, W_xx, W_xy, W_yy``, columns
 ``x, y, x^2/2, xy, y^2/2``): the Schur complement loses digits to cancellation
 near boundaries, the pivoted 5x5 solve does not. The Laplacian is
-``H_xx + H_yy`` from that solve; first derivatives are CSPM's, as the seed says.
+``H_xx + H_yy`` from that solve; first derivatives are CSPM's, as [1] says.
 Exact for quadratic polynomials (Laplacian) and linear ones (gradient).
 """
 

@@ -1,4 +1,4 @@
-"""Standard SPH (seed 1, 2.3): difference gradient and divergence, Taylor Laplacian.
+"""Standard SPH ([1] sec. 2.3; docs/method.md section 4): difference gradient and divergence, Taylor Laplacian.
 
 Not consistent on irregular clouds or near boundaries (its error does not vanish
 as ``h -> 0`` at fixed neighbour count), but it never fails: it is the last fallback.

@@ -1,12 +1,12 @@
-"""SPEM: smoothed-particle electromagnetics, time-domain Maxwell on particles (METHOD.md section 7).
+"""SPEM: smoothed-particle electromagnetics, time-domain Maxwell on particles (docs/method.md section 7).
 
 Modules: :mod:`.layouts` (E / H particle sets: staggered, Yee-style, jittered,
 Poisson, disk, line), :mod:`.operators` (cross-set CSPM derivative matrices,
 the SBP correction), :mod:`.solver` (leap-frog TMz and 1D solvers, CFL check,
 PEC, materials, split-field PML), :mod:`.pml`, :mod:`.sources` (sinusoid,
 Gaussian pulse, hard/soft point and line sources), :mod:`.dirichlet` (the
-Kronecker-delta system), :mod:`.cases` / :mod:`.cases2d` (the source's
-validation cases with exact references), :mod:`.analysis` (null modes and
+Kronecker-delta system), :mod:`.cases` / :mod:`.cases2d` (the
+validation cases of the thesis [2] with exact references), :mod:`.analysis` (null modes and
 dispersion), :mod:`.cli` (``manifold-sph spem CASE``).
 
 Examples

@@ -82,7 +82,7 @@ def null_mode_response(layout: str = "yee", *, h_ratio: float = DEFAULT_H_RATIO,
     ``+-1/dr``), response relative to ``1/dr``; ``dx_checkerboard``:
     ``H = (-1)^(row+col)``, response relative to ``2/dr`` (the two-point
     difference's). A value 0 means the pattern is invisible to the E update
-    (a null mode): the source's staggered layout has both, the Yee-style
+    (a null mode): the staggered layout of [2] has both, the Yee-style
     layout neither.
     """
     check_in("layout", layout, ("yee", "staggered"))

@@ -1,4 +1,4 @@
-"""The source's validation cases (seed 2, chapter 4) with exact references.
+"""The validation cases of the thesis [2] (chapter 4; docs/method.md section 7) with exact references.
 
 Every ``run_*`` function returns a JSON-ready dict with at least ``case``,
 ``particles``, ``steps``, ``seconds`` and ``error`` = mean |numerical -
@@ -86,13 +86,13 @@ def _fit_dt(t_end, dt_max):
 def run_line1d(*, freq: float = 1.8e9, length: float = math.pi, dr: float = 1.66e-3, h: float | None = None,
                t_end: float = 4.75e-9, kernel="cubic", form="fpm", courant: float = 0.9, frames: int = 0,
                source_width: float = 0.0, progress: bool = False) -> dict:
-    """1D line (seed 2 sec. 4.2): hard source ``sin(2 pi f t)`` at the centre of [0, L].
+    """1D line ([2] sec. 4.2): hard source ``sin(2 pi f t)`` at the centre of [0, L].
 
     Exact: ``Ex = sin(2 pi f (t - |z - zc|/c))`` where the wave has arrived
     (``|z - zc| < c t``), zero elsewhere. The error is evaluated on the E
     particles reached by the wave before any reflection (``c t`` must stay
     below the distance to the ends). ``h`` defaults to ``0.7 dr``; the
-    source's ``h = 3e-3`` (``h/dr = 1.81``) can be passed; with such wide
+    ``h = 3e-3`` of [2] (``h/dr = 1.81``) can be passed; with such wide
     kernels a single driven particle radiates poorly (most of its signal goes
     into non-propagating grid-scale modes) and ``source_width`` (e.g. the
     kernel support ``2 h``) imposes the exact outgoing wave on every E
@@ -134,7 +134,7 @@ def run_line1d(*, freq: float = 1.8e9, length: float = math.pi, dr: float = 1.66
 
 # ----------------------------------------------------------------------------- cavity
 def cavity_exact(r, t, r0: float = 0.1, eps_r: float = 10.0, n_terms: int = 200):
-    """Bessel series of the cavity (seed 2 eq. 4.5) for ``Ez(0) = 1 - r^2/r0^2``.
+    """Bessel series of the cavity ([2] eq. 4.5) for ``Ez(0) = 1 - r^2/r0^2``.
 
     ``Ez = 8 sum_n J0(b_n r/r0) / (b_n^3 J1(b_n)) cos(b_n t / (r0 sqrt(eps_r eps0 mu0)))``.
 
@@ -175,7 +175,7 @@ def run_cavity(*, r0: float = 0.1, eps_r: float = 10.0, n_radial: int = 40, peri
                layout: str = "yee", form: str = "fpm", kernel="cubic", h_ratio: float = DEFAULT_H_RATIO,
                courant: float = 0.9, coupling: str = "direct", spectrum_periods: float = 0.0, frames: int = 0,
                progress: bool = False) -> dict:
-    """Circular PEC cavity (seed 2 sec. 4.3), ``Ez(0) = 1 - r^2/r0^2``, compared with the Bessel series.
+    """Circular PEC cavity ([2] sec. 4.3), ``Ez(0) = 1 - r^2/r0^2``, compared with the Bessel series.
 
     ``dr = r0 / n_radial``. The error is taken over every E particle after
     ``periods`` periods of the fundamental mode. With ``spectrum_periods`` > 0

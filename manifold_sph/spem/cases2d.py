@@ -90,8 +90,8 @@ def adjacent_line_difference(points, field, dr, axis: int = 0, mask=None) -> flo
 
     Particles are grouped by ``round(coordinate / dr)`` along ``axis`` and by
     the other coordinate; returns ``max |f(line k+1) - f(line k)|`` at equal
-    other coordinate (0 for a field constant along ``axis``). The source's
-    free-space failure shows up as an O(1) value here (alternating lines).
+    other coordinate (0 for a field constant along ``axis``). The
+    free-space failure of [2] (docs/method.md section 7) shows up as an O(1) value here (alternating lines).
     """
     p = np.asarray(points)
     f = np.asarray(field)
@@ -108,7 +108,7 @@ def alternating_amplitude(points, field, dr, mask=None) -> float:
     """Largest grid-scale alternating component across x: ``max |f(i+1) - 2 f(i) + f(i-1)| / 4``.
 
     A smooth field gives ``O((k dr)^2)``; a pattern alternating from line to
-    line (the source's failure) gives its amplitude. Lattice layouts only.
+    line (the failure of [2]) gives its amplitude. Lattice layouts only.
     """
     p = np.asarray(points)
     f = np.asarray(field)
@@ -132,7 +132,7 @@ def run_planewave(*, size: float = 0.5, freq: float = 3.6e9, ppw: float = 40.0, 
                   layout: str = "yee", form: str = "fpm", kernel="cubic", h_ratio: float = DEFAULT_H_RATIO,
                   courant: float = 0.9, coupling: str = "direct", travel: float = 0.8, ramp: float = 2.0, seed=0,
                   source_span: str = "full", frames: int = 0, progress: bool = False) -> dict:
-    """Free-space plane wave in a ``size`` square with PML on all sides (seed 2 sec. 4.5).
+    """Free-space plane wave in a ``size`` square with PML on all sides ([2] sec. 4.5).
 
     A hard line source (a ramped sinusoid) on the band of E particles within
     dr/2 of ``y = dr`` (each set to the exact plane wave at its own ``y``, so
@@ -144,7 +144,7 @@ def run_planewave(*, size: float = 0.5, freq: float = 3.6e9, ppw: float = 40.0, 
     layer (the PEC walls behind them perturb the grazing wave, and no PML
     absorbs grazing incidence). ``adjacent_line_difference`` reports the
     largest difference between
-    neighbouring lines parallel to the propagation (the source's failure:
+    neighbouring lines parallel to the propagation (the failure of [2]:
     O(1) on the staggered layout), relative to the amplitude.
     """
     size = check_positive("size", size)
@@ -199,7 +199,7 @@ def run_waveguide(*, width: float = 0.5, length: float = 0.4, pml_thickness: flo
                   layout: str = "yee", form: str = "fpm", kernel="cubic", h_ratio: float = DEFAULT_H_RATIO,
                   courant: float = 0.9, coupling: str = "direct", ramp: float = 0.0, frames: int = 0,
                   progress: bool = False) -> dict:
-    """Parallel-plate waveguide (seed 2 sec. 4.4): PEC plates x = 0 and x = ``width``, TM1 source at y = 0.
+    """Parallel-plate waveguide ([2] sec. 4.4): PEC plates x = 0 and x = ``width``, TM1 source at y = 0.
 
     The E particles of the row y = 0 are driven with
     ``amplitude sin(pi x / width) sin(2 pi f t)``, ``f = f_ratio * f_c``,

@@ -1,17 +1,17 @@
-"""Kronecker-delta system for Dirichlet values (seed 2 sec. 3.1.5).
+"""Kronecker-delta system for Dirichlet values (the thesis [2] sec. 3.1.5; docs/method.md section 7).
 
 SPH shape functions lack the Kronecker-delta property: the field value at a
 particle is ``f_i = sum_j W_ij u_j dV_j`` (j over the particle's neighbours,
 itself included), not its nodal parameter ``u_i``. Imposing values ``f`` means
-solving ``K u = f`` with ``K_ij = W(x_j - x_i) dV_j`` - the seed's
-``(A - I) u + b = 0`` after dividing row i by ``-W_ii dV_i``. ``K`` is
+solving ``K u = f`` with ``K_ij = W(x_j - x_i) dV_j`` - the
+``(A - I) u + b = 0`` of [2] after dividing row i by ``-W_ii dV_i``. ``K`` is
 constant while the particles do not move, so it is LU-factorised once and the
 factors are reused at every step.
 
 :class:`~manifold_sph.spem.solver.TMzSolver` stores point values (its CSPM
 derivatives act on values), so Dirichlet values and hard sources are imposed
-directly; this class converts to and from the nodal parameters of the seed's
-formulation.
+directly; this class converts to and from the nodal parameters of the
+formulation of [2].
 
 Examples
 --------

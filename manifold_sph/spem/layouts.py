@@ -1,10 +1,10 @@
 """Particle layouts for SPEM: an E set (Ez) and H sets (Hx, Hy).
 
 ``staggered``
-    The source's layout (seed 2, fig. 3.1): Ez on the lattice ``(i, j) dr``,
+    The layout of the thesis [2] (fig. 3.1; docs/method.md section 7): Ez on the lattice ``(i, j) dr``,
     Hx and Hy *sharing* particles at the cell centres ``(i+1/2, j+1/2) dr``
     (the "B-grid"; its row-alternating and checkerboard null modes are why
-    the source's free-space plane wave failed, METHOD.md section 7).
+    the free-space plane wave of [2] failed, docs/method.md section 7).
 ``yee``
     Hx and Hy on separate sets offset by ``(0, 1/2)`` and ``(1/2, 0)``.
 ``jittered``
@@ -125,7 +125,7 @@ def _walls(points, bounds, dr):
 
 
 def staggered_layout(bounds, dr) -> Layout:
-    """The source's layout: Ez at ``(i, j) dr``, Hx and Hy shared at the cell centres.
+    """The layout of [2]: Ez at ``(i, j) dr``, Hx and Hy shared at the cell centres.
 
     Parameters
     ----------

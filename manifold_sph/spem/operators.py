@@ -1,4 +1,4 @@
-"""Cross-set CSPM derivative matrices (METHOD.md sections 4 and 7).
+"""Cross-set CSPM derivative matrices (docs/method.md sections 4 and 7).
 
 SPEM stores Ez on one particle set and Hx, Hy on other sets; the derivative
 of an H component is needed at the E particles and vice versa. The
@@ -12,7 +12,7 @@ Three forms of the per-particle system, with ``x = x_j - x_i``,
 
 ``"fpm"`` (default)
     The (d+1)x(d+1) system with rows weighted by ``W, W_1, .., W_d`` and
-    columns ``1, x_1, .., x_d``, unknowns ``(f_i, f_x, ...)`` (seed 2 eqs.
+    columns ``1, x_1, .., x_d``, unknowns ``(f_i, f_x, ...)`` ([2] eqs.
     2.30-2.35). It differentiates every linear field exactly on any layout,
     including truncated neighbourhoods at walls.
 ``"cspm"``
@@ -20,7 +20,7 @@ Three forms of the per-particle system, with ``x = x_j - x_i``,
     ``b[a] = S[(f_j - f~_i) W_a]`` and the centre value ``f~_i`` the
     Shepard interpolant ``S[f_j W] / S[W]``.
 ``"diagonal"``
-    The seed's scalar ratios (eqs. 3.6-3.9), the diagonal of the CSPM
+    The scalar ratios of [2] (eqs. 3.6-3.9), the diagonal of the CSPM
     system: ``f_a = S[(f_j - f~_i) W_a] / S[x_a W_a]``.
 
 On a symmetric neighbourhood all three coincide. Each is linear in the

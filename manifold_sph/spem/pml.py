@@ -1,4 +1,4 @@
-"""Berenger split-field PML profiles (seed 2 eqs. 3.17-3.26).
+"""Berenger split-field PML profiles (the thesis [2] eqs. 3.17-3.26; docs/method.md section 7).
 
 ``sigma(rho) = sigma_m (rho/delta)^n`` with ``rho`` the depth into a layer of
 thickness ``delta``; ``sigma_m = -ln(R0) (n+1) eps0 c / (2 delta)`` gives the
@@ -28,7 +28,7 @@ _SIDES = ("left", "right", "bottom", "top")
 
 
 def sigma_max(thickness: float, order: int = 3, reflection: float = 1e-6) -> float:
-    """``sigma_m = -ln(R0) (n + 1) eps0 c / (2 delta)`` (seed 2 eq. 3.26), in S/m."""
+    """``sigma_m = -ln(R0) (n + 1) eps0 c / (2 delta)`` ([2] eq. 3.26), in S/m."""
     thickness = check_positive("thickness", thickness)
     order = check_int("order", order, minimum=0)
     reflection = check_positive("reflection", reflection)

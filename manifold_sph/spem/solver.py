@@ -1,6 +1,6 @@
 """Leap-frog SPEM solvers: 2D TMz (Ez, Hx, Hy) and the 1D line (Ex, Hy).
 
-Ez lives at integer times ``n dt``, H at half times (METHOD.md section 7):
+Ez lives at integer times ``n dt``, H at half times (docs/method.md section 7):
 
     Ez^{n+1}     = ca Ez^n + cb (dHy/dx - dHx/dy)^{n+1/2}
     Hx^{n+3/2}   = da Hx^{n+1/2} - db dEz/dy^{n+1}
@@ -49,7 +49,7 @@ DEFAULT_H_RATIO = 0.7
 
 
 def cfl_number(dt: float, h_min: float) -> float:
-    """``S = sqrt(2) c dt / h_min`` (seed 2 eq. 3.16)."""
+    """``S = sqrt(2) c dt / h_min`` ([2] eq. 3.16)."""
     return math.sqrt(2.0) * C0 * dt / h_min
 
 
@@ -151,7 +151,7 @@ class _Leapfrog:
 
 
 class TMzSolver(_Leapfrog):
-    """SPEM for 2D TMz waves on an E set and H sets (seed 2, chapter 3).
+    """SPEM for 2D TMz waves on an E set and H sets (the thesis [2], chapter 3).
 
     Parameters
     ----------
@@ -163,10 +163,10 @@ class TMzSolver(_Leapfrog):
     h_ratio : float
         ``h / dr`` when ``h`` is not given (default 0.7 with the cubic kernel).
     kernel : str
-        Kernel name (default "cubic", the source's).
+        Kernel name (default "cubic", as in [2]).
     form : {"fpm", "cspm", "diagonal"}
         Derivative system (:func:`.operators.cross_gradient`); "diagonal"
-        reproduces the source's scalar ratios.
+        reproduces the scalar ratios of [2].
     eps_r, mu_r, sigma : float, array or callable
         Relative permittivity and conductivity (S/m) per E particle,
         relative permeability per H particle.
@@ -454,7 +454,7 @@ class TMzSolver(_Leapfrog):
 
 
 class Line1DSolver(_Leapfrog):
-    """SPEM on a line: Ex on E particles, Hy on H particles (seed 2 sec. 4.2).
+    """SPEM on a line: Ex on E particles, Hy on H particles ([2] sec. 4.2).
 
     ``dEx/dt = -(1/eps) dHy/dz``, ``dHy/dt = -(1/mu) dEx/dz``; the end E
     particles are held at zero (PEC) unless ``fixed_ends=False``.
