@@ -43,7 +43,7 @@ def main(argv=None) -> int:
     out = []
     for op, fig_no in (("gradient", 43), ("divergence", 45), ("laplacian", 47)):
         out.append(args.out / f"sphere_{op}_boxplot.png")
-        error_boxplot(errs[op], title=f"{op} on the sphere, N = {n} (cf. seed 1, Fig. {fig_no})",
+        error_boxplot(errs[op], title=f"{op} on the sphere, N = {n} (cf. de Jesus 2017, Fig. {fig_no})",
                       ylabel="pointwise absolute error", filename=out[-1], overwrite=args.overwrite)
     if can_render():
         from manifold_sph.render import render_comparison, render_field

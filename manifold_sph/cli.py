@@ -678,6 +678,7 @@ def _render_geometry(args, out, points, values, title, bar_title, cmap):
 def _cmd_curvature(args) -> int:
     from tqdm import tqdm
 
+    from .geometry import curvature_method
     from .io import read
 
     if args.method is not None and args.quantity != "mean":
@@ -690,9 +691,7 @@ def _cmd_curvature(args) -> int:
         s = _geometry_surface(args, cloud, bar)
         method = None
         if args.quantity == "mean":
-            method = args.method or "auto"
-            if method == "auto":
-                method = "laplacian" if s.normals_estimated else "normals"
+            method = curvature_method(s, args.method or "auto")
             values = s.mean_curvature(method)
         elif args.quantity == "gaussian":
             values = s.gaussian_curvature()

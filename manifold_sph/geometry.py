@@ -48,6 +48,7 @@ __all__ = [
     "heat_kernel_signature",
     "wave_kernel_signature",
     "CURVATURE_METHODS",
+    "curvature_method",
 ]
 
 CURVATURE_METHODS = ("auto", "normals", "laplacian")
@@ -79,7 +80,8 @@ def shape_operator(surface) -> np.ndarray:
     return cache["shape_operator"]
 
 
-def _curvature_method(surface, method: str) -> str:
+def curvature_method(surface, method: str = "auto") -> str:
+    """The method :func:`mean_curvature` uses for ``method``: ``"normals"`` or ``"laplacian"``."""
     check_in("method", method, CURVATURE_METHODS)
     if method == "auto":
         return "laplacian" if surface.normals_estimated else "normals"
@@ -107,7 +109,7 @@ def mean_curvature(surface, method: str = "auto") -> np.ndarray:
     True
     """
     _check_surface(surface)
-    if _curvature_method(surface, method) == "normals":
+    if curvature_method(surface, method) == "normals":
         W = shape_operator(surface)
         return 0.5 * (W[:, 0, 0] + W[:, 1, 1])
     key = ("mean_curvature", "laplacian")
