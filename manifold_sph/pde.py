@@ -638,9 +638,15 @@ def wave_energy(surface, u_prev, u_next, dt: float, c: float = 1.0, laplacian="a
     exactly conserved) or ``diag(dV)`` (strong form: ``E`` is conserved when ``M L``
     is symmetric, so its drift measures the non-symmetry of the SPH Laplacian).
     """
+    _check_surface(surface)
+    n = surface.n_points
+    u_prev = as_field("u_prev", u_prev, n)
+    u_next = as_field("u_next", u_next, n)
+    dt = check_positive("dt", dt)
+    c = check_positive("c", c)
     op = _operator(surface, laplacian)
     L, dV = op.L, op.m
-    vel = (np.asarray(u_next) - np.asarray(u_prev)) / dt
+    vel = (u_next - u_prev) / dt
     return float(0.5 * np.sum(dV * vel**2) - 0.5 * c**2 * np.dot(u_next * dV, L @ u_prev))
 
 
