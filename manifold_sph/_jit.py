@@ -67,12 +67,23 @@ __all__ = [
 
 
 def _from_env() -> bool:
-    raw = os.environ.get("MANIFOLD_SPH_JIT", "1").strip().lower()
-    if raw in ("", "1", "true", "yes", "on"):
+    """``MANIFOLD_SPH_JIT`` as a bool (default True). Another value than 0/1, true/false,
+    yes/no, on/off gives a ``RuntimeWarning`` and the default: importing never fails on it."""
+    raw = os.environ.get("MANIFOLD_SPH_JIT", "1")
+    text = raw.strip().lower()
+    if text in ("", "1", "true", "yes", "on"):
         return True
-    if raw in ("0", "false", "no", "off"):
+    if text in ("0", "false", "no", "off"):
         return False
-    raise ValueError(f"environment variable MANIFOLD_SPH_JIT must be 0 or 1 (or true/false, yes/no, on/off), got {raw!r}")
+    import warnings
+
+    warnings.warn(
+        f"environment variable MANIFOLD_SPH_JIT must be 0 or 1 (or true/false, yes/no, on/off), got {raw!r}; "
+        "using the default (1: compiled kernels on)",
+        RuntimeWarning,
+        stacklevel=2,
+    )
+    return True
 
 
 #: Whether the pipeline uses the compiled kernels (``MANIFOLD_SPH_JIT=0`` turns them off; so does

@@ -26,6 +26,7 @@ from __future__ import annotations
 import itertools
 import os
 import threading
+import warnings
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 
@@ -37,13 +38,38 @@ ENV_VAR = "MANIFOLD_SPH_NUM_THREADS"
 
 
 def _from_env() -> int | None:
+    """The thread count set by ``MANIFOLD_SPH_NUM_THREADS``, or None (every core).
+
+    A value that is not a positive integer (``0``, ``-3``, ``abc``, ``1.5``) gives a
+    ``RuntimeWarning`` naming it and the default; importing the package never fails
+    because of it.
+
+    Examples
+    --------
+    >>> import os, warnings
+    >>> os.environ[ENV_VAR] = "abc"
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     value = _from_env()
+    >>> value is None, "must be a positive integer" in str(caught[0].message)
+    (True, True)
+    >>> os.environ[ENV_VAR] = " 2 "; _from_env()
+    2
+    >>> del os.environ[ENV_VAR]
+    """
     raw = os.environ.get(ENV_VAR)
     if raw is None or raw.strip() == "":
         return None
-    try:
-        return check_int(ENV_VAR, int(raw), minimum=1)
-    except (TypeError, ValueError):
-        raise ValueError(f"environment variable {ENV_VAR} must be a positive integer, got {raw!r}") from None
+    text = raw.strip()
+    if text.isascii() and text.isdigit() and int(text) >= 1:
+        return int(text)
+    warnings.warn(
+        f"environment variable {ENV_VAR} must be a positive integer, got {raw!r}; "
+        f"using the default (every core, {os.cpu_count() or 1})",
+        RuntimeWarning,
+        stacklevel=2,
+    )
+    return None
 
 
 _NUM_THREADS: int | None = _from_env()
