@@ -7,6 +7,8 @@ argument, what it got and what was expected.
 from __future__ import annotations
 
 import numbers
+import os
+from pathlib import Path
 
 import numpy as np
 
@@ -18,6 +20,8 @@ __all__ = [
     "check_bool",
     "check_in",
     "check_int",
+    "check_real_array",
+    "check_output_path",
 ]
 
 
@@ -39,12 +43,85 @@ def check_finite(name: str, a: np.ndarray) -> np.ndarray:
     return a
 
 
+def check_real_array(name: str, a):
+    """Raise TypeError for complex data or a masked array with masked entries; return ``a``.
+
+    numpy would otherwise drop the imaginary part (with only a ``ComplexWarning``)
+    or the mask (silently) on the conversion to float64. A masked array without
+    masked entries is returned as its plain data.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> check_real_array("f", np.array([1 + 2j]))
+    Traceback (most recent call last):
+    ...
+    TypeError: f must be real, got complex data (dtype complex128); pass its .real or abs() explicitly
+    >>> check_real_array("f", np.ma.masked_invalid([1.0, np.nan]))
+    Traceback (most recent call last):
+    ...
+    TypeError: f is a masked array with 1 masked entry(ies); pass .filled(value) or .compressed() explicitly
+    """
+    if np.ma.isMaskedArray(a):
+        masked = int(np.ma.count_masked(a))
+        if masked:
+            raise TypeError(
+                f"{name} is a masked array with {masked} masked entry(ies); "
+                "pass .filled(value) or .compressed() explicitly"
+            )
+        a = np.ma.getdata(a)
+    if np.iscomplexobj(a) or (isinstance(a, (list, tuple)) and _has_complex(a)):
+        dtype = getattr(a, "dtype", "complex")
+        raise TypeError(f"{name} must be real, got complex data (dtype {dtype}); pass its .real or abs() explicitly")
+    return a
+
+
+def _has_complex(seq) -> bool:
+    """Whether a (nested) list or tuple holds a Python or numpy complex number."""
+    try:
+        return np.asarray(seq).dtype.kind == "c"
+    except (TypeError, ValueError):
+        return False
+
+
+def check_output_path(name: str, path, overwrite: bool, *, hint: str = "overwrite=True") -> Path:
+    """Check, before any work, that ``path`` can be written: the one overwrite guard.
+
+    Raises ``IsADirectoryError`` if ``path`` is an existing folder (no overwrite can
+    help), ``FileNotFoundError`` if its folder does not exist and ``FileExistsError``
+    if it exists and ``overwrite`` is false (the message suggests ``hint``).
+
+    Examples
+    --------
+    >>> import tempfile, os
+    >>> d = tempfile.mkdtemp()
+    >>> check_output_path("path", d, True)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    IsADirectoryError: path ... is a folder; give a file name inside it
+    >>> check_output_path("path", os.path.join(d, "no", "f.ply"), False)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    FileNotFoundError: path ...: the folder ... does not exist
+    """
+    p = Path(os.fspath(path))
+    if p.is_dir():
+        raise IsADirectoryError(f"{name} {str(p)!r} is a folder; give a file name inside it")
+    parent = p.parent
+    if not parent.is_dir():
+        raise FileNotFoundError(f"{name} {str(p)!r}: the folder {str(parent)!r} does not exist")
+    if (p.exists() or p.is_symlink()) and not overwrite:
+        raise FileExistsError(f"{name} {str(p)!r} exists; pass {hint} to replace it")
+    return p
+
+
 def as_points(name: str, a, dim: int | tuple[int, ...] = 3) -> np.ndarray:
     """Return ``a`` as a finite float64 array of shape (N, dim).
 
     ``dim`` may be a tuple of allowed widths.
     """
     dims = (dim,) if isinstance(dim, int) else tuple(dim)
+    a = check_real_array(name, a)
     try:
         arr = np.asarray(a, dtype=np.float64)
     except (TypeError, ValueError) as exc:
@@ -57,7 +134,12 @@ def as_points(name: str, a, dim: int | tuple[int, ...] = 3) -> np.ndarray:
 
 
 def as_field(name: str, a, n: int, width: int | None = None) -> np.ndarray:
-    """Return ``a`` as a finite float64 field of shape (n,) or (n, width)."""
+    """Return ``a`` as a finite float64 field of shape (n,) or (n, width).
+
+    Complex data and masked arrays with masked entries raise ``TypeError``
+    (:func:`check_real_array`).
+    """
+    a = check_real_array(name, a)
     try:
         arr = np.asarray(a, dtype=np.float64)
     except (TypeError, ValueError) as exc:
