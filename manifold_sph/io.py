@@ -307,8 +307,8 @@ def read(path, *, format: str | None = None, normals: str = "file", duplicates: 
     try:
         cloud = PointCloud(pts, nrm)
     except ValueError as exc:
-        hint = "; pass duplicates='merge' to merge exact repeats" if "distinct" in str(exc) else ""
-        raise ReadError(path, str(exc) + hint) from None
+        msg = str(exc).replace("merge duplicates first", "pass duplicates='merge' to merge exact repeats")
+        raise ReadError(path, msg) from None
     return (cloud, fields) if return_fields else cloud
 
 
@@ -398,8 +398,8 @@ def write(path, cloud, fields=None, *, format: str | None = None, binary: bool =
     'x,y,z,nx,ny,nz,u'
     """
     path = Path(path)
-    fmt = _format_of(path, format)
     check_output_path("path", path, overwrite)
+    fmt = _format_of(path, format)
     pts, nrm = _as_cloud_arrays(cloud)
     n = pts.shape[0]
     keep_shape = fmt in ("npz", "vtk")

@@ -1,0 +1,405 @@
+"""Hostile inputs to the file readers and writers (issue 19): nothing lost, nothing misread.
+
+One test per item, named after what it protects. Files written by open3d,
+trimesh, pyvista and laspy are read back, not only our own writer's.
+"""
+
+import os
+import subprocess
+import sys
+import warnings
+
+import numpy as np
+import pytest
+
+from manifold_sph import shapes
+from manifold_sph._validation import as_field, as_points
+from manifold_sph.io import ReadError, read, read_las_chunks, read_mesh, write
+
+
+@pytest.fixture(scope="module")
+def cloud():
+    return shapes.sphere(40)
+
+
+def _ascii_ply(points, extra_header="", extra_body=""):
+    head = (f"ply\nformat ascii 1.0\nelement vertex {len(points)}\nproperty double x\nproperty double y\n"
+            f"property double z\n{extra_header}end_header\n")
+    return head + "".join(f"{a!r} {b!r} {c!r}\n" for a, b, c in np.asarray(points).tolist()) + extra_body
+
+
+# ------------------------------------------------------------------ data loss
+def test_write_npy_never_appends_suffix(tmp_path, cloud):
+    precious = tmp_path / "data.bin.npy"
+    precious.write_text("precious")
+    write(tmp_path / "data.bin", cloud, format="npy")
+    assert precious.read_text() == "precious"
+    np.testing.assert_array_equal(read(tmp_path / "data.bin", format="npy").points, cloud.points)
+    write(tmp_path / "V.NPY", cloud)
+    write(tmp_path / "A.NPZ", cloud)
+    assert sorted(os.listdir(tmp_path)) == ["A.NPZ", "V.NPY", "data.bin", "data.bin.npy"]
+    np.testing.assert_array_equal(read(tmp_path / "V.NPY").points, cloud.points)
+    np.testing.assert_array_equal(read(tmp_path / "A.NPZ").points, cloud.points)
+
+
+def test_write_is_atomic_no_partial_file_on_failure(tmp_path, cloud, monkeypatch):
+    import manifold_sph.io_write as iow
+
+    def boom(fh, *args):
+        fh.write(b"ply\nhalf a file")
+        raise KeyboardInterrupt  # killed midway
+
+    monkeypatch.setattr(iow, "_write_ply", boom)
+    with pytest.raises(KeyboardInterrupt):
+        write(tmp_path / "c.ply", cloud)
+    assert os.listdir(tmp_path) == []  # neither the final name nor a temporary file
+
+
+def test_write_atomic_overwrite_keeps_old_file_until_complete(tmp_path, cloud, monkeypatch):
+    path = tmp_path / "c.ply"
+    write(path, cloud)
+    before = path.read_bytes()
+    import manifold_sph.io_write as iow
+
+    def boom(fh, *args):
+        raise RuntimeError("disk full")
+
+    monkeypatch.setattr(iow, "_write_ply", boom)
+    with pytest.raises(RuntimeError):
+        write(path, cloud.points, overwrite=True)
+    assert path.read_bytes() == before and os.listdir(tmp_path) == ["c.ply"]
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf])
+def test_write_refuses_non_finite_points(tmp_path, cloud, bad):
+    pts = cloud.points.copy()
+    pts[3, 1] = bad
+    with pytest.raises(ValueError, match=r"cloud must be finite.*index \(3, 1\)"):
+        write(tmp_path / "c.ply", pts)
+    assert not (tmp_path / "c.ply").exists()
+
+
+def test_write_refuses_empty_cloud(tmp_path):
+    with pytest.raises(ValueError, match="at least one point"):
+        write(tmp_path / "c.ply", np.zeros((0, 3)))
+
+
+def test_write_to_existing_folder_says_folder_not_overwrite(tmp_path, cloud):
+    (tmp_path / "out.ply").mkdir()
+    for overwrite in (False, True):
+        with pytest.raises(IsADirectoryError, match="is a folder") as info:
+            write(tmp_path / "out.ply", cloud, overwrite=overwrite)
+        assert "overwrite" not in str(info.value)
+    with pytest.raises(IsADirectoryError, match="is a folder"):
+        write(tmp_path, cloud)
+
+
+def test_write_into_missing_folder_names_it(tmp_path, cloud):
+    with pytest.raises(FileNotFoundError, match="does not exist"):
+        write(tmp_path / "nope" / "c.ply", cloud)
+
+
+# ------------------------------------------------------------------ silent misreads
+def test_ply_ascii_header_count_smaller_than_body(tmp_path, cloud):
+    text = _ascii_ply(cloud.points).replace("element vertex 40", "element vertex 35")
+    (tmp_path / "c.ply").write_text(text)
+    with pytest.raises(ReadError, match="5 more row.*header count is too small"):
+        read(tmp_path / "c.ply")
+
+
+def test_ply_binary_header_count_smaller_than_body(tmp_path, cloud):
+    write(tmp_path / "b.ply", cloud)
+    raw = (tmp_path / "b.ply").read_bytes().replace(b"element vertex 40", b"element vertex 35")
+    (tmp_path / "s.ply").write_bytes(raw)
+    with pytest.raises(ReadError, match="bytes more than the header's elements.*too small"):
+        read(tmp_path / "s.ply")
+
+
+def test_ply_binary_truncated(tmp_path, cloud):
+    write(tmp_path / "b.ply", cloud)
+    (tmp_path / "t.ply").write_bytes((tmp_path / "b.ply").read_bytes()[:-10])
+    with pytest.raises(ReadError, match="truncated in element 'vertex'"):
+        read(tmp_path / "t.ply")
+
+
+def test_ply_ascii_extra_value_on_a_row(tmp_path, cloud):
+    lines = _ascii_ply(cloud.points).splitlines()
+    lines[lines.index("end_header") + 4] += " 7"
+    (tmp_path / "c.ply").write_text("\n".join(lines) + "\n")
+    with pytest.raises(ReadError, match="row 3 of element 'vertex' holds 4 values, the header declares 3"):
+        read(tmp_path / "c.ply")
+
+
+@pytest.mark.parametrize("face, index", [("3 0 1 -1", "-1"), ("3 0 1 40", "40")])
+def test_ply_face_index_outside_vertices(tmp_path, cloud, face, index):
+    text = _ascii_ply(cloud.points, "element face 1\nproperty list uchar int vertex_indices\n", face + "\n")
+    (tmp_path / "m.ply").write_text(text)
+    with pytest.raises(ReadError, match=f"vertex index {index}, outside 0..39"):
+        read(tmp_path / "m.ply", normals="mesh")
+    with pytest.raises(ReadError, match=f"vertex index {index}"):
+        read_mesh(tmp_path / "m.ply")
+
+
+def test_ply_binary_face_index_past_vertex_count_is_read_error(tmp_path):
+    v = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]])
+    head = (b"ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+            b"property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n")
+    face = np.zeros(1, dtype=[("n", "u1"), ("v", "<i4", (3,))])
+    face["n"], face["v"] = 3, [0, 1, 7]
+    (tmp_path / "m.ply").write_bytes(head + v.astype("<f4").tobytes() + face.tobytes())
+    with pytest.raises(ReadError, match="vertex index 7, outside 0..2"):
+        read_mesh(tmp_path / "m.ply")
+
+
+def test_complex_points_and_fields_raise_type_error(tmp_path, cloud):
+    with pytest.raises(TypeError, match="cloud must be real"):
+        write(tmp_path / "c.ply", cloud.points + 1j)
+    with pytest.raises(TypeError, match="field 'u' must be real"):
+        write(tmp_path / "c.csv", cloud, fields={"u": np.ones(40) * 1j})
+    with pytest.raises(TypeError, match="points must be real"):
+        as_points("points", cloud.points.astype(complex))
+    with pytest.raises(TypeError, match="f must be real"):
+        as_field("f", [1j, 2.0], 2)
+    np.savez(tmp_path / "c.npz", points=cloud.points.astype(complex))
+    with pytest.raises(ReadError, match="complex"):
+        read(tmp_path / "c.npz")
+    assert not (tmp_path / "c.ply").exists() and not (tmp_path / "c.csv").exists()
+
+
+def test_masked_arrays_refused_not_unmasked(tmp_path, cloud):
+    masked = np.ma.masked_greater(cloud.points, 0.9)
+    with pytest.raises(TypeError, match=r"masked array with \d+ masked entry.*filled"):
+        write(tmp_path / "c.ply", masked)
+    with pytest.raises(TypeError, match="masked"):
+        as_field("f", np.ma.masked_invalid([1.0, np.nan]), 2)
+    # no masked entry: the data is used as is
+    assert as_points("p", np.ma.array(cloud.points)).shape == (40, 3)
+
+
+def test_obj_tab_separated_vertex_lines(tmp_path, cloud):
+    (tmp_path / "t.obj").write_text("".join(f"v\t{a!r}\t{b!r} {c!r}\n" for a, b, c in cloud.points.tolist()))
+    np.testing.assert_array_equal(read(tmp_path / "t.obj").points, cloud.points)
+
+
+def test_obj_duplicates_merge_with_report(tmp_path, cloud):
+    pts = np.vstack([cloud.points, cloud.points[:2]])
+    (tmp_path / "d.obj").write_text("".join(f"v {a!r} {b!r} {c!r}\n" for a, b, c in pts.tolist()))
+    with pytest.raises(ReadError, match="duplicates='merge'"):
+        read(tmp_path / "d.obj")
+    with pytest.warns(RuntimeWarning, match="merged 2 exact duplicate"):
+        back, fields = read(tmp_path / "d.obj", duplicates="merge", return_fields=True)
+    assert len(back) == 40 and fields["index"].tolist() == list(range(40))
+
+
+def test_obj_vertex_colours_kept(tmp_path, cloud):
+    rgb = np.abs(cloud.normals)
+    write(tmp_path / "c.obj", cloud, fields={"red": rgb[:, 0], "green": rgb[:, 1], "blue": rgb[:, 2]})
+    back, fields = read(tmp_path / "c.obj", return_fields=True)
+    np.testing.assert_array_equal(back.points, cloud.points)
+    np.testing.assert_array_equal(np.c_[fields["red"], fields["green"], fields["blue"]], rgb)
+
+
+def test_ply_and_pcd_colours_kept(tmp_path, cloud):
+    rgb = (np.abs(cloud.normals) * 255).round()
+    colours = {"red": rgb[:, 0], "green": rgb[:, 1], "blue": rgb[:, 2]}
+    for ext in ("ply", "pcd"):
+        write(tmp_path / f"c.{ext}", cloud, fields=colours)
+        _, fields = read(tmp_path / f"c.{ext}", return_fields=True)
+        np.testing.assert_array_equal(fields["green"], rgb[:, 1])
+    # a PCD with a packed float 'rgb' field (PCL's layout) comes back as red, green, blue
+    packed = (np.uint32(200) << 16 | np.uint32(10) << 8 | np.uint32(20)) * np.ones(40, dtype=np.uint32)
+    rec = np.zeros(40, dtype=[("x", "<f8"), ("y", "<f8"), ("z", "<f8"), ("rgb", "<f4")])
+    rec["x"], rec["y"], rec["z"] = cloud.points.T
+    rec["rgb"] = packed.view("<f4")
+    head = ("FIELDS x y z rgb\nSIZE 8 8 8 4\nTYPE F F F F\nCOUNT 1 1 1 1\nWIDTH 40\nHEIGHT 1\nPOINTS 40\n"
+            "DATA binary\n").encode()
+    (tmp_path / "p.pcd").write_bytes(head + rec.tobytes())
+    _, fields = read(tmp_path / "p.pcd", return_fields=True)
+    assert fields["red"][0] == 200 and fields["green"][0] == 10 and fields["blue"][0] == 20 and "rgb" not in fields
+
+
+def test_zip_gets_unpack_message(tmp_path):
+    (tmp_path / "scan.zip").write_bytes(b"PK\x03\x04")
+    with pytest.raises(ValueError, match="archive.*unpack it") as info:
+        read(tmp_path / "scan.zip")
+    assert "format=" not in str(info.value)
+
+
+# ------------------------------------------------------------------ crashes and blow-ups
+def test_pcd_huge_count_checked_before_allocation(tmp_path):
+    head = b"FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1000000000\nWIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA ascii\n"
+    (tmp_path / "c.pcd").write_bytes(head + b"1 2 3\n")
+    with pytest.raises(ReadError, match="cannot fit"):
+        read(tmp_path / "c.pcd")
+    head = b"FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 100000000000\nHEIGHT 1\nPOINTS 100000000000\nDATA binary\n"
+    (tmp_path / "b.pcd").write_bytes(head + bytes(120))
+    with pytest.raises(ReadError, match="truncated"):
+        read(tmp_path / "b.pcd")
+
+
+def test_pcd_header_count_smaller_than_body(tmp_path, cloud):
+    write(tmp_path / "a.pcd", cloud, binary=False)
+    text = (tmp_path / "a.pcd").read_text().replace("WIDTH 40", "WIDTH 30").replace("POINTS 40", "POINTS 30")
+    (tmp_path / "s.pcd").write_text(text)
+    with pytest.raises(ReadError, match="40 rows, the header promises POINTS 30"):
+        read(tmp_path / "s.pcd")
+
+
+def test_empty_npy_is_read_error_not_eof(tmp_path):
+    (tmp_path / "e.npy").write_bytes(b"")
+    with pytest.raises(ReadError, match="empty or cut short"):
+        read(tmp_path / "e.npy")
+
+
+def test_bad_thread_and_jit_environment_warn_not_fail(monkeypatch):
+    from manifold_sph import _jit, threads
+
+    for value in ("0", "abc", "-3", "1.5"):
+        monkeypatch.setenv("MANIFOLD_SPH_NUM_THREADS", value)
+        with pytest.warns(RuntimeWarning, match=f"positive integer, got {value!r}; using the default"):
+            assert threads._from_env() is None
+    monkeypatch.setenv("MANIFOLD_SPH_JIT", "maybe")
+    with pytest.warns(RuntimeWarning, match="MANIFOLD_SPH_JIT must be 0 or 1.*using the default"):
+        assert _jit._from_env() is True
+    # and the import itself, in a fresh process, does not fail
+    env = {**os.environ, "MANIFOLD_SPH_NUM_THREADS": "abc", "MANIFOLD_SPH_JIT": "maybe"}
+    out = subprocess.run([sys.executable, "-c", "import manifold_sph"], env=env, capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert "MANIFOLD_SPH_NUM_THREADS" in out.stderr and "MANIFOLD_SPH_JIT" in out.stderr
+
+
+# ------------------------------------------------------------------ unclear messages
+def test_ply_with_zero_vertices_says_no_points(tmp_path):
+    (tmp_path / "z.ply").write_text(_ascii_ply(np.zeros((0, 3))))
+    with pytest.raises(ReadError, match="no points.*element vertex 0"):
+        read(tmp_path / "z.ply")
+
+
+def test_csv_with_utf8_bom(tmp_path, cloud):
+    text = "x,y,z\n" + "".join(f"{a!r},{b!r},{c!r}\n" for a, b, c in cloud.points.tolist())
+    (tmp_path / "b.csv").write_text(text, encoding="utf-8-sig")
+    np.testing.assert_array_equal(read(tmp_path / "b.csv").points, cloud.points)
+
+
+def test_wave_energy_and_poisson_tolerance_checked():
+    from manifold_sph import Surface, pde
+
+    s = Surface(shapes.sphere(200))
+    u = np.ones(200)
+    with pytest.raises(ValueError, match=r"u_next must have shape \(200,\)"):
+        pde.wave_energy(s, u, u[:-1], 0.1)
+    with pytest.raises(ValueError, match="dt must be a finite positive number, got 0"):
+        pde.wave_energy(s, u, u, 0.0)
+    with pytest.raises(ValueError, match="tol must be a finite positive number, got nan"):
+        pde.poisson(s, np.zeros(200), tol=float("nan"))
+
+
+# ------------------------------------------------------------------ LAS / LAZ
+@pytest.mark.parametrize("ext", ["las", "laz"])
+def test_las_round_trip_keeps_intensity_classification_colour(tmp_path, cloud, ext):
+    fields = {"intensity": np.arange(40), "classification": np.full(40, 2), "red": np.arange(40) * 1000,
+              "green": np.zeros(40), "blue": np.full(40, 65535), "u": np.linspace(0, 1, 40)}
+    write(tmp_path / f"c.{ext}", cloud, fields=fields)
+    back, f = read(tmp_path / f"c.{ext}", return_fields=True)
+    np.testing.assert_allclose(back.points, cloud.points, atol=2e-9)  # 32-bit integer coordinates
+    np.testing.assert_allclose(back.normals, cloud.normals, atol=1e-15)  # float64 extra bytes
+    for k, v in fields.items():
+        np.testing.assert_array_equal(f[k], v)
+    chunks = list(read_las_chunks(tmp_path / f"c.{ext}", chunk_size=15))
+    assert [len(p) for p, _ in chunks] == [15, 15, 10]
+    np.testing.assert_array_equal(np.concatenate([c["intensity"] for _, c in chunks]), np.arange(40))
+
+
+def test_las_written_by_laspy(tmp_path, cloud):
+    laspy = pytest.importorskip("laspy")
+    header = laspy.LasHeader(point_format=3, version="1.2")
+    header.scales, header.offsets = [1e-3] * 3, [0, 0, 0]
+    las = laspy.LasData(header)
+    pts = np.round(cloud.points * 100, 3)
+    las.x, las.y, las.z = pts.T
+    las.intensity = np.arange(40)
+    las.classification = np.full(40, 6)
+    las.red, las.green, las.blue = np.arange(40) * 300, np.full(40, 5), np.full(40, 7)
+    for ext in ("las", "laz"):
+        las.write(str(tmp_path / f"l.{ext}"))
+        back, f = read(tmp_path / f"l.{ext}", return_fields=True)
+        np.testing.assert_allclose(back.points, pts, atol=1e-9)
+        assert f["intensity"].tolist() == list(range(40)) and set(f["classification"]) == {6}
+        assert f["red"][3] == 900 and f["blue"][0] == 7
+
+
+def test_las_field_out_of_range_refused(tmp_path, cloud):
+    with pytest.raises(ValueError, match=r"'intensity'.*integers in \[0, 65535\]"):
+        write(tmp_path / "c.las", cloud, fields={"intensity": np.full(40, -1.0)})
+    assert not (tmp_path / "c.las").exists()
+
+
+# ------------------------------------------------------------------ files written by the libraries
+def test_files_written_by_open3d(tmp_path):
+    o3d = pytest.importorskip("open3d")
+    c = shapes.sphere(60)
+    P, N = c.points.copy(), c.normals.copy()
+    legacy = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(P))
+    legacy.normals = o3d.utility.Vector3dVector(N)
+    legacy.colors = o3d.utility.Vector3dVector(np.abs(N))
+    tensor = o3d.t.geometry.PointCloud()
+    tensor.point.positions, tensor.point.normals = o3d.core.Tensor(P), o3d.core.Tensor(N)
+    tensor.point.intensity = o3d.core.Tensor(np.arange(60.0)[:, None])
+    cases = [("l_ascii.ply", legacy, dict(write_ascii=True), 1e-6), ("l_bin.ply", legacy, {}, 0),
+             ("l_bin.pcd", legacy, {}, 1e-7), ("l_comp.pcd", legacy, dict(compressed=True), 1e-7),
+             ("t_bin.ply", tensor, {}, 0), ("t_ascii.pcd", tensor, dict(write_ascii=True), 1e-10),
+             ("t_comp.pcd", tensor, dict(compressed=True), 0)]
+    for name, pc, kw, tol in cases:
+        writer = o3d.io.write_point_cloud if pc is legacy else o3d.t.io.write_point_cloud
+        writer(str(tmp_path / name), pc, **kw)
+        back, fields = read(tmp_path / name, return_fields=True)
+        np.testing.assert_allclose(back.points, P, atol=tol, err_msg=name)
+        np.testing.assert_allclose(back.normals, N, atol=tol + 1e-15, err_msg=name)
+        if pc is legacy:
+            assert {"red", "green", "blue"} <= set(fields), name
+        else:
+            np.testing.assert_array_equal(fields["intensity"], np.arange(60.0), err_msg=name)
+
+
+def test_meshes_written_by_trimesh(tmp_path):
+    trimesh = pytest.importorskip("trimesh")
+    ico = trimesh.creation.icosphere(subdivisions=2)
+    ico.visual.vertex_colors = (np.abs(ico.vertex_normals) * 255).astype(np.uint8)
+    for name, kw in (("b.ply", {}), ("a.ply", dict(encoding="ascii")), ("m.obj", {})):
+        ico.export(str(tmp_path / name), **kw)
+        v, f = read_mesh(tmp_path / name)
+        np.testing.assert_allclose(v, ico.vertices, atol=1e-7, err_msg=name)
+        np.testing.assert_array_equal(f, ico.faces, err_msg=name)
+        back, fields = read(tmp_path / name, normals="mesh", return_fields=True)
+        assert np.einsum("ij,ij->i", back.normals, back.points).min() > 0.99
+        assert {"red", "green", "blue"} <= set(fields), name
+
+
+def test_files_written_by_pyvista(tmp_path):
+    pv = pytest.importorskip("pyvista")
+    c = shapes.sphere(60)
+    m = pv.PolyData(c.points.copy())
+    m.point_data["Normals"] = c.normals
+    m.point_data["u"] = c.points[:, 2]
+    for ext in ("vtk", "vtp"):
+        m.save(str(tmp_path / f"c.{ext}"))
+        back, fields = read(tmp_path / f"c.{ext}", return_fields=True)
+        np.testing.assert_array_equal(back.points, c.points)
+        np.testing.assert_array_equal(fields["u"], c.points[:, 2])
+    sphere = pv.Sphere(theta_resolution=12, phi_resolution=12)
+    for binary in (True, False):
+        name = f"s{int(binary)}.ply"
+        sphere.save(str(tmp_path / name), binary=binary)
+        v, f = read_mesh(tmp_path / name)
+        np.testing.assert_allclose(v, sphere.points, atol=1e-7)
+        assert len(f) == sphere.n_cells
+        assert len(read(tmp_path / name, normals="mesh")) == sphere.n_points
+
+
+def test_no_python_warnings_from_clean_reads(tmp_path, cloud):
+    for ext in ("ply", "pcd", "csv", "obj", "npz", "las"):
+        write(tmp_path / f"c.{ext}", cloud)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            read(tmp_path / f"c.{ext}")
