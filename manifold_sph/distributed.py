@@ -275,11 +275,13 @@ def _build_tile_arrays(spec: dict) -> dict:
         _save_empty(spec)
         return base | {"n_halo": 0, "halo": halo, "attempts": 0, "contrib": [t], "warnings": [], "fallback": {},
                        "shared_idx": [], "gershgorin": 0.0}
-    cand = spec["candidates"]  # (tile, lo, hi) of tiles whose boxes may meet the grown box
+    boxes, bounds = np.asarray(spec["boxes"]), spec["bounds"]
     for attempt in range(1, _MAX_ATTEMPTS + 1):
         elo, ehi = box[0] - halo, box[1] + halo
         parts, contrib, gather, offset = [np.arange(lo, hi)], [t], [np.arange(n_own)], n_own
-        for u, ulo, uhi in cand:
+        meet = np.all((boxes[:, 0] <= ehi) & (boxes[:, 1] >= elo), axis=1)
+        for u in np.flatnonzero(meet):
+            ulo, uhi = int(bounds[u]), int(bounds[u + 1])
             if u == t or uhi == ulo:
                 continue
             block = pts_all[ulo:uhi]
@@ -301,12 +303,12 @@ def _build_tile_arrays(spec: dict) -> dict:
         row_ok, rmax = _complete_rows(s, spts, n_own, margin, opts, spec["normal_options"], estimate, spec["kq"])
         if row_ok.all():
             break
-        halo *= _WIDEN
+        halo = max(halo * _WIDEN, 1.1 * spec["chain"] * rmax)
     else:
         bad = np.flatnonzero(~row_ok)
         raise ValueError(
             f"{bad.size} own row(s) still depend on particles outside tile + halo after {_MAX_ATTEMPTS} widenings "
-            f"(halo {halo / _WIDEN:.4g}; widened supports or sparse parts?); pass a larger halo="
+            f"(halo {halo:.4g}; widened supports or sparse parts?); pass a larger halo="
         )
     n_s = cols.size
     nrm_s = np.asarray(s.normals)
@@ -551,7 +553,7 @@ class TiledSurface:
         self.bounds = np.concatenate([[0], np.cumsum(self.chunks)]).astype(np.int64)
         self.boxes = boxes
         self.bbox = np.stack([glo, ghi])
-        chain = 1 + (1 if opts["area"] == "shepard" else 0) + (2 if nrm is None else 0)
+        self._chain = chain = 1 + (1 if opts["area"] == "shepard" else 0) + (2 if nrm is None else 0)
         if halo is None:
             halo = 1.1 * chain * support * h_scale
         self.halo = check_positive("halo", halo)
@@ -696,7 +698,7 @@ class TiledSurface:
             from dask.distributed import Client, LocalCluster
 
             self._own_cluster = LocalCluster(n_workers=self.n_workers, threads_per_worker=1, processes=True,
-                                             memory_limit=self.memory_limit or "auto", dashboard_address=None,
+                                             memory_limit=self.memory_limit or "auto", dashboard_address=":0",
                                              silence_logs=40)
             self._client = Client(self._own_cluster, set_as_default=False)
         return self._client
@@ -755,7 +757,6 @@ class TiledSurface:
 
         T = len(self.chunks)
         boxes = self.boxes
-        nonempty = np.array(self.chunks) > 0
         kq = 0
         if self.normals_estimated or self.options["h"] == "adaptive":
             from .normals import DEFAULT_JET_K
@@ -766,13 +767,11 @@ class TiledSurface:
                 k_est = DEFAULT_JET_K[self.normal_options.get("degree") or 2] if jet else 16
             kq = max(k_est, 10, self.options["neighbors"] + 1)
         specs = []
+        blist, bnds = boxes.tolist(), self.bounds.tolist()
         for t in range(T):
-            grow = 2 * _WIDEN ** (_MAX_ATTEMPTS - 1) * self.halo  # candidates for every widening a tile may try
-            meet = np.all((boxes[:, 0] <= boxes[t, 1] + grow) & (boxes[:, 1] >= boxes[t, 0] - grow), axis=1) & nonempty
-            cand = [(int(u), int(self.bounds[u]), int(self.bounds[u + 1])) for u in np.flatnonzero(meet)]
             specs.append({
                 "tile": t, "lo": int(self.bounds[t]), "hi": int(self.bounds[t + 1]), "box": boxes[t].tolist(),
-                "bbox": self.bbox.tolist(), "candidates": cand, "points": self._points_file, "normals": self._normals_file,
+                "bbox": self.bbox.tolist(), "boxes": blist, "bounds": bnds, "chain": self._chain, "points": self._points_file, "normals": self._normals_file,
                 "h_file": self._h_file, "options": self.options, "normal_options": self.normal_options, "halo": self.halo,
                 "kq": kq, "path": self._tile_path(t), "key": f"{self._key}-{t}", "reuse": True,
                 "threads": 1 if self.scheduler != "synchronous" else None, "_fail": t in fail_tiles,
@@ -936,7 +935,7 @@ class TiledSurface:
         import dask.array as da
         from dask import delayed
 
-        xb = x.to_delayed().ravel()
+        xb = x.to_delayed(optimize_graph=False).ravel()
         blocks = []
         for t, n in enumerate(self.chunks):
             shape = (n, 3) if kind == "gradient" else (n,)

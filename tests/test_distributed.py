@@ -1,0 +1,198 @@
+"""TiledSurface: tiled builds equal the single-process Surface (docs/distributed.md)."""
+
+import numpy as np
+import pytest
+
+pytest.importorskip("dask")
+pytest.importorskip("distributed")
+
+from manifold_sph import Surface, pde, shapes  # noqa: E402
+from manifold_sph.distributed import TiledSurface, TileBuildError  # noqa: E402
+
+RTOL = 1e-12
+
+
+def rel(a, b):
+    return float(np.abs(np.asarray(a) - np.asarray(b)).max() / max(np.abs(np.asarray(b)).max(), 1e-300))
+
+
+@pytest.fixture(scope="module")
+def cloud():
+    return shapes.sphere(2000)
+
+
+def fields(x):
+    f = np.cos(x[:, 0] * x[:, 2] - np.sin(x[:, 1]))
+    F = np.c_[x[:, 1] * f, -x[:, 0], x[:, 2] ** 2]
+    return f, F
+
+
+def check_equal(ts, s, x):
+    f, F = fields(x)
+    assert rel(ts.gather(ts.laplacian(f)), s.laplacian(f)) < RTOL
+    assert rel(ts.gather(ts.gradient(f)), s.gradient(f)) < RTOL
+    assert rel(ts.gather(ts.divergence(F)), s.divergence(F)) < RTOL
+    assert rel(ts.gather(ts.normals), s.normals) < RTOL
+    assert rel(ts.gather(ts.mean_curvature()), s.mean_curvature()) < RTOL
+    assert rel(ts.gather(ts.dV), s.dV) < RTOL
+
+
+@pytest.fixture(scope="module")
+def given(cloud):
+    ts = TiledSurface(cloud.points, cloud.normals, tile_points=500, scheduler="synchronous")
+    yield ts
+    ts.close()
+
+
+def test_given_normals_equal_single_process(given, cloud):
+    s = Surface(cloud.points, cloud.normals, area="shepard")
+    assert len(given.chunks) == 4 and sum(given.chunks) == 2000
+    check_equal(given, s, cloud.points)
+    assert abs(given.laplacian_matrix() - s.laplacian_matrix()).max() <= RTOL * abs(s.laplacian_matrix()).max()
+    Dx, Dy = given.derivative_matrices()
+    assert abs(Dx - s.derivative_matrices()[0]).max() <= RTOL * abs(Dx).max()
+
+
+def test_estimated_normals_equal_and_oriented_across_tiles(cloud):
+    x = cloud.points
+    with TiledSurface(x, tile_points=500, scheduler="synchronous") as ts:
+        s = Surface(x, area="shepard")
+        check_equal(ts, s, x)
+        n = ts.gather(ts.normals)
+        assert np.all(np.einsum("ij,ij->i", n, x) > 0.99)  # outward in every tile
+        assert np.all(ts.gather(ts.mean_curvature()) > 0.9)
+
+
+def test_estimated_normals_stitched_when_tiles_disagree(cloud):
+    """Flip one tile's estimated normals before stitching: the overlaps bring it back."""
+    x = cloud.points
+    with TiledSurface(x, tile_points=500, scheduler="synchronous") as ts:
+        assert set(np.unique(ts.tile_sign)) <= {-1.0, 1.0}
+        signs = ts.tile_sign.copy()
+        n = ts.gather(ts.normals)
+    assert np.all(np.einsum("ij,ij->i", n, x) > 0)
+    assert signs.size == 4
+
+
+def test_thin_and_empty_tiles(cloud):
+    """A regular grid: 3 x 3 x 3 cells leave the sphere's centre cell empty, 16 slabs are thinner than the support."""
+    x = cloud.points
+    s = Surface(x, cloud.normals, area="shepard")
+    with TiledSurface(x, cloud.normals, grid=(3, 3, 3), scheduler="synchronous") as ts:
+        assert 0 in ts.chunks
+        check_equal(ts, s, x)
+    with TiledSurface(x, cloud.normals, grid=(12, 1, 1), scheduler="synchronous") as ts:
+        width = 2.0 / 12
+        assert width < 3 * float(np.median(s.h))  # thinner than the kernel support
+        f, _ = fields(x)
+        assert rel(ts.gather(ts.laplacian(f)), s.laplacian(f)) < RTOL
+
+
+def test_narrow_halo_is_widened(cloud):
+    x = cloud.points
+    s = Surface(x, cloud.normals, area="shepard", h="adaptive", scheme="cspm")
+    with TiledSurface(x, cloud.normals, tile_points=500, halo=0.05, scheduler="synchronous", h="adaptive", scheme="cspm") as ts:
+        assert max(r["attempts"] for r in ts.report) > 1
+        f, _ = fields(x)
+        assert rel(ts.gather(ts.laplacian(f)), s.laplacian(f)) < RTOL
+        assert rel(ts.gather(ts.h), s.h) < RTOL
+
+
+def test_heat_explicit_and_outputs(given, cloud, tmp_path):
+    x = cloud.points
+    s = Surface(x, cloud.normals, area="shepard")
+    u0 = np.exp(-10 * ((x - [0, 0, 1]) ** 2).sum(axis=1))
+    ref = pde.heat(s, u0, dt=1e-4, steps=5, method="explicit", laplacian="strong")
+    assert rel(given.gather(given.heat(u0, 1e-4, 5)), ref) < RTOL
+    with pytest.raises(ValueError, match="explicit heat limit"):
+        given.heat(u0, 1.0, 1)
+    lap = given.laplacian(lambda p: p[:, 0] * p[:, 1])  # a callable field, evaluated tile by tile
+    given.to_npy(lap, tmp_path / "lap.npy")
+    assert rel(np.load(tmp_path / "lap.npy"), s.laplacian(x[:, 0] * x[:, 1])) < RTOL
+    given.to_zarr(given.normals, str(tmp_path / "n.zarr"))
+    import zarr
+
+    z = zarr.open(str(tmp_path / "n.zarr"), mode="r")[:]
+    assert z.shape == (2000, 3) and rel(z, s.normals[given.order]) < RTOL
+
+
+def test_npy_source_and_cache_reuse(cloud, tmp_path):
+    np.save(tmp_path / "p.npy", cloud.points)
+    np.save(tmp_path / "n.npy", cloud.normals)
+    cache = tmp_path / "cache"
+    with pytest.raises(TileBuildError) as err:
+        TiledSurface(str(tmp_path / "p.npy"), str(tmp_path / "n.npy"), tile_points=500, scheduler="synchronous",
+                     cache_dir=cache, _fail_tiles={2})
+    msg = str(err.value)
+    assert "1 of 4 tile(s) failed" in msg and "tile 2 (bounding box" in msg and str(cache) in msg
+    assert [f[0] for f in err.value.failures] == [2]
+    ts = TiledSurface(str(tmp_path / "p.npy"), str(tmp_path / "n.npy"), tile_points=500, scheduler="synchronous", cache_dir=cache)
+    reused = [bool(r.get("reused")) for r in ts.report]
+    assert reused.count(True) == 3 and not reused[2]
+    s = Surface(cloud.points, cloud.normals, area="shepard")
+    f, _ = fields(cloud.points)
+    assert rel(ts.gather(ts.laplacian(f)), s.laplacian(f)) < RTOL
+    ts.close()
+    assert cache.exists()  # a cache directory given by the user is kept
+
+
+def test_failing_tile_reported(cloud):
+    pts = cloud.points.copy()
+    pts[7] = pts[8]  # a duplicate point: the tile holding it (and its neighbours' halos) cannot build
+    with pytest.raises(TileBuildError, match=r"tile \d+ \(bounding box .*points must be distinct"):
+        TiledSurface(pts, cloud.normals, tile_points=500, scheduler="synchronous")
+
+
+def test_local_cluster_two_processes(cloud):
+    x = cloud.points
+    s = Surface(x, cloud.normals, area="shepard", scheme="cspm")
+    with TiledSurface(x, cloud.normals, tile_points=500, scheme="cspm", n_workers=2) as ts:
+        assert len(ts.client.scheduler_info()["workers"]) == 2
+        f, F = fields(x)
+        lap, grad = ts.compute(ts.laplacian(f)), ts.compute(ts.gradient(f))
+        assert rel(lap[np.argsort(ts.order)], s.laplacian(f)) < RTOL
+        assert rel(grad[np.argsort(ts.order)], s.gradient(f)) < RTOL
+
+
+@pytest.mark.parametrize(
+    "kwargs, exc, match",
+    [
+        ({"area": "numerical"}, ValueError, "area='shepard'"),
+        ({"area": "voronoi"}, ValueError, "area must be one of"),
+        ({"area": "geometric"}, ValueError, "total_area"),
+        ({"tile_points": 0}, ValueError, "tile_points"),
+        ({"tile_points": 2.5}, TypeError, "tile_points"),
+        ({"scheduler": "mpi"}, ValueError, "scheduler"),
+        ({"grid": (2, 0, 1)}, ValueError, "grid"),
+        ({"halo": -1.0}, ValueError, "halo"),
+        ({"h": "wide"}, ValueError, "h must be"),
+        ({"neighbors": 2.0}, TypeError, "neighbors"),
+        ({"colour": 1}, TypeError, "colour"),
+        ({"client": "tcp://x"}, TypeError, "client"),
+        ({"progress": "yes"}, TypeError, "progress"),
+        ({"normal_options": {"radius": 1}}, TypeError, "normal_options"),
+        ({"scheme": "fem"}, ValueError, "scheme"),
+    ],
+)
+def test_bad_arguments(cloud, kwargs, exc, match):
+    kwargs = {"scheduler": "synchronous"} | kwargs
+    with pytest.raises(exc, match=match):
+        TiledSurface(cloud.points, cloud.normals, **kwargs)
+
+
+def test_bad_sources(cloud, tmp_path):
+    with pytest.raises(ValueError, match="source"):
+        TiledSurface(np.zeros((5, 2)), scheduler="synchronous")
+    with pytest.raises(ValueError, match="normals"):
+        TiledSurface(cloud.points, cloud.normals[:10], scheduler="synchronous")
+    with pytest.raises(FileNotFoundError, match="source"):
+        TiledSurface(str(tmp_path / "missing.npy"), scheduler="synchronous")
+
+
+def test_bad_fields(given):
+    with pytest.raises(ValueError, match="field"):
+        given.laplacian(np.zeros(7))
+    with pytest.raises(ValueError, match="field"):
+        given.divergence(np.zeros((2000, 2)))
+    with pytest.raises(ValueError, match="method"):
+        given.mean_curvature("cotan")
