@@ -6,13 +6,19 @@ on a sphere, a short heat and wave run, pictures and a summary table),
 geometry of a point-cloud file: ``curvature`` and ``geodesic``.
 
 Exit codes: 0 success, 1 failure while computing, 2 a user mistake (reported
-in one line, without a traceback).
+in one line, without a traceback). With ``--json`` a failure also prints one
+JSON object on stdout, ``{"error": ..., "type": ..., "command": ..., "exit_code": ...}``,
+for every subcommand (argument errors included).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io as _stdio
 import json
+import os
+import re
 import sys
 import time
 from pathlib import Path
@@ -29,6 +35,55 @@ class UserError(ValueError):
     """A mistake in the command line or its inputs (exit code 2)."""
 
 
+#: Whether the command line being parsed asked for ``--json`` (argument errors are then JSON too).
+_JSON = False
+
+#: Largest picture side in pixels (an off-screen VTK window of 100000 x 100000 aborts in std::bad_alloc).
+MAX_WINDOW = 8192
+
+#: A lower bound on the memory one particle takes in a Surface (neighbour lists, frames, three
+#: sparse operators); sizes needing more than the machine's memory are refused before any work.
+BYTES_PER_POINT = 2048
+
+
+def _error_json(message: str, kind: str, command, code: int) -> None:
+    print(json.dumps({"error": message, "type": kind, "command": command, "exit_code": code}))
+
+
+class _Parser(argparse.ArgumentParser):
+    """An ArgumentParser whose errors are one JSON object on stdout when ``--json`` was given."""
+
+    def error(self, message):
+        if _JSON:
+            command = self.prog.split()[1] if len(self.prog.split()) > 1 else None
+            _error_json(" ".join(message.split()), "ArgumentError", command, 2)
+        super().error(message)
+
+
+def _memory_bytes():
+    """Physical memory of this machine in bytes, or None where it cannot be read."""
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def _check_size(option: str, n: int) -> int:
+    """Refuse, before any allocation, a cloud size below PointCloud's minimum or beyond memory."""
+    from .pointcloud import MIN_POINTS
+
+    if n < MIN_POINTS:
+        raise UserError(f"{option} must be at least {MIN_POINTS} points, got {n}")
+    mem = _memory_bytes()
+    need = n * BYTES_PER_POINT
+    if mem is not None and need > mem:
+        raise UserError(
+            f"{option} {n} needs at least {need / 2**30:.3g} GB of memory (about {BYTES_PER_POINT} bytes per point), "
+            f"this machine has {mem / 2**30:.3g} GB"
+        )
+    return n
+
+
 def _sizes(text: str) -> list[int]:
     try:
         sizes = [int(t) for t in text.split(",") if t.strip()]
@@ -36,6 +91,8 @@ def _sizes(text: str) -> list[int]:
         raise argparse.ArgumentTypeError(f"--sizes must be comma-separated integers, got {text!r}") from None
     if len(sizes) < 2:
         raise argparse.ArgumentTypeError(f"--sizes needs at least two sizes, got {text!r}")
+    if min(sizes) < 1:
+        raise argparse.ArgumentTypeError(f"--sizes must be positive point counts, got {text!r}")
     return sizes
 
 
@@ -54,6 +111,11 @@ def _window(text: str) -> tuple[int, int]:
         raise argparse.ArgumentTypeError(f"--size must be WIDTHxHEIGHT in pixels, e.g. 800x600, got {text!r}") from None
     if w < 16 or h < 16:
         raise argparse.ArgumentTypeError(f"--size must be at least 16x16, got {text!r}")
+    if w > MAX_WINDOW or h > MAX_WINDOW:
+        raise argparse.ArgumentTypeError(
+            f"--size must be at most {MAX_WINDOW}x{MAX_WINDOW} pixels, got {text!r} "
+            f"(an off-screen picture of that size needs {w * h * 4 / 2**30:.3g} GB per buffer)"
+        )
     return w, h
 
 
@@ -83,7 +145,7 @@ def _parser() -> argparse.ArgumentParser:
     from .render import CAMERAS
     from .schemes import SCHEMES
 
-    p = argparse.ArgumentParser(
+    p = _Parser(
         prog="manifold-sph",
         description="Consistent SPH operators on point-cloud surfaces: errors against exact references, PDEs, pictures.",
     )
@@ -221,6 +283,7 @@ def _cloud_from_args(args):
         from .io import read
 
         return read(args.file)
+    _check_size("--n", args.n)
     return make_cloud(args.shape, args.n, args.sampling, args.seed)
 
 
@@ -267,6 +330,13 @@ def _out_dir(path, create: bool = True) -> Path:
 
 def _check_free(paths, overwrite: bool) -> None:
     """Refuse, before any work, to overwrite existing outputs (one line naming them)."""
+    from ._validation import check_output_path
+
+    for p in paths:
+        try:
+            check_output_path("output", p, True)  # a folder, or a missing folder: no --overwrite helps
+        except (IsADirectoryError, FileNotFoundError) as exc:
+            raise UserError(str(exc)) from None
     if overwrite:
         return
     taken = [str(p) for p in paths if Path(p).exists()]
@@ -424,6 +494,7 @@ def run_demo(out, *, n: int = 4032, render: bool = True, overwrite: bool = False
 def _cmd_demo(args) -> int:
     if args.n < 500:
         raise UserError(f"--n must be at least 500 for the demo, got {args.n}")
+    _check_size("--n", args.n)
     summary = run_demo(args.out, n=args.n, render=not args.no_render, overwrite=args.overwrite, progress=not args.json)
     text = summary.pop("text")
     if args.json:
@@ -456,6 +527,8 @@ def _cmd_convergence(args) -> int:
 
     from .accuracy import convergence
 
+    for n in args.sizes:
+        _check_size("--sizes", n)
     if args.plot:
         _check_free([args.plot], args.overwrite)
     with tqdm(total=len(args.sizes), desc=f"{args.scheme} on {args.shape}", disable=args.json, file=sys.stderr) as bar:
@@ -774,9 +847,31 @@ def _cmd_geodesic(args) -> int:
 
 
 def _cmd_spem(args) -> int:
+    """``spem CASE``: picture targets checked before the run; with --json, a failure reported by the
+    SPEM command (one line on stderr) is also printed as the JSON error object."""
     from .spem.cli import run
 
-    return run(args)
+    for option in ("png", "gif"):
+        target = getattr(args, option, None)
+        if target:
+            try:
+                from ._validation import check_output_path
+
+                check_output_path(f"--{option}", target, args.overwrite, hint="--overwrite")
+            except (IsADirectoryError, FileNotFoundError, FileExistsError) as exc:
+                raise UserError(str(exc)) from None
+    if not args.json:
+        return run(args)
+    err = _stdio.StringIO()
+    with contextlib.redirect_stderr(err):
+        code = run(args)
+    text = err.getvalue()
+    sys.stderr.write(text)
+    if code != 0:
+        lines = [ln for ln in text.splitlines() if ln.strip()]
+        message = re.sub(r"^manifold-sph( spem)?: error: ", "", lines[-1]) if lines else f"spem {args.case} failed"
+        _error_json(message, "UserError" if code == 2 else "Error", "spem", code)
+    return code
 
 
 _COMMANDS = {
@@ -793,19 +888,78 @@ _COMMANDS = {
 }
 
 
+def _value_options(parser: argparse.ArgumentParser) -> set[str]:
+    """Every ``--option`` of every subcommand that takes a value."""
+    out = set()
+    todo = [parser]
+    while todo:
+        q = todo.pop()
+        for action in q._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                todo.extend(action.choices.values())
+            elif action.option_strings and action.nargs != 0:
+                out.update(o for o in action.option_strings if o.startswith("--"))
+    return out
+
+
+def _join_negative_values(argv: list[str], options: set[str]) -> list[str]:
+    """``--sizes -600,-1200`` -> ``--sizes=-600,-1200``: argparse takes a value starting with '-'
+    that is not a plain number for an option and says "expected one argument"; joined, the
+    option's own check names the problem.
+
+    Examples
+    --------
+    >>> _join_negative_values(["convergence", "--sizes", "-600,-1200"], {"--sizes"})
+    ['convergence', '--sizes=-600,-1200']
+    """
+    out, i = [], 0
+    while i < len(argv):
+        tok = argv[i]
+        if tok in options and i + 1 < len(argv) and re.match(r"^-[\d.]", argv[i + 1]):
+            out.append(f"{tok}={argv[i + 1]}")
+            i += 2
+            continue
+        out.append(tok)
+        i += 1
+    return out
+
+
+#: Exceptions that are the user's mistake (exit code 2), the rest are failures (exit code 1).
+_USER_ERRORS = (ValueError, TypeError, FileNotFoundError, FileExistsError, IsADirectoryError, NotADirectoryError,
+                PermissionError)
+
+
 def main(argv=None) -> int:
-    """Entry point of the ``manifold-sph`` console script."""
-    args = _parser().parse_args(argv)
+    """Entry point of the ``manifold-sph`` console script.
+
+    Examples
+    --------
+    >>> main(["operators", "--n", "5", "--json"])  # doctest: +ELLIPSIS
+    {"error": "--n must be at least 10 points, got 5", "type": "UserError", "command": "operators", "exit_code": 2}
+    2
+    """
+    global _JSON
+    argv = list(sys.argv[1:] if argv is None else argv)
+    _JSON = "--json" in argv
+    parser = _parser()
+    args = parser.parse_args(_join_negative_values(argv, _value_options(parser)))
+    command = args.command
     try:
-        return _COMMANDS[args.command](args)
-    except (ValueError, TypeError, FileNotFoundError, FileExistsError) as exc:
-        msg = " ".join(str(exc).split())
+        return _COMMANDS[command](args)
+    except _USER_ERRORS as exc:
+        code, kind, msg = 2, type(exc).__name__, " ".join(str(exc).split())
         print(f"manifold-sph: error: {msg}", file=sys.stderr)
-        return 2
+    except MemoryError as exc:
+        code, kind = 1, "MemoryError"
+        msg = ("ran out of memory" + (f" ({' '.join(str(exc).split())})" if str(exc) else "")
+               + "; try smaller sizes (--n, --sizes, or the case's resolution options)")
+        print(f"manifold-sph: failed: MemoryError: {msg}", file=sys.stderr)
     except Exception as exc:  # noqa: BLE001 - one line for the user, exit code 1
-        msg = " ".join(str(exc).split())
-        print(f"manifold-sph: failed: {type(exc).__name__}: {msg}", file=sys.stderr)
-        return 1
+        code, kind, msg = 1, type(exc).__name__, " ".join(str(exc).split())
+        print(f"manifold-sph: failed: {kind}: {msg}", file=sys.stderr)
+    if getattr(args, "json", False):
+        _error_json(msg, kind, command, code)
+    return code
 
 
 if __name__ == "__main__":  # pragma: no cover
