@@ -18,6 +18,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from .exceptions import ManifoldSPHWarning
 from . import _jit
 from ._sparse import bicgstab_csr
 from .kernels import Kernel, QuinticSpline
@@ -173,7 +174,7 @@ def _numerical(A: sp.csr_matrix, nb: Neighborhood, xy: np.ndarray, columns) -> A
         warnings.warn(
             f"area='numerical': {n_merged + groups} particle(s) in {groups} group(s) are near-duplicates (closer "
             f"than {MERGE_TOL:g} h); each group was solved as one particle and shares its area element",
-            RuntimeWarning,
+            ManifoldSPHWarning,
             stacklevel=4,
         )
     else:
@@ -184,7 +185,7 @@ def _numerical(A: sp.csr_matrix, nb: Neighborhood, xy: np.ndarray, columns) -> A
             f"area='numerical': the kernel system sum_j W_ij dV_j = 1 was not solved within {NUMERICAL_MAXITER} "
             f"BiCGSTAB iterations ({n} particles{', too many for a direct solve' if n > LU_MAX_ROWS else ''}; an "
             "irregular cloud) or is singular; using the Shepard elements (area='shepard') instead",
-            RuntimeWarning,
+            ManifoldSPHWarning,
             stacklevel=4,
         )
         dV = 1.0 / np.asarray(A.sum(axis=1)).ravel()

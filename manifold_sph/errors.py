@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .exceptions import ManifoldSPHWarning
 from ._validation import check_bool, check_finite, check_in, check_int, check_positive
 
 __all__ = [
@@ -670,7 +671,7 @@ def convergence_study(sizes, run: Callable, kind: str = "N", dim: int = 2) -> Co
             warnings.warn(
                 f"error {k!r} is {float(e[i])!r} at size {raw_sizes[i]!r}: a zero or negative error cannot be fitted; "
                 "its order is NaN",
-                RuntimeWarning,
+                ManifoldSPHWarning,
                 stacklevel=2,
             )
             orders[k] = float("nan")

@@ -21,6 +21,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from .exceptions import ManifoldSPHWarning
 from ._sparse import RowBlocks
 from ._validation import as_field, check_bool, check_int, check_positive
 from .area import AreaElements, area_elements, check_area_method
@@ -100,14 +101,8 @@ class OperatorSet:
         self._area_args = (area, total_area, columns)
         self._area = None
         if self.scheme.uses_area:
-            if self.area.n_negative:
-                warnings.warn(
-                    f"area='numerical': {self.area.n_negative} of {nb.n_rows} area elements are negative "
-                    "(irregular, noisy or bounded cloud); the corrected schemes tolerate a few, but time "
-                    "stepping may grow: consider area='shepard'",
-                    RuntimeWarning,
-                    stacklevel=3,
-                )
+            # Negative elements (bounded or irregular clouds) are reported in area.n_negative, not
+            # warned about: time stepping is guarded by pde.choose_laplacian's spectral check.
             dV = self.area.dV[self._columns]
         else:  # the weights do not use area elements: compute them only when asked
             dV = np.ones(self._columns.size)
@@ -122,7 +117,7 @@ class OperatorSet:
             warnings.warn(
                 f"scheme {self.scheme.name!r}: {parts} particle(s) fell back (too few neighbours, collinear "
                 f"neighbours or condition number above {self.max_condition:g}); see .fallback for the indices",
-                RuntimeWarning,
+                ManifoldSPHWarning,
                 stacklevel=3,
             )
         self._cache = {}
@@ -309,7 +304,7 @@ class OperatorSet:
             warnings.warn(
                 f"stable Laplacian: {degenerate.size} particle(s) have no Voronoi cell (collinear or too few "
                 f"neighbours): given the mean of their neighbours' areas and no flux of their own; see .stable_report",
-                RuntimeWarning,
+                ManifoldSPHWarning,
                 stacklevel=3,
             )
         self._cache["stable"] = {"K": K, "M": sp.diags(area).tocsr(), "area": area, "report": report}

@@ -25,6 +25,7 @@ import warnings
 
 import numpy as np
 
+from .exceptions import ManifoldSPHWarning
 from ._validation import as_field, as_points, check_finite, check_in, check_int, check_positive
 from .pointcloud import MIN_POINTS, PointCloud
 from . import sampling as _sampling
@@ -317,7 +318,7 @@ class ImplicitShape:
                 warnings.warn(
                     f"project: {int(still.sum())} point(s) did not converge in {maxiter} "
                     f"iterations (first indices {active[still][:5].tolist()})",
-                    RuntimeWarning,
+                    ManifoldSPHWarning,
                     stacklevel=2,
                 )
         return x

@@ -6,6 +6,7 @@ import warnings
 
 import numpy as np
 
+from .exceptions import ManifoldSPHWarning
 from . import geometry
 from .frames import check_frames, project_neighborhood, project_pairs, tangent_frames
 from .neighbors import build_tree, find_neighbors
@@ -194,7 +195,7 @@ class Surface(OperatorSet):
             warnings.warn(
                 f"{int(flip.sum())} normal(s) disagreed with every nearby point's (n_i . n_j <= {normal_threshold:g}; "
                 f"first indices {self.flipped[:8].tolist()}) and were flipped; see .flipped",
-                RuntimeWarning,
+                ManifoldSPHWarning,
                 stacklevel=3,
             )
         rank = np.cumsum(dots > normal_threshold, axis=1)  # compatible neighbours up to each candidate
@@ -215,7 +216,7 @@ class Surface(OperatorSet):
             f"{lonely.size} particle(s) had fewer than {need} neighbours inside the kernel support (isolated "
             f"points or sparse parts of the cloud, first indices {lonely[:8].tolist()}): their smoothing length "
             f"was widened to reach {target} neighbours; see .widened",
-            RuntimeWarning,
+            ManifoldSPHWarning,
             stacklevel=3,
         )
         nb = find_neighbors(pts, nrm, h=hv, support=self.kernel.support, normal_threshold=normal_threshold, tree=tree)

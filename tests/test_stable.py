@@ -173,6 +173,26 @@ def test_auto_switches_to_stable_on_random_points():
     assert pde.choose_laplacian(fib) == "strong"
 
 
+def test_auto_proves_an_m_matrix_stable_without_eigs(monkeypatch):
+    """Regression: the standard scheme with Shepard elements (non-negative off-diagonals, zero row
+    sums) is stable by Gershgorin's bound; 'auto' once warned on open scans because ARPACK did not
+    converge on it."""
+    p = random_sphere(1500, seed=7)
+    s = quiet_surface(p, p.copy(), scheme="standard", area="shepard")
+    L = s.laplacian_matrix().tocoo()
+    off = L.row != L.col
+    assert L.data[off].min() >= 0 and np.abs(L.sum(axis=1)).max() < 1e-9 * abs(L.diagonal()).max()
+
+    def no_eigs(*a, **k):
+        raise AssertionError("eigs called")
+
+    monkeypatch.setattr(pde.spla, "eigs", no_eigs)
+    assert pde.strong_form_is_stable(s)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert pde.choose_laplacian(s) == "strong"
+
+
 def test_near_duplicates_are_finite():
     p = shapes.sphere(1000).points.copy()
     q = p[0] + 1e-12 * np.array([0.6, 0.8, 0.0])
