@@ -65,8 +65,6 @@ SCHEDULERS = ("distributed", "synchronous", "threads")
 #: Halo widenings tried by a tile whose rows are not all complete.
 _MAX_ATTEMPTS = 5
 _WIDEN = 1.6
-#: Tiles whose matrices a process keeps in memory between operator applications.
-_CACHE_TILES = 4
 #: Points of the subsample that decides the outward orientation of estimated normals.
 _ORIENT_SAMPLE = 20000
 _FORMAT = 1  # version of the tile files
@@ -150,25 +148,51 @@ def _all_rows(ok: np.ndarray, indptr: np.ndarray, indices: np.ndarray, rows: int
 
 
 # ----------------------------------------------------------------------------- per-tile work (on workers)
-_TILE_CACHE: OrderedDict = OrderedDict()
+_TILE_CACHE: OrderedDict = OrderedDict()  # (path, mtime, array name) -> array
 
 
-def _load_tile(path: str) -> dict:
-    """The arrays of a finished tile (a few kept in memory per process)."""
-    key = (path, os.path.getmtime(path))
-    if key in _TILE_CACHE:
-        _TILE_CACHE.move_to_end(key)
-        return _TILE_CACHE[key]
-    with np.load(path, allow_pickle=False) as z:
-        d = {k: z[k] for k in z.files}
-    n = int(d["n_own"])
-    ns = d["cols"].size
-    for name in ("lap", "dx", "dy"):
-        d[name] = sp.csr_matrix((d[name + "_data"], d[name + "_indices"], d[name + "_indptr"]), shape=(n, ns))
-    _TILE_CACHE[key] = d
-    while len(_TILE_CACHE) > _CACHE_TILES:
-        _TILE_CACHE.popitem(last=False)
-    return d
+def _cache_bytes() -> int:
+    return int(float(os.environ.get("MANIFOLD_SPH_TILE_CACHE_MB", 512)) * 2**20)
+
+
+class _Tile:
+    """Lazy view of a finished tile's file: arrays are read on first use and kept in a per-process
+    cache of at most ``MANIFOLD_SPH_TILE_CACHE_MB`` (512 MB by default), least recently used first out."""
+
+    def __init__(self, path: str):
+        self.path = path
+        self.stamp = os.path.getmtime(path)
+        with np.load(path, allow_pickle=False) as z:
+            self.n = int(z["n_own"])
+            self.ns = int(z["cols"].size)
+
+    def __getitem__(self, name: str):
+        key = (self.path, self.stamp, name)
+        if key in _TILE_CACHE:
+            _TILE_CACHE.move_to_end(key)
+            return _TILE_CACHE[key]
+        with np.load(self.path, allow_pickle=False) as z:
+            if name in ("lap", "dx", "dy"):
+                val = sp.csr_matrix((z[name + "_data"], z[name + "_indices"], z[name + "_indptr"]), shape=(self.n, self.ns))
+                size = val.data.nbytes + val.indices.nbytes + val.indptr.nbytes
+            else:
+                val = z[name]
+                size = val.nbytes
+        budget = _cache_bytes()
+        if size <= budget:
+            _TILE_CACHE[key] = val
+            _CACHE_SIZE[key] = size
+            while sum(_CACHE_SIZE.values()) > budget:
+                old, _ = _TILE_CACHE.popitem(last=False)
+                del _CACHE_SIZE[old]
+        return val
+
+
+_CACHE_SIZE: dict = {}
+
+
+def _load_tile(path: str) -> _Tile:
+    return _Tile(path)
 
 
 def _tile_surface(spts, snrm, opts, normal_options, estimate):
@@ -360,10 +384,13 @@ def _save_empty(spec):
     _save(spec, arrays, summary)
 
 
-def _tile_apply(path: str, kind: str, sign: float, *chunks):
-    """One tile's rows of an operator applied to the field chunks of the tiles it reads."""
+def _tile_apply(path: str, kind: str, sign: float, extra, *chunks):
+    """One tile's rows of an operator applied to the field chunks of the tiles it reads.
+
+    ``extra``: own-row arrays of the time steps (the previous state, the initial velocity).
+    """
     d = _load_tile(path)
-    n = int(d["n_own"])
+    n = d.n
     if n == 0:
         return np.zeros((0, 3)) if kind == "gradient" else np.zeros(0)
     x = np.concatenate(chunks, axis=0)[d["gather"]]
@@ -377,13 +404,17 @@ def _tile_apply(path: str, kind: str, sign: float, *chunks):
         return np.einsum("nk,nk->n", d["u"], d["dx"] @ F) + np.einsum("nk,nk->n", d["v"], d["dy"] @ F)
     if kind == "heat":  # one explicit Euler step; ``sign`` carries k dt
         return x[:n] + sign * (d["lap"] @ x)
+    if kind == "wave1":  # u1 = u0 + dt v0 + b/2 L u0; ``sign`` carries b = (c dt)^2, extra = (dt v0,)
+        return x[:n] + extra[0] + 0.5 * sign * (d["lap"] @ x)
+    if kind == "wave":  # u' = 2 u - prev + b L u, extra = (prev,)
+        return 2 * x[:n] - extra[0] + sign * (d["lap"] @ x)
     raise ValueError(kind)  # pragma: no cover
 
 
 def _tile_field(path: str, name: str, sign: float):
     d = _load_tile(path)
     if name == "normals":
-        return sign * d["normals_s"][: int(d["n_own"])]
+        return sign * d["normals_s"][: d.n]
     if name in ("H_normals", "H_laplacian"):
         return sign * d[name]
     return d[name]
@@ -739,6 +770,7 @@ class TiledSurface:
             self._own_cluster.close()
             self._client = self._own_cluster = None
         _TILE_CACHE.clear()
+        _CACHE_SIZE.clear()
         if self._tmp and self.cache_dir.exists():
             shutil.rmtree(self.cache_dir, ignore_errors=True)
 
@@ -931,16 +963,18 @@ class TiledSurface:
         arr = as_field("field", values, n, width)[self.order]
         return da.from_array(arr, chunks=(self.chunks,) + (() if width is None else (width,)))
 
-    def _apply(self, kind: str, x, scale: float = 1.0):
+    def _apply(self, kind: str, x, scale: float = 1.0, *extra):
         import dask.array as da
         from dask import delayed
 
         xb = x.to_delayed(optimize_graph=False).ravel()
+        eb = [e.to_delayed(optimize_graph=False).ravel() for e in extra]
         blocks = []
         for t, n in enumerate(self.chunks):
             shape = (n, 3) if kind == "gradient" else (n,)
             args = [xb[u] for u in self._contrib[t]]
-            blocks.append(da.from_delayed(delayed(_tile_apply, pure=True)(self._tile_path(t), kind, scale, *args),
+            ex = [e[t] for e in eb]
+            blocks.append(da.from_delayed(delayed(_tile_apply, pure=True)(self._tile_path(t), kind, scale, ex, *args),
                                           shape=shape, dtype=np.float64))
         return da.concatenate(blocks, axis=0)
 
@@ -995,6 +1029,37 @@ class TiledSurface:
             u = self._apply("heat", u, k * dt)
             if self.scheduler == "distributed" and step % 10 == 0:
                 u = self.client.persist(u)  # keep the task graph short
+            if every is not None and step % every == 0:
+                snaps.append(u)
+        return snaps if every is not None else u
+
+    def wave(self, u0, dt: float, steps: int, *, c: float = 1.0, v0=None, every: int | None = None, check: bool = True):
+        """Centred wave steps ``u' = 2 u - u_prev + (c dt)^2 L u`` (as :func:`manifold_sph.pde.wave`), one halo exchange per step.
+
+        Started with ``u1 = u0 + dt v0 + (c dt)^2 L u0 / 2``. ``check`` refuses
+        ``dt > 2 / (c sqrt(G))``, ``G`` the largest absolute row sum of ``L``.
+        Returns the state after ``steps`` steps (Dask array, tile order), or a list every ``every`` steps.
+        """
+        dt, c = check_positive("dt", dt), check_positive("c", c)
+        steps = check_int("steps", steps, minimum=1)
+        if every is not None:
+            every = check_int("every", every, minimum=1)
+        if check_bool("check", check):
+            G = max((r.get("gershgorin", 0.0) for r in self.report), default=0.0)
+            if G > 0 and dt > 2.0 / (c * np.sqrt(G)):
+                raise ValueError(
+                    f"dt = {dt:g} is above the centred wave limit {2.0 / (c * np.sqrt(G)):.4g} (2 / (c sqrt(G)), "
+                    f"G = {G:.4g} the largest absolute row sum of L); use a smaller dt, or check=False"
+                )
+        b = (c * dt) ** 2
+        prev = self.field(u0)
+        v = self.field(np.zeros(self.n_points) if v0 is None else v0) * dt
+        u = self._apply("wave1", prev, b, v)
+        snaps = [u] if every == 1 else []
+        for step in range(2, steps + 1):
+            prev, u = u, self._apply("wave", u, b, prev)
+            if self.scheduler == "distributed" and step % 10 == 0:
+                prev, u = self.client.persist([prev, u])
             if every is not None and step % every == 0:
                 snaps.append(u)
         return snaps if every is not None else u

@@ -106,6 +106,11 @@ def test_heat_explicit_and_outputs(given, cloud, tmp_path):
     assert rel(given.gather(given.heat(u0, 1e-4, 5)), ref) < RTOL
     with pytest.raises(ValueError, match="explicit heat limit"):
         given.heat(u0, 1.0, 1)
+    v0 = x[:, 2]
+    ref = pde.wave(s, u0, dt=1e-3, steps=6, c=0.5, v0=v0, laplacian="strong")
+    assert rel(given.gather(given.wave(u0, 1e-3, 6, c=0.5, v0=v0)), ref) < RTOL
+    with pytest.raises(ValueError, match="wave limit"):
+        given.wave(u0, 1.0, 2)
     lap = given.laplacian(lambda p: p[:, 0] * p[:, 1])  # a callable field, evaluated tile by tile
     given.to_npy(lap, tmp_path / "lap.npy")
     assert rel(np.load(tmp_path / "lap.npy"), s.laplacian(x[:, 0] * x[:, 1])) < RTOL
@@ -187,6 +192,12 @@ def test_bad_sources(cloud, tmp_path):
         TiledSurface(cloud.points, cloud.normals[:10], scheduler="synchronous")
     with pytest.raises(FileNotFoundError, match="source"):
         TiledSurface(str(tmp_path / "missing.npy"), scheduler="synchronous")
+
+
+def test_progress_bar(given, cloud, capsys):
+    with TiledSurface(cloud.points, cloud.normals, tile_points=1000, scheduler="synchronous", progress=True):
+        pass
+    assert "Completed" in capsys.readouterr().out
 
 
 def test_bad_fields(given):
