@@ -1,6 +1,7 @@
 """The manifold-sph command line: tables, JSON, exit codes."""
 
 import json
+import re
 
 from manifold_sph.cli import main
 
@@ -277,3 +278,85 @@ def test_geometry_png_and_overwrite(unit_sphere_file, tmp_path, capsys, cmd):
     assert main([*args, "--overwrite", "--camera", "north_pole"]) == 0
     assert f"wrote {png}" in capsys.readouterr().out
     assert png.read_bytes() != before
+
+
+# --- hostile command lines (issue 19) ------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "argv, match",
+    [
+        (["demo", "--out", "x", "--n", "10", "--json"], "at least 500"),
+        (["operators", "--n", "5", "--json"], "at least 10 points"),
+        (["convergence", "--sizes", "5,20", "--json"], "at least 10 points"),
+        (["heat", "--file", "missing.ply", "--json"], "no such file"),
+        (["wave", "--n", "3", "--json"], "at least 10 points"),
+        (["poisson", "--n", "3", "--json"], "at least 10 points"),
+        (["render", "missing.ply", "--json"], "no such file"),
+        (["curvature", "missing.ply", "--json"], "no such file"),
+        (["geodesic", "missing.ply", "--source", "0", "--json"], "no such file"),
+        (["spem", "line1d", "--n-radial", "10", "--json"], "does not apply to case 'line1d'"),
+        (["operators", "--scheme", "nope", "--json"], "invalid choice"),
+    ],
+)
+def test_json_error_object_for_every_subcommand(tmp_path, capsys, argv, match, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    try:
+        code = main(argv)
+    except SystemExit as exc:  # argument errors leave through argparse
+        code = exc.code
+    assert code == 2
+    out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert set(out) == {"error", "type", "command", "exit_code"} and out["exit_code"] == 2
+    assert re.search(match, out["error"]) and out["command"] == argv[0]
+
+
+def test_json_error_on_failure_exit_1(capsys, monkeypatch):
+    import manifold_sph.cli as cli
+
+    def boom(args):
+        raise RuntimeError("solver diverged")
+
+    monkeypatch.setitem(cli._COMMANDS, "poisson", boom)
+    assert main(["poisson", "--json"]) == 1
+    out = json.loads(capsys.readouterr().out)
+    assert out == {"error": "solver diverged", "type": "RuntimeError", "command": "poisson", "exit_code": 1}
+
+
+def test_render_size_capped_before_vtk(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["render", "c.xyz", "--size", "100000x100000"])
+    assert exc.value.code == 2
+    assert "--size must be at most 8192x8192" in capsys.readouterr().err
+
+
+def test_absurd_n_refused_before_allocation(capsys):
+    assert main(["operators", "--n", "1000000000000"]) == 2
+    err = capsys.readouterr().err
+    assert "needs at least" in err and "GB of memory" in err and err.count("\n") == 1
+    assert main(["convergence", "--sizes", "1002,100000000000000"]) == 2
+    assert "--sizes 100000000000000 needs at least" in capsys.readouterr().err
+
+
+def test_negative_sizes_named_not_expected_one_argument(capsys):
+    with pytest.raises(SystemExit):
+        main(["convergence", "--sizes", "-600,-1200"])
+    err = capsys.readouterr().err
+    assert "--sizes must be positive point counts" in err and "expected one argument" not in err
+
+
+def test_png_into_missing_folder_fails_before_the_run(tmp_path, capsys, monkeypatch):
+    import manifold_sph.spem.cases as cases
+
+    def never(*args, **kwargs):
+        raise AssertionError("the case ran")
+
+    monkeypatch.setattr(cases, "run_case", never)
+    for option in ("--png", "--gif"):
+        assert main(["spem", "cavity", option, str(tmp_path / "no" / "x.png"), "--json"]) == 2
+        assert "does not exist" in json.loads(capsys.readouterr().out)["error"]
+    assert main(["convergence", "--sizes", "1002,2012", "--plot", str(tmp_path / "no" / "c.png")]) == 2
+    assert "does not exist" in capsys.readouterr().err
+    (tmp_path / "d.png").mkdir()
+    assert main(["convergence", "--sizes", "1002,2012", "--plot", str(tmp_path / "d.png"), "--overwrite"]) == 2
+    assert "is a folder" in capsys.readouterr().err
