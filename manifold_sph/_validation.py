@@ -22,6 +22,7 @@ __all__ = [
     "check_int",
     "check_real_array",
     "check_output_path",
+    "as_positive_field",
 ]
 
 
@@ -148,6 +149,34 @@ def as_field(name: str, a, n: int, width: int | None = None) -> np.ndarray:
     if arr.shape != want:
         raise ValueError(f"{name} must have shape {want}, got shape {arr.shape}")
     check_finite(name, arr)
+    return arr
+
+
+def as_positive_field(name: str, a, n: int) -> np.ndarray:
+    """Return ``a`` as a float64 array of shape (n,) of finite positive values.
+
+    The message names the actual problem: the shape, or how many values are not
+    finite or not positive and the first of them.
+
+    Examples
+    --------
+    >>> as_positive_field("h", [0.1, -2.0, 0.3], 3)
+    Traceback (most recent call last):
+    ...
+    ValueError: h must be positive, but 1 of its 3 value(s) are <= 0 (first at index 1: -2.0)
+    >>> as_positive_field("h", [0.1, 0.2], 3)
+    Traceback (most recent call last):
+    ...
+    ValueError: h must have shape (3,), got shape (2,)
+    """
+    arr = as_field(name, a, n)
+    bad = arr <= 0
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise ValueError(
+            f"{name} must be positive, but {int(bad.sum())} of its {n} value(s) are <= 0 "
+            f"(first at index {i}: {float(arr[i])!r})"
+        )
     return arr
 
 
