@@ -360,7 +360,9 @@ def _build_tile_arrays(spec: dict) -> dict:
         "dV": np.asarray(s.dV[:n_own]), "H_normals": H_n, "H_laplacian": H_l,
         "shared": cols[shared],
     }
-    for name, m in (("lap", L), ("dx", dx), ("dy", dy)):
+    mats = [("lap", L)] if "laplacian" in spec["keep"] else []
+    mats += [("dx", dx), ("dy", dy)] if "derivatives" in spec["keep"] else []
+    for name, m in mats:
         arrays[name + "_data"], arrays[name + "_indices"], arrays[name + "_indptr"] = m.data, m.indices, m.indptr
     _save(spec, arrays, summary)
     return summary
@@ -476,6 +478,10 @@ class TiledSurface:
         Show Dask's progress bar while tiles build.
     normal_options : dict, optional
         Passed to :func:`manifold_sph.estimate_normals` (``k``, ``method``, ``degree``).
+    keep : tuple of {"laplacian", "derivatives"}
+        The operator rows stored per tile (on disk, 12 bytes per pair and matrix):
+        ``"derivatives"`` (the tangent-plane ``Dx``, ``Dy``) serve the gradient and
+        divergence. Normals, ``h``, area elements and mean curvature are always kept.
     **surface_options
         ``scheme``, ``kernel``, ``neighbors``, ``h`` (None, a number, ``"adaptive"`` or
         an (N,) array), ``area`` (``"shepard"`` by default, or ``"geometric"`` with
@@ -513,7 +519,8 @@ class TiledSurface:
 
     def __init__(self, source, normals=None, *, tile_points: int = 1_000_000, grid=None, halo=None, client=None,
                  scheduler: str = "distributed", n_workers: int = 2, memory_limit=None, cache_dir=None,
-                 progress: bool = False, normal_options=None, _fail_tiles=(), **surface_options):
+                 progress: bool = False, normal_options=None, keep=("laplacian", "derivatives"), _fail_tiles=(),
+                 **surface_options):
         unknown = sorted(set(surface_options) - set(SURFACE_OPTIONS))
         if unknown:
             raise TypeError(f"unexpected option(s) {unknown}; TiledSurface takes the Surface options {list(SURFACE_OPTIONS)}")
@@ -531,6 +538,12 @@ class TiledSurface:
         if bad:
             raise TypeError(f"normal_options takes 'k', 'method' and 'degree', got {bad}")
         self.normal_options = dict(normal_options)
+        if isinstance(keep, str):
+            keep = (keep,)
+        keep = tuple(keep)
+        for k in keep:
+            check_in("keep", k, ("laplacian", "derivatives"))
+        self.keep = keep
         self._client, self._own_cluster = client, None
         self.scheduler = "distributed" if client is not None else scheduler
         self.memory_limit = memory_limit
@@ -597,7 +610,7 @@ class TiledSurface:
         if isinstance(h, np.ndarray) or (h is not None and np.ndim(h) == 1):
             key_src.update(np.asarray(h, dtype=np.float64).tobytes())
         meta = {"n": n, "options": {k: (v if isinstance(v, (str, int, float, type(None))) else repr(v)) for k, v in opts.items()},
-                "normal_options": self.normal_options, "tile_points": self.tile_points, "grid": None if grid is None else list(map(int, grid)),
+                "normal_options": self.normal_options, "tile_points": self.tile_points, "grid": None if grid is None else list(map(int, grid)), "keep": list(keep),
                 "halo": self.halo, "format": _FORMAT, "source": key_src.hexdigest()}
         self._key = hashlib.blake2b(json.dumps(meta, sort_keys=True, default=str).encode(), digest_size=16).hexdigest()
         self._points_file = str(self.cache_dir / f"points-{self._key}.npy")
@@ -797,7 +810,9 @@ class TiledSurface:
             if k_est is None:
                 jet = self.normal_options.get("method", "jet") == "jet"
                 k_est = DEFAULT_JET_K[self.normal_options.get("degree") or 2] if jet else 16
-            kq = max(k_est, 10, self.options["neighbors"] + 1)
+            kq = max(k_est, 10) if self.normals_estimated else 0
+            if self.options["h"] == "adaptive":
+                kq = max(kq, self.options["neighbors"] + 1)
         specs = []
         blist, bnds = boxes.tolist(), self.bounds.tolist()
         for t in range(T):
@@ -805,7 +820,7 @@ class TiledSurface:
                 "tile": t, "lo": int(self.bounds[t]), "hi": int(self.bounds[t + 1]), "box": boxes[t].tolist(),
                 "bbox": self.bbox.tolist(), "boxes": blist, "bounds": bnds, "chain": self._chain, "points": self._points_file, "normals": self._normals_file,
                 "h_file": self._h_file, "options": self.options, "normal_options": self.normal_options, "halo": self.halo,
-                "kq": kq, "path": self._tile_path(t), "key": f"{self._key}-{t}", "reuse": True,
+                "kq": kq, "keep": self.keep, "path": self._tile_path(t), "key": f"{self._key}-{t}", "reuse": True,
                 "threads": 1 if self.scheduler != "synchronous" else None, "_fail": t in fail_tiles,
             })
         tasks = [delayed(_build_tile, pure=False)(s, dask_key_name=f"msph-tile-{self._key[:8]}-{s['tile']}") for s in specs]
@@ -967,6 +982,10 @@ class TiledSurface:
         import dask.array as da
         from dask import delayed
 
+        need = "derivatives" if kind in ("gradient", "divergence") else "laplacian"
+        if need not in self.keep:
+            raise ValueError(f"{kind} needs the {need} matrices, which were not kept (keep={self.keep!r}); "
+                             f"build with keep=(..., {need!r})")
         xb = x.to_delayed(optimize_graph=False).ravel()
         eb = [e.to_delayed(optimize_graph=False).ravel() for e in extra]
         blocks = []
@@ -1077,6 +1096,9 @@ class TiledSurface:
 
     def _global_matrix(self, name, order):
         check_in("order", order, ("input", "tile"))
+        need = "laplacian" if name == "lap" else "derivatives"
+        if need not in self.keep:
+            raise ValueError(f"the {need} matrices were not kept (keep={self.keep!r})")
         rows, cols, vals = [], [], []
         for t, n in enumerate(self.chunks):
             if n == 0:

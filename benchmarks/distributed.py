@@ -1,0 +1,282 @@
+"""Single process against TiledSurface (issue 20): equality, time, memory, scaling, out of core.
+
+    python benchmarks/distributed.py                     # 200k sphere (given / estimated normals) + the Igea scan
+    python benchmarks/distributed.py --quick             # 20k sphere, no scan
+    python benchmarks/distributed.py --throughput 1000000   # build speed per core at 1M points, 1 and 2 workers
+    python benchmarks/distributed.py --big 20000000 --out /tmp/big   # out of core: terrain-like cloud, 2 workers x 4 GB
+
+Equality table. Each case is built once in a fresh process (``Surface`` with the same
+local options: ``area="shepard"``, and the scan settings ``h="adaptive"`` on the scan)
+and once by ``TiledSurface`` on a LocalCluster of 2 worker processes (one thread each)
+with at least 4 tiles. Printed: points, tiles, wall times (single: construction;
+tiled: the whole build, driver steps included, then the five results computed), peak
+resident memory (single: the process's ``ru_maxrss``; tiled: the largest worker's),
+and ``max |tiled - single| / max |single|`` over the Laplacian, gradient and
+divergence of ``f = cos(xz - sin y)`` (scaled to the cloud), the normals and the mean
+curvature.
+
+``--throughput N``: the build alone on the unit sphere (given normals, shepard
+areas): single process with 1 and 2 threads against TiledSurface with 1 and 2
+workers (one thread each), 4 tiles. Per-core efficiency = single-process time with
+one thread / (tiled time with one worker). Then the makespan of the measured tile
+times list-scheduled on 1..16 workers plus the measured driver time: a simulation of
+how the build would scale on more cores.
+
+``--big N``: a terrain-like surface ``z = sum of sines + noise`` sampled at N uniformly
+random points (spacing about 1), written to ``OUT/terrain.npy`` in chunks; then
+``TiledSurface`` with estimated normals on 2 workers with ``--memory-limit`` each
+(default 4GB), keeping only the Laplacian; the Laplacian of the height, the normals
+and the mean curvature written to ``OUT/*.npy`` in the input order. Printed: times of
+every stage, the largest worker's peak resident memory against the limit, whether any
+worker was restarted, and the disk used by the tiles.
+"""
+
+from __future__ import annotations
+
+import argparse
+import concurrent.futures as cf
+import multiprocessing as mp
+import os
+import resource
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+SCANS = Path(__file__).resolve().parents[2] / "shared" / "data" / "scans"
+
+
+def field(x):
+    c = x - x.mean(axis=0)
+    c = c / np.abs(c).max()
+    f = np.cos(c[:, 0] * c[:, 2] - np.sin(c[:, 1]))
+    F = np.c_[c[:, 1] * f, -c[:, 0], c[:, 2] ** 2]
+    return f, F
+
+
+def _single(points, normals, options, threads):
+    """Construction in this (fresh) process; the five results and the peak RSS."""
+    import manifold_sph
+    from manifold_sph import Surface
+
+    manifold_sph.set_num_threads(threads)
+    Surface(points[:200], None if normals is None else normals[:200], area="shepard")  # load the compiled kernels
+    f, F = field(points)
+    t0 = time.perf_counter()
+    s = Surface(points, normals, **options)
+    t_build = time.perf_counter() - t0
+    out = {"lap": s.laplacian(f), "grad": s.gradient(f), "div": s.divergence(F), "normals": s.normals,
+           "H": s.mean_curvature()}
+    return t_build, out, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def single(points, normals, options, threads=2):
+    with cf.ProcessPoolExecutor(1, mp_context=mp.get_context("spawn")) as ex:
+        return ex.submit(_single, points, normals, options, threads).result()
+
+
+def tiled(points, normals, options, tile_points, client, **kw):
+    from manifold_sph.distributed import TiledSurface
+
+    f, F = field(points)
+    t0 = time.perf_counter()
+    ts = TiledSurface(points, normals, tile_points=tile_points, client=client, **options, **kw)
+    t_build = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    out = {"lap": ts.gather(ts.laplacian(f)), "grad": ts.gather(ts.gradient(f)), "div": ts.gather(ts.divergence(F)),
+           "normals": ts.gather(ts.normals), "H": ts.gather(ts.mean_curvature())}
+    t_apply = time.perf_counter() - t0
+    return ts, t_build, t_apply, out
+
+
+def rel(a, b):
+    return float(np.abs(a - b).max() / max(np.abs(b).max(), 1e-300))
+
+
+def worker_rss(client):
+    return max(client.run(lambda: resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0).values())
+
+
+def equality_table(cases, client):
+    print(f"{'case':28s} {'points':>8s} {'tiles':>5s} {'single s':>8s} {'tiled s':>8s} {'apply s':>7s} "
+          f"{'single MB':>9s} {'worker MB':>9s} {'lap':>8s} {'grad':>8s} {'div':>8s} {'normals':>8s} {'H':>8s}")
+    for name, points, normals, options, tile_points in cases:
+        t_single, ref, rss_single = single(points, normals, options)
+        ts, t_build, t_apply, out = tiled(points, normals, options, tile_points, client)
+        errs = [rel(out[k], ref[k]) for k in ("lap", "grad", "div", "normals", "H")]
+        print(f"{name:28s} {points.shape[0]:8d} {len(ts.chunks):5d} {t_single:8.2f} {t_build:8.2f} {t_apply:7.2f} "
+              f"{rss_single:9.0f} {worker_rss(client):9.0f} " + " ".join(f"{e:8.1e}" for e in errs), flush=True)
+        ts.close()
+
+
+def local_client(n_workers, memory_limit=None):
+    from dask.distributed import Client, LocalCluster
+
+    cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True, dashboard_address=":0",
+                           memory_limit=memory_limit or "auto", silence_logs=40)
+    return Client(cluster, set_as_default=False), cluster
+
+
+def warm(client):
+    """Import the package and load the compiled kernels on every worker (not part of any timing)."""
+    def job():
+        from manifold_sph import Surface, shapes
+
+        c = shapes.sphere(300)
+        Surface(c.points, c.normals, area="shepard")
+        return 1
+
+    client.run(job)
+
+
+def throughput(n):
+    from manifold_sph import shapes
+    from manifold_sph.distributed import TiledSurface
+
+    cloud = shapes.sphere(n)
+    opts = {"area": "shepard"}
+    print(f"build of a {n}-point unit sphere (given normals, area='shepard', msph)")
+    t1, _, rss1 = single(cloud.points, cloud.normals, opts, threads=1)
+    t2, _, rss2 = single(cloud.points, cloud.normals, opts, threads=2)
+    print(f"  single process, 1 thread : {t1:7.2f} s   peak {rss1:6.0f} MB")
+    print(f"  single process, 2 threads: {t2:7.2f} s   peak {rss2:6.0f} MB")
+    rows = {}
+    for w in (1, 2):
+        client, cluster = local_client(w)
+        warm(client)
+        tmp = tempfile.mkdtemp(prefix="msph-bench-")
+        t0 = time.perf_counter()
+        ts = TiledSurface(cloud.points, cloud.normals, tile_points=-(-n // 4), client=client, cache_dir=tmp, **opts)
+        tw = time.perf_counter() - t0
+        tiles = [r["seconds"] for r in ts.report]
+        rows[w] = (tw, tiles, worker_rss(client))
+        print(f"  TiledSurface, {w} worker(s): {tw:7.2f} s   tiles {len(tiles)} ({', '.join(f'{t:.2f}' for t in tiles)} s)"
+              f"   peak worker {rows[w][2]:6.0f} MB", flush=True)
+        ts.close()
+        shutil.rmtree(tmp, ignore_errors=True)
+        client.close()
+        cluster.close()
+    print(f"  per-core efficiency (single 1 thread / tiled 1 worker): {t1 / rows[1][0]:.0%}")
+    print(f"  speed-up 1 -> 2 workers: {rows[1][0] / rows[2][0]:.2f}x; tiled 2 workers vs single 2 threads: {t2 / rows[2][0]:.0%}")
+    # simulated scaling from the measured tile times (one worker = one core), 4 tiles and 16 tiles
+    tiles = np.array(rows[1][1])
+    driver = rows[1][0] - tiles.sum()
+    print(f"  simulation: driver {driver:.2f} s (partition, h fit, orientation, files) + tile times list-scheduled")
+    for parts in (1, 4):  # the 4 measured tiles, and each split in 4 (16 tiles) at the same total work
+        work = np.repeat(tiles / parts, parts)
+        line = []
+        for w in (1, 2, 4, 8, 16):
+            load = np.zeros(w)
+            for x in sorted(work, reverse=True):
+                load[np.argmin(load)] += x
+            line.append(f"{w}: {driver + load.max():6.2f} s")
+        print(f"    {work.size:2d} tiles -> " + "   ".join(line))
+
+
+def terrain(path: Path, n: int, seed=0):
+    """N uniformly random (x, y) on a square with spacing about 1, z a sum of sines plus noise; chunked."""
+    L = np.sqrt(n)
+    out = np.lib.format.open_memmap(str(path), mode="w+", dtype=np.float64, shape=(n, 3))
+    rng = np.random.default_rng(seed)
+    step = 1 << 21
+    for lo in range(0, n, step):
+        m = min(step, n - lo)
+        xy = rng.uniform(0, L, size=(m, 2))
+        x, y = xy[:, 0], xy[:, 1]
+        z = (0.05 * L * np.sin(2 * np.pi * x / L) * np.cos(2 * np.pi * y / L)
+             + 3.0 * np.sin(x / 25.0 + 0.3) * np.sin(y / 31.0)
+             + 0.5 * np.sin(x / 4.0) * np.cos(y / 5.0)
+             + 0.01 * rng.standard_normal(m))
+        out[lo : lo + m] = np.c_[x, y, z]
+    out.flush()
+
+
+def big(n, out: Path, memory_limit: str, tile_points: int):
+    from manifold_sph.distributed import TiledSurface
+
+    out.mkdir(parents=True, exist_ok=True)
+    src = out / "terrain.npy"
+    t0 = time.perf_counter()
+    terrain(src, n)
+    print(f"terrain of {n} points written to {src} ({src.stat().st_size / 2**30:.2f} GiB) in {time.perf_counter() - t0:.1f} s", flush=True)
+    client, cluster = local_client(2, memory_limit)
+    warm(client)
+    before = set(client.scheduler_info()["workers"])
+    cache = out / "tiles"
+    t0 = time.perf_counter()
+    ts = TiledSurface(str(src), tile_points=tile_points, client=client, cache_dir=cache, keep="laplacian",
+                      h="adaptive", progress=False)
+    t_build = time.perf_counter() - t0
+    rss_build = max(r.get("peak_rss_mb", 0.0) for r in ts.report)
+    print(f"build: {len(ts.chunks)} tiles of <= {tile_points} points in {t_build:.1f} s "
+          f"(tile times {np.median([r['seconds'] for r in ts.report]):.1f} s median, "
+          f"{max(r['seconds'] for r in ts.report):.1f} s max; attempts {max(r['attempts'] for r in ts.report)}; "
+          f"halo {ts.halo:.3g}, mean halo/own {np.mean([r['n_halo'] / max(r['n_own'], 1) for r in ts.report]):.2f})", flush=True)
+    t0 = time.perf_counter()
+    ts.to_npy(ts.laplacian(lambda p: p[:, 2]), out / "laplacian_z.npy")
+    t_lap = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    ts.to_npy(ts.normals, out / "normals.npy")
+    ts.to_npy(ts.mean_curvature(), out / "mean_curvature.npy")
+    t_geo = time.perf_counter() - t0
+    rss = worker_rss(client)
+    after = set(client.scheduler_info()["workers"])
+    disk = sum(f.stat().st_size for f in cache.iterdir()) / 2**30
+    H = np.load(out / "mean_curvature.npy", mmap_mode="r")
+    nz = np.load(out / "normals.npy", mmap_mode="r")[:: max(1, n // 100000), 2]
+    print(f"Laplacian of z written in {t_lap:.1f} s; normals and mean curvature in {t_geo:.1f} s")
+    print(f"peak resident memory: largest worker {rss:.0f} MB (build {rss_build:.0f} MB) against a limit of {memory_limit}; "
+          f"driver {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB")
+    print(f"workers restarted: {'no' if before == after else 'YES'}; tiles on disk {disk:.1f} GiB; "
+          f"normals up (n_z > 0) {np.mean(nz > 0):.4f}; median |H| {np.median(np.abs(H[::97])):.3g}")
+    print(f"total {t_build + t_lap + t_geo:.1f} s for {n} points")
+    ts.close()
+    client.close()
+    cluster.close()
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--n", type=int, default=200_000, help="sphere size of the equality table")
+    ap.add_argument("--scan", type=Path, default=SCANS / "igea.ply")
+    ap.add_argument("--throughput", type=int, default=None, metavar="N")
+    ap.add_argument("--big", type=int, default=None, metavar="N")
+    ap.add_argument("--out", type=Path, default=None)
+    ap.add_argument("--memory-limit", default="4GB")
+    ap.add_argument("--tile-points", type=int, default=500_000)
+    args = ap.parse_args()
+    if args.big:
+        big(args.big, args.out or Path(tempfile.mkdtemp(prefix="msph-big-")), args.memory_limit, args.tile_points)
+        return
+    if args.throughput:
+        throughput(args.throughput)
+        return
+    from manifold_sph import shapes
+
+    n = 20_000 if args.quick else args.n
+    cloud = shapes.sphere(n)
+    cases = [
+        ("sphere, given normals", cloud.points, cloud.normals, {"area": "shepard"}, -(-n // 4)),
+        ("sphere, estimated normals", cloud.points, None, {"area": "shepard"}, -(-n // 4)),
+    ]
+    if not args.quick and args.scan.exists():
+        from manifold_sph.io import read
+
+        scan = read(args.scan, normals="none")
+        cases.append((f"{args.scan.stem} (h=adaptive)", scan.points, None, {"area": "shepard", "h": "adaptive"},
+                      -(-scan.points.shape[0] // 4)))
+    elif not args.quick:
+        print(f"skipping the scan: {args.scan} not found")
+    client, cluster = local_client(2)
+    warm(client)
+    equality_table(cases, client)
+    client.close()
+    cluster.close()
+
+
+if __name__ == "__main__":
+    sys.exit(main())
