@@ -24,6 +24,9 @@ las, laz    via laspy: intensity, classification,   LAS 1.4 (laz: compressed); f
             colours, returns, extra bytes as        of those names to the standard
             fields; :func:`read_las_chunks` for     dimensions, others and normals as
             files larger than memory                extra bytes
+e57         via pye57 (optional: ``pip install      not written
+            pye57``): every scan in world
+            coordinates, intensity and colours
 vtk, vtp    via pyvista (point data ``Normals``)    via pyvista (legacy ascii .vtk keeps
                                                     about 11 significant digits)
 ==========  ======================================  =====================================
@@ -86,6 +89,7 @@ FORMATS = {
     ".npz": "npz",
     ".las": "las",
     ".laz": "laz",
+    ".e57": "e57",
     ".vtk": "vtk",
     ".vtp": "vtk",
 }
@@ -207,8 +211,8 @@ def read(path, *, format: str | None = None, normals: str = "file", duplicates: 
     ----------
     path : str or Path
     format : str, optional
-        One of ``ply, pcd, xyz, csv, obj, npy, npz, las, laz, vtk`` (default: from
-        the extension).
+        One of ``ply, pcd, xyz, csv, obj, npy, npz, las, laz, e57, vtk`` (default:
+        from the extension).
     normals : {"file", "mesh", "none"}
         "file": the normals stored in the file, if any (all-zero placeholders
         count as none); "mesh": area-weighted vertex normals of the file's faces
@@ -400,6 +404,8 @@ def write(path, cloud, fields=None, *, format: str | None = None, binary: bool =
     path = Path(path)
     check_output_path("path", path, overwrite)
     fmt = _format_of(path, format)
+    if fmt == "e57":
+        raise ValueError("E57 files are read, not written; write las, laz, ply or pcd instead")
     pts, nrm = _as_cloud_arrays(cloud)
     n = pts.shape[0]
     keep_shape = fmt in ("npz", "vtk")

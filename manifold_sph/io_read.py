@@ -759,6 +759,45 @@ def read_las(path):
     return points, normals, fields, None
 
 
+# ----------------------------------------------------------------------------
+# E57 (pye57, optional)
+# ----------------------------------------------------------------------------
+def read_e57(path):
+    """Every scan of an E57 file in world coordinates (each scan's pose applied, spherical scans
+    converted, invalid points dropped); intensity and colours as fields, ``scan`` the scan index
+    when there are several. Needs the optional package pye57."""
+    try:
+        import pye57
+    except ImportError:
+        raise ImportError(f"reading {str(path)!r} (E57) needs the package pye57: pip install pye57") from None
+    try:
+        e57 = pye57.E57(str(path))
+    except Exception as exc:  # libE57Format raises its own exception types
+        raise ReadError(path, f"pye57 could not read it ({type(exc).__name__}: {exc})") from None
+    try:
+        scans = []
+        for i in range(e57.scan_count):
+            d = e57.read_scan(i, intensity=True, colors=True, transform=True, ignore_missing_fields=True)
+            scans.append(d)
+    except Exception as exc:
+        raise ReadError(path, f"pye57 could not read its scans ({type(exc).__name__}: {exc})") from None
+    finally:
+        close = getattr(e57, "close", None)
+        if close is not None:
+            close()
+    if not scans:
+        raise ReadError(path, "the file holds no scans")
+    points = np.concatenate([np.column_stack([d["cartesianX"], d["cartesianY"], d["cartesianZ"]]) for d in scans])
+    names = {"intensity": "intensity", "colorRed": "red", "colorGreen": "green", "colorBlue": "blue"}
+    fields = {}
+    for key, name in names.items():
+        if all(key in d for d in scans):
+            fields[name] = np.concatenate([np.asarray(d[key]) for d in scans])
+    if len(scans) > 1:
+        fields["scan"] = np.concatenate([np.full(len(d["cartesianX"]), i) for i, d in enumerate(scans)])
+    return points.astype(np.float64), None, fields, None
+
+
 def read_format(path, fmt: str, want_faces: bool):
     """Dispatch to the reader of ``fmt``: (points, normals, fields, faces)."""
     if fmt == "ply":
@@ -773,4 +812,6 @@ def read_format(path, fmt: str, want_faces: bool):
         return read_numpy(path, fmt)
     if fmt in ("las", "laz"):
         return read_las(path)
+    if fmt == "e57":
+        return read_e57(path)
     return read_vtk(path)

@@ -403,3 +403,25 @@ def test_no_python_warnings_from_clean_reads(tmp_path, cloud):
         with warnings.catch_warnings():
             warnings.simplefilter("error")
             read(tmp_path / f"c.{ext}")
+
+
+def test_e57_written_by_pye57_every_scan_in_world_coordinates(tmp_path, cloud):
+    pye57 = pytest.importorskip("pye57")
+    path = tmp_path / "two.e57"
+    e57 = pye57.E57(str(path), mode="w")
+    half = [cloud.points[:20], cloud.points[20:]]
+    for k, p in enumerate(half):
+        shift = np.array([10.0 * k, 0, 0])
+        e57.write_scan_raw(
+            {"cartesianX": p[:, 0] - shift[0], "cartesianY": p[:, 1], "cartesianZ": p[:, 2],
+             "intensity": np.arange(20.0) + 20 * k, "colorRed": np.full(20, 200, np.uint8),
+             "colorGreen": np.zeros(20, np.uint8), "colorBlue": np.zeros(20, np.uint8)},
+            translation=shift,
+        )
+    e57.close()
+    back, fields = read(path, return_fields=True)
+    np.testing.assert_allclose(back.points, cloud.points, atol=1e-6)
+    np.testing.assert_array_equal(fields["intensity"], np.arange(40.0))
+    assert set(fields["red"]) == {200} and fields["scan"].tolist() == [0] * 20 + [1] * 20
+    with pytest.raises(ValueError, match="E57 files are read, not written"):
+        write(tmp_path / "c.e57", cloud)
