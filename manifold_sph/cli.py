@@ -219,7 +219,7 @@ def _parser() -> argparse.ArgumentParser:
     pictures(poi)
 
     ren = sub.add_parser("render", help="picture of a field on a point-cloud file")
-    ren.add_argument("file", help="point cloud (ply, pcd, xyz, csv, obj, npy, npz, vtk)")
+    ren.add_argument("file", help="point cloud (ply, pcd, xyz, csv, obj, npy, npz, las, laz, e57, vtk)")
     ren.add_argument(
         "--field", default="z",
         help="a field stored in the file, a coordinate x/y/z, or a test function name (default z)",
@@ -236,7 +236,7 @@ def _parser() -> argparse.ArgumentParser:
     pictures(ren)
 
     def geometry(q):
-        q.add_argument("file", help="point cloud (ply, pcd, xyz, csv, obj, npy, npz, vtk); its normals are used "
+        q.add_argument("file", help="point cloud (ply, pcd, xyz, csv, obj, npy, npz, las, laz, e57, vtk); its normals are used "
                                     "if it has them, else estimated")
         q.add_argument("--scheme", default="msph", choices=schemes)
         q.add_argument("--neighbors", type=_positive_int, default=None, help="mean neighbour count (default: the scheme's)")

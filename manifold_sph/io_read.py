@@ -7,16 +7,19 @@ longer or shorter than its header says, a row with more or fewer values than
 the header declares, or a face index outside the vertices are errors, never
 silently cut or wrapped.
 
-Why these formats are parsed here and not by open3d's tensor IO or trimesh
-(measured with open3d 0.20 and trimesh 4.x): ``open3d.t.io.read_point_cloud``
-reads a PLY whose header count is smaller than its body without a word (and
-a truncated one with a printed warning only), fills the normals with
-uninitialised memory when only ``nx`` is present, lets a property named
-``positions`` overwrite ``x``, keeps only the first value of a PCD field with
-``COUNT 3`` and drops PCD rows beyond ``POINTS``; trimesh's OBJ loader skips
-``v<TAB>`` lines. The parsing below is vectorised numpy (no loop over points);
-open3d reads the LZF-compressed PCD bodies and pyvista the VTK files; laspy
-reads LAS/LAZ.
+Why PLY, PCD and OBJ are parsed here and not by open3d's tensor IO or trimesh
+(measured with open3d 0.20 and trimesh 4.5): when ``open3d.t.io.read_point_cloud``
+meets a value it cannot parse (``4 five 6``, a truncated body) it prints a
+warning and returns the cloud anyway, the rows from there on filled with
+uninitialised memory (values like 7.7e19); it reads a PLY whose header count is
+smaller than its body without a word, fills the normals with uninitialised
+memory when only ``nx`` is present, lets a property named ``positions``
+overwrite ``x``, keeps only the first value of a PCD field with ``COUNT 3`` and
+drops PCD rows beyond ``POINTS``. trimesh's OBJ loader skips ``v<TAB>`` lines.
+Guarding against all of this needs the structure checks below, which leave only
+the number conversion to delegate. The parsing is vectorised numpy (no loop
+over points); open3d reads the LZF-compressed PCD bodies (after the header
+checks), pyvista the VTK files, laspy LAS/LAZ and pye57 E57.
 """
 
 from __future__ import annotations
