@@ -433,8 +433,17 @@ def _pcd_header(path, raw: bytes):
                                   "the header count is too small")
     elif mode == "ascii" and 2 * values * n - 1 > body:
         raise ReadError(path, f"PCD file truncated: {n} points of {values} values cannot fit in {body} bytes")
-    elif mode == "binary_compressed" and values > body:
-        raise ReadError(path, f"PCD header: COUNT values {counts} cannot fit in a body of {body} bytes")
+    elif mode == "binary_compressed":
+        if body < 8:
+            raise ReadError(path, "PCD file truncated: no compressed block sizes after DATA binary_compressed")
+        packed_size, unpacked = (int(v) for v in np.frombuffer(raw, dtype="<u4", count=2, offset=pos))
+        row = sum(s * c for s, c in zip(sizes, counts))
+        if unpacked != row * n:
+            raise ReadError(path, f"PCD compressed block unpacks to {unpacked} bytes, the header promises "
+                                  f"POINTS {n} x {row} bytes = {row * n}")
+        if packed_size + 8 > body:
+            raise ReadError(path, f"PCD file truncated: a compressed block of {packed_size} bytes, the body holds "
+                                  f"{body - 8}")
     return names, sizes, types, counts, n, mode, pos
 
 
@@ -455,7 +464,10 @@ def read_pcd(path):
     raw = Path(path).read_bytes()
     names, sizes, types, counts, n, mode, pos = _pcd_header(path, raw)
     if mode == "binary_compressed":
-        return _read_open3d_pcd(path)
+        out = _read_open3d_pcd(path)
+        if len(out[0]) != n:
+            raise ReadError(path, f"open3d read {len(out[0])} points, the header promises POINTS {n}")
+        return out
     cols = []
     for nm, c in zip(names, counts):
         cols += [nm] if c == 1 else [f"{nm}_{k}" for k in range(c)]

@@ -425,3 +425,18 @@ def test_e57_written_by_pye57_every_scan_in_world_coordinates(tmp_path, cloud):
     assert set(fields["red"]) == {200} and fields["scan"].tolist() == [0] * 20 + [1] * 20
     with pytest.raises(ValueError, match="E57 files are read, not written"):
         write(tmp_path / "c.e57", cloud)
+
+
+def test_pcd_compressed_block_sizes_checked(tmp_path, cloud):
+    o3d = pytest.importorskip("open3d")
+    pc = o3d.t.geometry.PointCloud()
+    pc.point.positions = o3d.core.Tensor(cloud.points.copy())
+    o3d.t.io.write_point_cloud(str(tmp_path / "c.pcd"), pc, compressed=True)
+    raw = (tmp_path / "c.pcd").read_bytes()
+    np.testing.assert_array_equal(read(tmp_path / "c.pcd").points, cloud.points)
+    (tmp_path / "t.pcd").write_bytes(raw[:-100])
+    with pytest.raises(ReadError, match="truncated: a compressed block"):
+        read(tmp_path / "t.pcd")
+    (tmp_path / "s.pcd").write_bytes(raw.replace(b"POINTS 40", b"POINTS 30").replace(b"WIDTH 40", b"WIDTH 30"))
+    with pytest.raises(ReadError, match="unpacks to .* the header promises"):
+        read(tmp_path / "s.pcd")
