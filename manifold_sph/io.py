@@ -13,8 +13,10 @@ ply         ascii, binary little/big endian;        ascii or binary little endia
 pcd         ascii, binary, binary_compressed (via   ascii or binary
             open3d); packed ``rgb`` as red, green,
             blue fields
-xyz, txt,   columns x y z [nx ny nz] [more]; a      x y z [nx ny nz] [fields], header
-pts, csv    header line of names is recognised      line of names for csv
+xyz, txt,   columns x y z [nx ny nz or r g b]         x y z [nx ny nz] [fields], header
+csv         [more]; a header line of names is       line of names for csv
+            recognised, so is a point count first
+pts         x y z [intensity] [r g b] (Leica)       as xyz
 obj         ``v`` (x y z, or x y z r g b colours    ``v`` (with colours) and ``vn``
             as fields), ``vn`` when one per         lines
             vertex; ``f`` for mesh normals
@@ -83,7 +85,7 @@ FORMATS = {
     ".xyz": "xyz",
     ".txt": "xyz",
     ".csv": "csv",
-    ".pts": "xyz",
+    ".pts": "pts",
     ".obj": "obj",
     ".npy": "npy",
     ".npz": "npz",
@@ -211,7 +213,7 @@ def read(path, *, format: str | None = None, normals: str = "file", duplicates: 
     ----------
     path : str or Path
     format : str, optional
-        One of ``ply, pcd, xyz, csv, obj, npy, npz, las, laz, e57, vtk`` (default:
+        One of ``ply, pcd, xyz, csv, pts, obj, npy, npz, las, laz, e57, vtk`` (default:
         from the extension).
     normals : {"file", "mesh", "none"}
         "file": the normals stored in the file, if any (all-zero placeholders

@@ -555,20 +555,49 @@ def read_text(path, fmt: str):
     if any(re.search(r"[A-Za-z_]", t) and not _is_number(t) for t in first):
         names = [t.strip("\"'") for t in first]
         lines = lines[1:]
+    declared = None
+    if names is None and len(first) == 1 and first[0].isdigit() and len(lines) > 1:
+        declared = int(first[0])  # a point count first (Leica PTS and other scanner exports)
+        lines = lines[1:]
     if not lines:
         raise ReadError(path, "the file holds a header line but no data rows")
     try:
         arr = np.loadtxt(lines, delimiter=delim, dtype=np.float64, ndmin=2)
     except ValueError as exc:
         raise ReadError(path, f"malformed numeric data ({exc})") from None
+    if declared is not None and declared != arr.shape[0]:
+        raise ReadError(path, f"the first line declares {declared} points, the file holds {arr.shape[0]} rows")
     if names is None:
-        m = arr.shape[1]
-        if m < 3:
-            raise ReadError(path, f"rows must hold at least 3 columns (x y z), got {m}")
-        names = ["x", "y", "z"] + (["nx", "ny", "nz"] if m >= 6 else []) + [f"f{k}" for k in range(m - (6 if m >= 6 else 3))]
+        names = _default_names(path, fmt, arr)
     if len(names) != arr.shape[1]:
         raise ReadError(path, f"the header names {len(names)} columns but rows hold {arr.shape[1]}")
     return split_columns(path, names, arr) + (None,)
+
+
+def _is_colour(a: np.ndarray) -> bool:
+    """Columns of 8-bit colour values (integers in 0..255, some above 1), not unit normals."""
+    return bool(np.all((a >= 0) & (a <= 255) & (a == np.round(a))) and a.max() > 1)
+
+
+def _default_names(path, fmt: str, arr: np.ndarray) -> list[str]:
+    """Column names of a text file without a header line.
+
+    ``pts``: x y z [intensity] [r g b] (the Leica PTS layout). Otherwise x y z,
+    then nx ny nz, or red green blue when those three columns are 8-bit colours
+    (``x y z r g b``, as CloudCompare writes), then f0, f1...
+    """
+    m = arr.shape[1]
+    if m < 3:
+        raise ReadError(path, f"rows must hold at least 3 columns (x y z), got {m}")
+    if fmt == "pts":
+        tail = {3: [], 4: ["intensity"], 6: ["red", "green", "blue"], 7: ["intensity", "red", "green", "blue"]}
+        if m not in tail:
+            raise ReadError(path, f"PTS rows hold x y z [intensity] [r g b]: 3, 4, 6 or 7 values, got {m}")
+        return ["x", "y", "z"] + tail[m]
+    if m >= 6:
+        trio = ["red", "green", "blue"] if _is_colour(arr[:, 3:6]) else ["nx", "ny", "nz"]
+        return ["x", "y", "z"] + trio + [f"f{k}" for k in range(m - 6)]
+    return ["x", "y", "z"] + [f"f{k}" for k in range(m - 3)]
 
 
 # ----------------------------------------------------------------------------
@@ -819,7 +848,7 @@ def read_format(path, fmt: str, want_faces: bool):
         return read_ply(path, want_faces)
     if fmt == "pcd":
         return read_pcd(path)
-    if fmt in ("xyz", "csv"):
+    if fmt in ("xyz", "csv", "pts"):
         return read_text(path, fmt)
     if fmt == "obj":
         return read_obj(path, want_faces)

@@ -99,7 +99,8 @@ def _write_text(fh, points, normals, fields, fmt: str):
     data = np.column_stack([points] + ([normals] if normals is not None else [])
                            + [np.asarray(v, np.float64) for v in fields.values()])
     delim = "," if fmt == "csv" else " "
-    header = delim.join(cols) if (fmt == "csv" or fields) else ""
+    # pts: a header line of names keeps normals from being read as the PTS colour columns
+    header = delim.join(cols) if (fmt == "csv" or fields or (fmt == "pts" and normals is not None)) else ""
     np.savetxt(fh, data, fmt="%.17g", delimiter=delim, header=header, comments="")
 
 
@@ -176,7 +177,7 @@ def write_format(tmp: Path, fmt: str, points, normals, flat, raw_fields, binary:
             _write_ply(fh, points, normals, flat, binary)
         elif fmt == "pcd":
             _write_pcd(fh, points, normals, flat, binary)
-        elif fmt in ("xyz", "csv"):
+        elif fmt in ("xyz", "csv", "pts"):
             _write_text(fh, points, normals, flat, fmt)
         elif fmt == "obj":
             _write_obj(fh, points, normals, flat)

@@ -440,3 +440,24 @@ def test_pcd_compressed_block_sizes_checked(tmp_path, cloud):
     (tmp_path / "s.pcd").write_bytes(raw.replace(b"POINTS 40", b"POINTS 30").replace(b"WIDTH 40", b"WIDTH 30"))
     with pytest.raises(ReadError, match="unpacks to .* the header promises"):
         read(tmp_path / "s.pcd")
+
+
+def test_text_colours_and_pts_layout_not_read_as_normals(tmp_path, cloud):
+    rgb = (np.abs(cloud.normals) * 255).round()
+    rows = np.c_[cloud.points, rgb]
+    np.savetxt(tmp_path / "c.xyz", rows, fmt="%.17g")  # x y z r g b, as CloudCompare writes
+    back, fields = read(tmp_path / "c.xyz", return_fields=True)
+    assert back.normals is None and np.array_equal(fields["red"], rgb[:, 0])
+    np.savetxt(tmp_path / "n.xyz", np.c_[cloud.points, cloud.normals], fmt="%.17g")  # x y z nx ny nz
+    np.testing.assert_allclose(read(tmp_path / "n.xyz").normals, cloud.normals, atol=1e-15)
+    # Leica PTS: a point count first, then x y z intensity r g b
+    body = "".join(" ".join(f"{v:.17g}" for v in r) + "\n" for r in np.c_[cloud.points, np.arange(40), rgb])
+    (tmp_path / "s.pts").write_text("40\n" + body)
+    back, fields = read(tmp_path / "s.pts", return_fields=True)
+    np.testing.assert_array_equal(back.points, cloud.points)
+    assert fields["intensity"][5] == 5 and np.array_equal(fields["blue"], rgb[:, 2])
+    (tmp_path / "bad.pts").write_text("41\n" + body)
+    with pytest.raises(ReadError, match="declares 41 points, the file holds 40 rows"):
+        read(tmp_path / "bad.pts")
+    write(tmp_path / "w.pts", cloud)
+    np.testing.assert_allclose(read(tmp_path / "w.pts").normals, cloud.normals, atol=1e-15)
