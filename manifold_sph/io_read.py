@@ -677,7 +677,53 @@ def _real(path, name: str, a: np.ndarray) -> np.ndarray:
         raise ReadError(path, f"the {name} array is not numeric (dtype {a.dtype})") from None
 
 
+def _npy_declared(fh) -> tuple[tuple, np.dtype]:
+    """Shape and dtype from an .npy header (numpy's public header readers)."""
+    from numpy.lib import format as npformat
+
+    version = npformat.read_magic(fh)
+    read_header = {(1, 0): npformat.read_array_header_1_0, (2, 0): npformat.read_array_header_2_0}.get(version)
+    if read_header is None:
+        raise ValueError(f"unsupported NPY format version {version}")
+    shape, _, dtype = read_header(fh)
+    return shape, dtype
+
+
+def _check_npy_sizes(path, fmt: str) -> None:
+    """Compare each array's declared size with the bytes the file holds, before numpy allocates."""
+    import zipfile
+
+    def check(fh, available: int, name: str):
+        start = fh.tell()
+        try:
+            shape, dtype = _npy_declared(fh)
+        except (ValueError, EOFError):
+            return  # np.load reports malformed headers itself
+        need = int(np.prod(shape, dtype=object)) * dtype.itemsize
+        have = available - (fh.tell() - start)
+        if dtype.hasobject or need > have:
+            raise ReadError(path, f"{name}: the header declares shape {shape} of {dtype} ({need} bytes), "
+                                  f"the file holds {have} bytes")
+
+    if fmt == "npy":
+        with open(path, "rb") as fh:
+            if fh.read(2) == b"PK":
+                return
+            fh.seek(0)
+            check(fh, Path(path).stat().st_size, "the array")
+        return
+    try:
+        with zipfile.ZipFile(path) as zf:
+            for info in zf.infolist():
+                if info.filename.endswith(".npy"):
+                    with zf.open(info) as fh:
+                        check(fh, info.file_size, f"array {info.filename[:-4]!r}")
+    except zipfile.BadZipFile:
+        return  # np.load reports it
+
+
 def read_numpy(path, fmt: str):
+    _check_npy_sizes(path, fmt)
     try:
         obj = np.load(path, allow_pickle=False)
     except EOFError:

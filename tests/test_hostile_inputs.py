@@ -461,3 +461,22 @@ def test_text_colours_and_pts_layout_not_read_as_normals(tmp_path, cloud):
         read(tmp_path / "bad.pts")
     write(tmp_path / "w.pts", cloud)
     np.testing.assert_allclose(read(tmp_path / "w.pts").normals, cloud.normals, atol=1e-15)
+
+
+def test_npy_npz_declared_shape_checked_before_allocation(tmp_path, cloud):
+    import io as stdio
+    import zipfile
+
+    from numpy.lib import format as npformat
+
+    head = stdio.BytesIO()
+    npformat.write_array_header_1_0(head, {"descr": "<f8", "fortran_order": False, "shape": (10**11, 3)})
+    (tmp_path / "h.npy").write_bytes(head.getvalue() + bytes(240))
+    with pytest.raises(ReadError, match=r"declares shape \(100000000000, 3\).*holds 240 bytes"):
+        read(tmp_path / "h.npy")
+    with zipfile.ZipFile(tmp_path / "h.npz", "w") as zf:
+        zf.writestr("points.npy", head.getvalue() + bytes(240))
+    with pytest.raises(ReadError, match="array 'points': the header declares"):
+        read(tmp_path / "h.npz")
+    write(tmp_path / "ok.npz", cloud, fields={"u": np.arange(40.0)})
+    assert len(read(tmp_path / "ok.npz")) == 40
