@@ -833,16 +833,31 @@ def read_las(path):
 
     try:
         with laspy.open(str(path)) as reader:
-            n = int(reader.header.point_count)
+            h = reader.header
+            n = int(h.point_count)
+            compressed = bool(h.are_points_compressed) if hasattr(h, "are_points_compressed") else False
+            need = int(h.offset_to_point_data) + n * int(h.point_format.size)
+            evlr = int(getattr(h, "start_of_first_evlr", 0) or 0) if int(getattr(h, "number_of_evlrs", 0) or 0) else 0
     except Exception as exc:
         raise ReadError(path, f"laspy could not read it ({type(exc).__name__}: {exc})") from None
     if n == 0:
         raise ReadError(path, "the file holds no points (its header's point count is 0)")
+    size = Path(path).stat().st_size
+    if not compressed and need > size:
+        raise ReadError(path, f"file truncated: the header declares {n} points ({need} bytes with the header), "
+                              f"the file holds {size} bytes")
+    end = evlr or size  # the point records end where the extended VLRs start, or at the end of the file
+    if not compressed and end - need >= int(h.point_format.size):
+        raise ReadError(path, f"the file holds {(end - need) // int(h.point_format.size)} point records more than "
+                              f"the header's count {n}: the header count is too small")
     pts, cols = [], {}
     for xyz, f in read_las_chunks(path, chunk_size=max(1, min(n, 2_000_000))):
         pts.append(xyz)
         for k, v in f.items():
             cols.setdefault(k, []).append(v)
+    got = sum(len(p) for p in pts)
+    if got != n:
+        raise ReadError(path, f"the header declares {n} points, the file holds {got}")
     points = np.concatenate(pts)
     dims = {k: np.concatenate(v) for k, v in cols.items()}
     points, normals, fields = _las_split(path, points, dims)

@@ -480,3 +480,16 @@ def test_npy_npz_declared_shape_checked_before_allocation(tmp_path, cloud):
         read(tmp_path / "h.npz")
     write(tmp_path / "ok.npz", cloud, fields={"u": np.arange(40.0)})
     assert len(read(tmp_path / "ok.npz")) == 40
+
+
+def test_las_header_count_checked_against_the_records(tmp_path, cloud):
+    import struct
+
+    write(tmp_path / "c.las", cloud)
+    raw = bytearray((tmp_path / "c.las").read_bytes())
+    for count, match in ((10**9, "file truncated: the header declares 1000000000 points"),
+                         (30, "10 point records more than the header's count 30")):
+        raw[247:255] = struct.pack("<Q", count)  # LAS 1.4: the 64-bit point count
+        (tmp_path / "x.las").write_bytes(bytes(raw))
+        with pytest.raises(ReadError, match=match):
+            read(tmp_path / "x.las")
