@@ -66,7 +66,9 @@ SCHEDULERS = ("distributed", "synchronous", "threads")
 _MAX_ATTEMPTS = 5
 _WIDEN = 1.6
 #: Points of the subsample that decides the outward orientation of estimated normals.
-_ORIENT_SAMPLE = 20000
+_ORIENT_SAMPLE = 10000
+#: Points of the subsample that scales the first halo guess with ``h="adaptive"`` (2D density scaling).
+_H_GUESS_SAMPLE = 200_000
 _FORMAT = 1  # version of the tile files
 
 
@@ -336,8 +338,8 @@ def _build_tile_arrays(spec: dict) -> dict:
         )
     n_s = cols.size
     nrm_s = np.asarray(s.normals)
-    L = s.laplacian_matrix()[:n_own].tocsr()
-    dx, dy = (m[:n_own].tocsr() for m in s.derivative_matrices())
+    L = _head_rows(s.laplacian_matrix(), n_own)
+    dx, dy = (_head_rows(m, n_own) for m in s.derivative_matrices())
     from . import geometry
 
     H_n = geometry.mean_curvature(s, "normals")[:n_own]
@@ -346,7 +348,8 @@ def _build_tile_arrays(spec: dict) -> dict:
     fallback = {k: int(np.count_nonzero(np.asarray(v) < n_own)) for k, v in s.fallback.items()}
     fallback = {k: v for k, v in fallback.items() if v}
     widened = int(np.count_nonzero(np.asarray(s.widened) < n_own))
-    absrow = np.asarray(abs(L).sum(axis=1)).ravel()
+    # row sums of |L| without scipy's abs(), which sorts the rows' entries in place
+    absrow = np.bincount(np.repeat(np.arange(n_own), np.diff(L.indptr)), weights=np.abs(L.data), minlength=n_own)
     # normals of halo particles whose normals are complete: they stitch the tiles' orientations
     shared = np.arange(n_own, n_s)
     summary = base | {
@@ -366,6 +369,13 @@ def _build_tile_arrays(spec: dict) -> dict:
         arrays[name + "_data"], arrays[name + "_indices"], arrays[name + "_indptr"] = m.data, m.indices, m.indptr
     _save(spec, arrays, summary)
     return summary
+
+
+def _head_rows(m: sp.csr_matrix, n: int) -> sp.csr_matrix:
+    """The first ``n`` rows, each row's entries in their stored order (the neighbours' distance order):
+    scipy's slicing may sort them, and the order of the sums is part of the result's round-off."""
+    end = int(m.indptr[n])
+    return sp.csr_matrix((m.data[:end], m.indices[:end], m.indptr[: n + 1]), shape=(n, m.shape[1]), copy=True)
 
 
 def _save(spec, arrays, summary):
@@ -571,11 +581,12 @@ class TiledSurface:
         from .neighbors import smoothing_length_for_count
 
         support = get_kernel(opts["kernel"]).support
-        if h is None or isinstance(h, str):
-            h_fit = smoothing_length_for_count(pts, opts["neighbors"], support)
-            if h is None:
-                opts["h"] = h_fit
-            h_scale = h_fit
+        if h is None:  # exact: the fit of Surface, on every point (a KD-tree of the whole cloud on the driver)
+            opts["h"] = h_scale = smoothing_length_for_count(pts, opts["neighbors"], support)
+        elif isinstance(h, str):  # "adaptive": only the first halo guess needs a scale; a strided subsample gives it
+            m = min(n, _H_GUESS_SAMPLE)
+            sub = np.asarray(pts[np.linspace(0, n - 1, m).round().astype(np.int64)])
+            h_scale = smoothing_length_for_count(sub, min(opts["neighbors"], m - 1), support) * np.sqrt(m / n)
         elif np.ndim(h) == 0:
             h_scale = float(h)
         else:
