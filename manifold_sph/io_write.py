@@ -66,18 +66,33 @@ def _columns(points, normals, fields, normal_names):
     return cols
 
 
+_COLOURS = ("red", "green", "blue", "alpha")
+
+
+def _is_byte(v) -> bool:
+    v = np.asarray(v)
+    return v.size > 0 and bool(np.all((v >= 0) & (v <= 255) & (v == np.round(v))))
+
+
 def _write_ply(fh, points, normals, fields, binary: bool):
+    """Doubles, except colours ``red, green, blue (alpha)`` of integers 0..255: ``uchar``, as
+    MeshLab, CloudCompare and open3d expect them."""
     cols = _columns(points, normals, fields, ("nx", "ny", "nz"))
+    byte = {name for name, v in cols if name in _COLOURS and _is_byte(v)}
+    types = [("uchar", "u1", "%d") if name in byte else ("double", "<f8", "%.17g") for name, _ in cols]
     header = ["ply", f"format {'binary_little_endian' if binary else 'ascii'} 1.0", "comment written by manifold_sph",
               f"element vertex {points.shape[0]}"]
-    header += [f"property double {name}" for name, _ in cols]
+    header += [f"property {t[0]} {name}" for (name, _), t in zip(cols, types)]
     header.append("end_header")
-    data = np.column_stack([c for _, c in cols]).astype(np.float64)
     fh.write(("\n".join(header) + "\n").encode("ascii"))
     if binary:
-        fh.write(data.astype("<f8").tobytes())
+        rec = np.empty(points.shape[0], dtype=[(f"c{k}", t[1]) for k, t in enumerate(types)])
+        for k, (_, v) in enumerate(cols):
+            rec[f"c{k}"] = v
+        fh.write(rec.tobytes())
     else:
-        np.savetxt(fh, data, fmt="%.17g")
+        data = np.column_stack([c for _, c in cols]).astype(np.float64)
+        np.savetxt(fh, data, fmt=[t[2] for t in types])
 
 
 def _write_pcd(fh, points, normals, fields, binary: bool):

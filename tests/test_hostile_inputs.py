@@ -493,3 +493,18 @@ def test_las_header_count_checked_against_the_records(tmp_path, cloud):
         (tmp_path / "x.las").write_bytes(bytes(raw))
         with pytest.raises(ReadError, match=match):
             read(tmp_path / "x.las")
+
+
+def test_ply_colours_written_as_uchar_for_other_tools(tmp_path, cloud):
+    o3d = pytest.importorskip("open3d")
+    rgb = (np.abs(cloud.normals) * 255).round()
+    for binary in (True, False):
+        path = tmp_path / f"c{int(binary)}.ply"
+        write(path, cloud, fields={"red": rgb[:, 0], "green": rgb[:, 1], "blue": rgb[:, 2], "u": np.ones(40)},
+              binary=binary)
+        assert b"property uchar red" in path.read_bytes()[:400]
+        pc = o3d.t.io.read_point_cloud(str(path))
+        np.testing.assert_array_equal(pc.point.colors.numpy(), rgb.astype(np.uint8))
+        back, fields = read(path, return_fields=True)
+        np.testing.assert_array_equal(back.points, cloud.points)
+        np.testing.assert_array_equal(fields["blue"], rgb[:, 2])
