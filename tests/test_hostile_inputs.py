@@ -293,6 +293,11 @@ def test_wave_energy_and_poisson_tolerance_checked():
         pde.wave_energy(s, u, u, 0.0)
     with pytest.raises(ValueError, match="tol must be a finite positive number, got nan"):
         pde.poisson(s, np.zeros(200), tol=float("nan"))
+    # a user Laplacian holding NaN: named, not scipy's "exactly singular"
+    L = s.laplacian_matrix().toarray()
+    L[0, 0] = np.nan
+    with pytest.raises(ValueError, match="laplacian must have finite entries"):
+        pde.heat(s, u, dt=1e-3, steps=1, laplacian=L)
 
 
 # ------------------------------------------------------------------ LAS / LAZ
