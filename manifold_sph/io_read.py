@@ -460,7 +460,7 @@ def _pcd_header(path, raw: bytes):
     return names, sizes, types, counts, n, mode, pos
 
 
-def _unpack_rgb(cols: list[str], arr: np.ndarray, raw_rgb: dict):
+def _unpack_rgb(raw_rgb: dict):
     """Replace packed ``rgb``/``rgba`` columns by red, green, blue (and alpha) uint8 fields."""
     fields = {}
     for name, packed in raw_rgb.items():
@@ -511,7 +511,7 @@ def read_pcd(path):
         raise ReadError(path, f"unknown PCD DATA mode {mode!r}")
     if packed:
         keep = [i for i, c in enumerate(cols) if c.lower() not in packed]
-        colour = _unpack_rgb(cols, arr, packed)
+        colour = _unpack_rgb(packed)
         cols, arr = [cols[i] for i in keep], arr[:, keep]
     points, normals, fields = split_columns(path, cols, arr)
     if packed:
@@ -616,21 +616,23 @@ def _default_names(path, fmt: str, arr: np.ndarray) -> list[str]:
 # ----------------------------------------------------------------------------
 # OBJ
 # ----------------------------------------------------------------------------
-_OBJ_LINE = re.compile(rb"^[ \t]*(v|vn|f)[ \t]+([^\r\n]*)", re.M)
+def _obj_lines(keyword: bytes) -> re.Pattern:
+    return re.compile(rb"^[ \t]*" + keyword + rb"[ \t]+([^\r\n]*)", re.M)
+
+
+_OBJ_V, _OBJ_VN, _OBJ_F = _obj_lines(b"v"), _obj_lines(b"vn"), _obj_lines(b"f")
+_OBJ_V_OR_F = re.compile(rb"^[ \t]*(v|f)[ \t]", re.M)
 
 
 def read_obj(path, want_faces: bool):
     """``v`` lines (x y z, optionally w or r g b colours), ``vn`` lines, ``f`` lines (1-based,
     negative indices relative to the vertices above the face); tabs separate like spaces."""
     raw = Path(path).read_bytes()
-    hits = _OBJ_LINE.findall(raw)
-    offsets = np.array([m.start() for m in _OBJ_LINE.finditer(raw)], dtype=np.int64) if want_faces else None
-    kinds = np.array([k for k, _ in hits], dtype=object)
-    v = [h for k, h in hits if k == b"v"]
+    v = _OBJ_V.findall(raw)
     if not v:
         raise ReadError(path, "no vertex ('v x y z') lines")
     body = b"\n".join(v)
-    tok, starts = tokens_per_line(body)
+    tok, _ = tokens_per_line(body)
     widths = np.unique(tok)
     if widths.size > 1:
         raise ReadError(path, f"vertex lines hold different numbers of values ({widths.tolist()}): "
@@ -644,36 +646,33 @@ def read_obj(path, want_faces: bool):
     if m == 6:  # the common extension: vertex colours
         fields = {"red": data[:, 3], "green": data[:, 4], "blue": data[:, 5]}
     normals = None
-    vn = [h for k, h in hits if k == b"vn"]
+    vn = _OBJ_VN.findall(raw)
     if vn and len(vn) == len(v):
         nb = b"\n".join(vn)
         ntok, _ = tokens_per_line(nb)
         if np.any(ntok != 3):
             raise ReadError(path, "every normal ('vn') line must hold 3 values")
-        normals = _parse_floats(path, nb, "normal line").reshape(-1, 3)
+        normals = _table(path, nb, len(vn), 3, "normal line")
     faces = None
     if want_faces:
-        fsel = np.flatnonzero(kinds == b"f")
-        fl = [re.sub(rb"/[^ \t]*", b"", hits[i][1]) for i in fsel]
-        if fl:
-            fb = b"\n".join(fl)
-            sizes, _ = tokens_per_line(fb)
-            flat = _parse_floats(path, fb, "face line")
-            if not np.all(flat == np.round(flat)) or np.any(flat == 0):
-                raise ReadError(path, "face indices must be non-zero integers (OBJ counts vertices from 1)")
-            flat = flat.astype(np.int64)
-            vsel = np.flatnonzero(kinds == b"v")
-            before = np.searchsorted(offsets[vsel], offsets[fsel])  # vertices defined above each face
-            rel = np.repeat(before, sizes)
-            flat = np.where(flat > 0, flat - 1, rel + flat)
-            bad = (flat < 0) | (flat >= len(v))
-            if bad.any():
-                row = int(np.searchsorted(np.cumsum(sizes), np.flatnonzero(bad)[0], side="right"))
-                raise ReadError(path, f"face {row} refers to a vertex that does not exist (0-based index "
-                                      f"{int(flat[bad][0])}; the file holds {len(v)} vertices)")
-            faces = fan(sizes, flat)
-        else:
-            faces = np.zeros((0, 3), dtype=np.int64)
+        fl = _OBJ_F.findall(raw)
+        if not fl:
+            return points, normals, fields, np.zeros((0, 3), dtype=np.int64)
+        fb = re.sub(rb"/[^ \t\n]*", b"", b"\n".join(fl))  # 'f 1/1/1 2//2': the vertex index only
+        sizes, _ = tokens_per_line(fb)
+        flat = _parse_floats(path, fb, "face line")
+        if not np.all(flat == np.round(flat)) or np.any(flat == 0):
+            raise ReadError(path, "face indices must be non-zero integers (OBJ counts vertices from 1)")
+        flat = flat.astype(np.int64)
+        is_face = np.array(_OBJ_V_OR_F.findall(raw), dtype="S1") == b"f"
+        before = np.cumsum(~is_face)[is_face]  # vertices defined above each face
+        flat = np.where(flat > 0, flat - 1, np.repeat(before, sizes) + flat)
+        bad = (flat < 0) | (flat >= len(v))
+        if bad.any():
+            row = int(np.searchsorted(np.cumsum(sizes), np.flatnonzero(bad)[0], side="right"))
+            raise ReadError(path, f"face {row} refers to a vertex that does not exist (0-based index "
+                                  f"{int(flat[bad][0])}; the file holds {len(v)} vertices)")
+        faces = fan(sizes, flat)
     return points, normals, fields, faces
 
 

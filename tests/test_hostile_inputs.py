@@ -513,3 +513,15 @@ def test_ply_colours_written_as_uchar_for_other_tools(tmp_path, cloud):
         back, fields = read(path, return_fields=True)
         np.testing.assert_array_equal(back.points, cloud.points)
         np.testing.assert_array_equal(fields["blue"], rgb[:, 2])
+
+
+def test_obj_negative_indices_count_from_the_face(tmp_path):
+    # two triangles, each face after its own vertices: -1 is the vertex just above the face
+    text = ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\n"
+            "v 5 0 0\nv 6 0 0\nv 5 1 0\nf -3/1 -2//1 -1/2/3\n")
+    (tmp_path / "r.obj").write_text(text)
+    v, f = read_mesh(tmp_path / "r.obj")
+    assert f.tolist() == [[0, 1, 2], [3, 4, 5]]
+    (tmp_path / "z.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n")
+    with pytest.raises(ReadError, match="OBJ counts vertices from 1"):
+        read_mesh(tmp_path / "z.obj")
