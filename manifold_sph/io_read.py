@@ -250,18 +250,31 @@ def _ply_binary_element(path, el, buf: memoryview, pos: int, endian: str, need: 
                                   f"{(len(buf) - pos) // max(dt.itemsize, 1)})")
         data = np.frombuffer(buf, dtype=dt, count=count, offset=pos) if need else None
         return data, pos + nbytes
-    # one list property of constant length (triangles): one vectorised read
-    if len(props) == 1 and count > 0:
+    # one list property (faces, strips): read in runs of equal length, each run one vectorised
+    # read (all triangles: a single run; a quad-dominant mesh: few runs)
+    if len(props) == 1:
         _, _, ct, it = props[0]
         ctype, itype = np.dtype(endian + ct), np.dtype(endian + it)
-        if pos + ctype.itemsize > len(buf):
-            raise ReadError(path, f"file truncated in element {el['name']!r}")
-        first = int(np.frombuffer(buf, dtype=ctype, count=1, offset=pos)[0])
-        dt = np.dtype([("n", ctype), ("v", itype, (first,))])
-        if pos + dt.itemsize * count <= len(buf):
-            arr = np.frombuffer(buf, dtype=dt, count=count, offset=pos)
-            if np.all(arr["n"] == first):
-                return ([arr["v"].astype(np.int64)] if need else None), pos + dt.itemsize * count
+        runs, k, window = [], 0, 1024
+        while k < count:
+            if pos + ctype.itemsize > len(buf):
+                raise ReadError(path, f"file truncated in element {el['name']!r} (row {k} of {count})")
+            m = int(np.frombuffer(buf, dtype=ctype, count=1, offset=pos)[0])
+            if m < 0:
+                raise ReadError(path, f"row {k} of element {el['name']!r} declares {m} indices")
+            dt = np.dtype([("n", ctype), ("v", itype, (m,))])
+            avail = min(count - k, window, (len(buf) - pos) // dt.itemsize)
+            if avail < 1:
+                raise ReadError(path, f"file truncated in element {el['name']!r} (row {k} of {count})")
+            arr = np.frombuffer(buf, dtype=dt, count=avail, offset=pos)
+            same = arr["n"] == m
+            r = avail if same.all() else int(np.argmin(same))
+            if need:
+                runs.append(arr["v"][:r].astype(np.int64))
+            pos += r * dt.itemsize
+            k += r
+            window = 2 * window if r == avail else 1024
+        return (runs if need else None), pos
     rows = []  # general rows: a walk (polygons of mixed sizes)
     for _ in range(count):
         lists = []
@@ -287,14 +300,16 @@ def _ply_binary_element(path, el, buf: memoryview, pos: int, endian: str, need: 
 def _polys_to_faces(path, name: str, polys, n: int) -> np.ndarray:
     """Triangles of a 'face' (polygons) or 'tristrips' element, indices checked against ``n``."""
     if name == "tristrips":
+        polys = [row for run in polys for row in run] if polys and np.ndim(polys[0]) == 2 else polys
         flat = np.concatenate(polys) if polys else np.zeros(0, np.int64)
         bad = (flat < -1) | (flat >= n)  # -1 separates strips
         if bad.any():
             raise ReadError(path, f"a triangle strip refers to vertex index {int(flat[bad][0])}, outside 0..{n - 1}")
         return strips_to_triangles(polys)
-    if len(polys) == 1 and isinstance(polys[0], np.ndarray) and polys[0].ndim == 2:
-        arr = polys[0]  # constant polygon size
-        sizes, flat = np.full(len(arr), arr.shape[1]), arr.ravel()
+    if polys and all(isinstance(p, np.ndarray) and p.ndim == 2 for p in polys):
+        # runs of equal-size polygons
+        sizes = np.concatenate([np.full(len(a), a.shape[1], dtype=np.int64) for a in polys])
+        flat = np.concatenate([a.ravel() for a in polys])
     else:
         sizes = np.array([len(p) for p in polys], dtype=np.int64)
         flat = np.concatenate(polys) if polys else np.zeros(0, np.int64)

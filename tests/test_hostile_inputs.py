@@ -525,3 +525,18 @@ def test_obj_negative_indices_count_from_the_face(tmp_path):
     (tmp_path / "z.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n")
     with pytest.raises(ReadError, match="OBJ counts vertices from 1"):
         read_mesh(tmp_path / "z.obj")
+
+
+def test_ply_binary_mixed_polygons_read_in_runs(tmp_path):
+    v = np.array([[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [2, 0, 0]])
+    head = (b"ply\nformat binary_big_endian 1.0\nelement vertex 5\nproperty double x\nproperty double y\n"
+            b"property double z\nelement face 3\nproperty list uchar int vertex_indices\nend_header\n")
+    body = v.astype(">f8").tobytes()
+    for poly in ([0, 1, 2, 3], [1, 4, 2], [0, 1, 2]):
+        body += np.uint8(len(poly)).tobytes() + np.array(poly, dtype=">i4").tobytes()
+    (tmp_path / "q.ply").write_bytes(head + body)
+    _, f = read_mesh(tmp_path / "q.ply")
+    assert f.tolist() == [[0, 1, 2], [0, 2, 3], [1, 4, 2], [0, 1, 2]]
+    (tmp_path / "t.ply").write_bytes(head + body[:-3])
+    with pytest.raises(ReadError, match="truncated in element 'face'"):
+        read_mesh(tmp_path / "t.ply")
