@@ -34,8 +34,8 @@ __all__ = ["ReadError", "read_format", "read_las_chunks", "NORMAL_NAMES"]
 
 NORMAL_NAMES = (("nx", "ny", "nz"), ("normal_x", "normal_y", "normal_z"), ("normalx", "normaly", "normalz"))
 
-#: The largest file body a text reader parses in one piece is not limited, but the
-#: structure checks below run on byte masks of this many bytes at a time.
+#: The structure checks of text bodies run on byte masks of this many bytes at a time
+#: (bounded memory on files of any size).
 _BLOCK = 1 << 24
 
 
@@ -128,20 +128,6 @@ def _rows(path, body: bytes, counts, starts, first: int, n: int, width: int, wha
     lo = starts[first]
     hi = starts[first + n] if first + n < len(starts) else len(body)
     return _table(path, body[lo:hi], n, width, what)
-
-
-def check_face_indices(path, faces: np.ndarray, n: int, what: str = "a face") -> np.ndarray:
-    """Raise ReadError unless every index lies in ``[0, n)`` (no wrap-around of -1)."""
-    faces = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
-    if faces.size:
-        bad = (faces < 0) | (faces >= n)
-        if bad.any():
-            row = int(np.flatnonzero(bad.any(axis=1))[0])
-            raise ReadError(
-                path, f"{what} refers to vertex index {int(faces[bad][0])} (triangle {row}), outside 0..{n - 1} "
-                      f"(the file holds {n} vertices)"
-            )
-    return faces
 
 
 def fan(sizes: np.ndarray, flat: np.ndarray) -> np.ndarray:
