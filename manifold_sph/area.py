@@ -22,6 +22,7 @@ from .exceptions import ManifoldSPHWarning
 from . import _jit
 from ._sparse import bicgstab_csr
 from .kernels import Kernel, QuinticSpline
+from .frames import offsets_of_rows
 from .neighbors import Neighborhood
 from .threads import run_chunks
 
@@ -30,26 +31,49 @@ __all__ = ["AREA_METHODS", "AreaElements", "area_elements", "check_area_method",
 AREA_METHODS = ("geometric", "numerical", "shepard")
 
 
-def kernel_values(nb: Neighborhood, xy: np.ndarray, kernel: Kernel) -> np.ndarray:
-    """Kernel values ``W_ij = W_{h_i}(x_ij)`` (d = 2) of the neighbour pairs, shape (P,), in row chunks on threads."""
+def kernel_values(nb: Neighborhood, xy, kernel: Kernel) -> np.ndarray:
+    """Kernel values ``W_ij = W_{h_i}(x_ij)`` (d = 2) of the neighbour pairs, shape (P,), in row chunks on threads.
+
+    ``xy`` is the (P, 2) array of pair offsets or a :class:`manifold_sph.frames.PairOffsets`
+    (projected chunk by chunk, never whole).
+    """
     n = nb.n_rows
     vals = np.empty(xy.shape[0])
     a = kernel.alpha(2)
     starts = list(range(0, n, _ROWS))
-    if _jit.ENABLED and type(kernel) is QuinticSpline:
-        run_chunks(lambda c: _jit.quintic_values(starts[c], min(starts[c] + _ROWS, n), nb.indptr, xy, nb.h, a, vals), len(starts))
-        return vals
+    compiled = _jit.ENABLED and type(kernel) is QuinticSpline
 
     def chunk(c):  # rows lo:hi, disjoint slices of ``vals``
         lo = starts[c]
         hi = min(lo + _ROWS, n)
         p0, p1 = nb.indptr[lo], nb.indptr[hi]
+        xc = offsets_of_rows(xy, nb.indptr, lo, hi)
+        if compiled:
+            _jit.quintic_values(0, hi - lo, nb.indptr[lo : hi + 1] - p0, xc, nb.h[lo:hi], a, vals[p0:p1])
+            return
         h = np.repeat(nb.h[lo:hi], np.diff(nb.indptr[lo : hi + 1]))
-        x, y = xy[p0:p1, 0], xy[p0:p1, 1]
+        x, y = xc[:, 0], xc[:, 1]
         vals[p0:p1] = kernel.profile(np.sqrt(x * x + y * y) / h) * (a / (h * h))
 
     run_chunks(chunk, len(starts))
     return vals
+
+
+def near_duplicate_pairs(nb: Neighborhood, xy, columns=None, tol: float | None = None) -> np.ndarray:
+    """Positions of the pairs ``i != j`` closer than ``tol h_i`` (default :data:`MERGE_TOL`), in row chunks."""
+    tol = MERGE_TOL if tol is None else tol
+    n = nb.n_rows
+    cols = nb.indices if columns is None else np.asarray(columns)
+    found = []
+    for lo in range(0, n, _ROWS):
+        hi = min(lo + _ROWS, n)
+        p0, p1 = nb.indptr[lo], nb.indptr[hi]
+        xc = offsets_of_rows(xy, nb.indptr, lo, hi)
+        counts = np.diff(nb.indptr[lo : hi + 1])
+        rows = np.repeat(np.arange(lo, hi), counts)
+        close = (np.hypot(xc[:, 0], xc[:, 1]) < tol * nb.h[rows]) & (cols[p0:p1] != rows)
+        found.append(p0 + np.flatnonzero(close))
+    return np.concatenate(found) if found else np.zeros(0, dtype=np.int64)
 
 
 def kernel_matrix(nb: Neighborhood, xy: np.ndarray, kernel: Kernel, columns=None, n_cols=None, *, _share=False) -> sp.csr_matrix:
@@ -130,8 +154,8 @@ def area_elements(
     ----------
     method : {"geometric", "numerical", "shepard"}
     nb : Neighborhood
-    xy : ndarray, shape (P, 2)
-        Pair offsets in the tangent planes.
+    xy : ndarray, shape (P, 2), or PairOffsets
+        Pair offsets in the tangent planes (or their on-demand projection).
     kernel : Kernel
     total_area : float, optional
         Required by ``"geometric"``.
@@ -154,14 +178,14 @@ def area_elements(
 def _numerical(A: sp.csr_matrix, nb: Neighborhood, xy: np.ndarray, columns) -> AreaElements:
     """Solve ``A dV = 1``, near-duplicates merged into one unknown; Shepard if the solve fails."""
     n = A.shape[0]
-    rows = nb.rows
     cols = nb.indices if columns is None else np.asarray(columns)
-    close = (np.hypot(xy[:, 0], xy[:, 1]) < MERGE_TOL * nb.h[rows]) & (cols != rows)
+    close = near_duplicate_pairs(nb, xy, columns)
     n_merged = 0
-    if close.any():  # near-duplicates make the system (nearly) singular: one unknown per group
+    if close.size:  # near-duplicates make the system (nearly) singular: one unknown per group
         from scipy.sparse.csgraph import connected_components
 
-        G = sp.coo_matrix((np.ones(int(close.sum())), (rows[close], cols[close])), shape=(n, n))
+        rows = np.searchsorted(nb.indptr, close, side="right") - 1
+        G = sp.coo_matrix((np.ones(close.size), (rows, cols[close])), shape=(n, n))
         ncl, label = connected_components(G, directed=False)
         size = np.bincount(label, minlength=ncl)
         rep = np.full(ncl, n)

@@ -19,6 +19,7 @@ import scipy.sparse as sp
 
 from . import _jit
 from .kernels import Kernel, QuinticSpline
+from .frames import offsets_at, offsets_of_rows
 from .neighbors import Neighborhood
 from .schemes import Scheme, get_scheme
 from .schemes.base import LocalPairs
@@ -28,7 +29,7 @@ from .schemes.msph4 import HighOrderCorrected
 from .schemes.ncsph import NCSPH
 from .threads import run_chunks
 
-__all__ = ["Assembled", "assemble", "pair_kernel_data"]
+__all__ = ["Assembled", "ColumnAreas", "assemble", "pair_kernel_data"]
 
 #: Rows per chunk, overriding every scheme's ``chunk_rows`` (and :data:`COMPILED_CHUNK_ROWS`)
 #: when set (tests, tuning); ``None``: each scheme's own (chunks bound the per-pair
@@ -160,6 +161,28 @@ def pair_kernel_data(kernel: Kernel, x: np.ndarray, y: np.ndarray, h: np.ndarray
     return xi, w, dW, d2W, q
 
 
+class ColumnAreas:
+    """Area elements looked up per pair (``dV[columns[p]]``) instead of a stored (P,) array."""
+
+    def __init__(self, dV: np.ndarray, columns: np.ndarray):
+        self.dV, self.columns = dV, columns
+
+    def take(self, p0: int, p1: int) -> np.ndarray:
+        return self.dV[self.columns[p0:p1]]
+
+
+def _dv_at(dV_pairs, nb, pos):
+    if isinstance(dV_pairs, ColumnAreas):
+        return dV_pairs.dV[dV_pairs.columns[pos]]
+    return dV_pairs[pos]
+
+
+def _dv_range(dV_pairs, p0: int, p1: int) -> np.ndarray:
+    if isinstance(dV_pairs, ColumnAreas):
+        return dV_pairs.take(p0, p1)
+    return dV_pairs[p0:p1]
+
+
 def _local_pairs(rows, nb, xy, dV_pairs, kernel) -> tuple[LocalPairs, np.ndarray]:
     """Padded pair data of ``rows`` (a slice or an index array), and the pair index of every slot
     (0 in unused slots, which get R = support, i.e. a zero kernel, and dV = 0)."""
@@ -171,11 +194,12 @@ def _local_pairs(rows, nb, xy, dV_pairs, kernel) -> tuple[LocalPairs, np.ndarray
     pos = np.where(valid, starts[:, None] + slot[None, :], 0)
     h = nb.h[rows]
     far = kernel.support * h[:, None]  # outside the support: every kernel factor vanishes
-    x = np.where(valid, xy[pos, 0], far)
-    y = np.where(valid, xy[pos, 1], 0.0)
+    xp = offsets_at(xy, pos)
+    x = np.where(valid, xp[..., 0], far)
+    y = np.where(valid, xp[..., 1], 0.0)
     xi, W, dW, d2W, q = pair_kernel_data(kernel, x, y, h)
     xi[:, 0][~valid] = 0.0
-    dV = np.where(valid, dV_pairs[pos], 0.0) / (h * h)[:, None]
+    dV = np.where(valid, _dv_at(dV_pairs, nb, pos), 0.0) / (h * h)[:, None]
     return LocalPairs(valid=valid, xy=xi, dV=dV, W=W, dW=dW, d2W=d2W, dw_over_r=q), pos
 
 
@@ -224,10 +248,11 @@ def assemble(
     Parameters
     ----------
     nb : Neighborhood
-    xy : ndarray, shape (P, 2)
-        Pair offsets in the row particle's tangent plane (physical units).
-    dV_pairs : ndarray, shape (P,)
-        Area element of the neighbour of every pair.
+    xy : ndarray, shape (P, 2), or PairOffsets
+        Pair offsets in the row particle's tangent plane (physical units), or their
+        on-demand projection (:class:`manifold_sph.frames.PairOffsets`).
+    dV_pairs : ndarray, shape (P,), or ColumnAreas
+        Area element of the neighbour of every pair (or looked up per chunk).
     kernel : Kernel
     scheme : Scheme
     columns : ndarray, shape (P,), optional
@@ -267,13 +292,17 @@ def assemble(
     else:
         rows_per_chunk = CHUNK_ROWS if CHUNK_ROWS is not None else COMPILED_CHUNK_ROWS
         failed = np.zeros(n, dtype=bool)
-        args = (nb.indptr, xy, dV_pairs, nb.h, kernel.alpha(2))
+        alpha = kernel.alpha(2)
         starts = range(0, n, rows_per_chunk)
-        run_chunks(
-            lambda c: compiled(starts[c], min(starts[c] + rows_per_chunk, n), *args, max_condition, gx, gy, lp, condition, failed),
-            len(starts),
-            workers,
-        )
+
+        def chunk(c):  # rows lo:hi on views shifted to start at 0: offsets projected per chunk, never whole
+            lo, hi = starts[c], min(starts[c] + rows_per_chunk, n)
+            p0, p1 = nb.indptr[lo], nb.indptr[hi]
+            compiled(0, hi - lo, nb.indptr[lo : hi + 1] - p0, offsets_of_rows(xy, nb.indptr, lo, hi),
+                     _dv_range(dV_pairs, p0, p1), nb.h[lo:hi], alpha, max_condition, gx[p0:p1], gy[p0:p1],
+                     lp[p0:p1], condition[lo:hi], failed[lo:hi])
+
+        run_chunks(chunk, len(starts), workers)
         # particles the first scheme fails on: the numpy schemes, down the fallback chain
         redo = np.flatnonzero(failed | (nb.counts < scheme.min_neighbors))
         step = CHUNK_ROWS if CHUNK_ROWS is not None else scheme.chunk_rows  # bounded padded arrays, as above

@@ -193,7 +193,7 @@ def detect_boundary(
 
     if isinstance(surface, OperatorSet):
         nb = surface.neighborhood
-        xy = surface._xy
+        xy = surface.pair_offsets()
         indptr, rows, cols = nb.indptr, nb.rows, nb.indices
         n = nb.n_rows
     else:

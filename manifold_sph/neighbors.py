@@ -271,22 +271,49 @@ def find_neighbors(
         raise ValueError(f"normal_threshold must lie in [-1, 1), got {normal_threshold}")
     tree = build_tree(cand) if tree is None else tree
     radii = support * hv
-    if knn is not None and np.all(knn[0][:, -1] >= radii):
-        dist, idx = knn
-    else:
-        dist, idx = _radius_knn(tree, pts, radii, workers)
     nr = None if normals is None else np.asarray(normals, dtype=np.float64)
     cn = None if normals is None else np.asarray(cnorm, dtype=np.float64)
     counts = np.empty(n, dtype=np.int64)
     n_filtered = np.zeros(n, dtype=np.int64)
-    starts = list(range(0, n, _FILTER_ROWS))
+    if knn is not None and np.all(knn[0][:, -1] >= radii):
+        blocks = [(0, n, knn)]
+    else:  # row blocks: the (rows, k) query arrays of one block at a time, not of the whole cloud
+        blocks = [(lo, min(lo + _QUERY_ROWS, n), None) for lo in range(0, n, _QUERY_ROWS)]
     # int32 indices when they fit: scipy's sparse matrices then take them without conversion
-    index_dtype = np.int32 if max(dist.size, cand.shape[0]) < 2**31 - 1 else np.int64
+    index_dtype = np.int32 if cand.shape[0] < 2**31 - 1 else np.int64
+    parts = []
+    for lo, hi, given in blocks:
+        dist, idx = given if given is not None else _radius_knn(tree, pts[lo:hi], radii[lo:hi], workers)
+        parts.append(_filter_block(dist, idx, radii[lo:hi], None if nr is None else nr[lo:hi], cn, normal_threshold,
+                                   counts[lo:hi], n_filtered[lo:hi], index_dtype, workers))
+        del dist, idx
+    indices = parts[0] if len(parts) == 1 else np.concatenate(parts) if parts else np.zeros(0, dtype=index_dtype)
+    del parts
+    if indices.size >= 2**31 - 1:  # more pairs than int32 offsets hold: both arrays int64
+        index_dtype = np.int64
+        indices = indices.astype(np.int64)
     indptr = np.zeros(n + 1, dtype=index_dtype)
+    np.cumsum(counts, out=indptr[1:])
+    return Neighborhood(indptr=indptr, indices=indices, h=hv, support=float(support), n_filtered=int(n_filtered.sum()))
+
+
+#: Rows per chunk of the neighbour filter.
+_FILTER_ROWS = 8192
+
+#: Rows per block of the neighbour query: its (rows, k) distance and index arrays are the largest
+#: temporaries of a build (16 bytes a slot: 690 MB for a million points queried whole at k = 43).
+_QUERY_ROWS = 65536
+
+
+def _filter_block(dist, idx, radii, nr, cn, normal_threshold, counts, n_filtered, index_dtype, workers):
+    """Radius mask and normal filter of one block of rows (arrays of the block, ``cn`` of all
+    candidates); fills ``counts`` and ``n_filtered`` (views) and returns the block's columns."""
+    n = dist.shape[0]
+    starts = list(range(0, n, _FILTER_ROWS))
     if _jit.ENABLED:  # compiled: a mask pass, then the columns written in place
         keep = np.empty(dist.shape, dtype=np.uint8)
         use = nr is not None
-        nr_, cn_ = (nr, np.asarray(cn, dtype=np.float64)) if use else (np.zeros((1, 3)), np.zeros((1, 3)))
+        nr_, cn_ = (nr, cn) if use else (np.zeros((1, 3)), np.zeros((1, 3)))
         run_chunks(
             lambda c: _jit.filter_count(
                 starts[c], min(starts[c] + _FILTER_ROWS, n), dist, idx, radii, nr_, cn_, float(normal_threshold),
@@ -295,36 +322,31 @@ def find_neighbors(
             len(starts),
             workers,
         )
+        indptr = np.zeros(n + 1, dtype=np.int64)
         np.cumsum(counts, out=indptr[1:])
-        indices = np.empty(int(indptr[-1]), dtype=index_dtype)
+        out = np.empty(int(indptr[-1]), dtype=index_dtype)
         run_chunks(
-            lambda c: _jit.filter_fill(starts[c], min(starts[c] + _FILTER_ROWS, n), idx, keep, indptr, indices),
+            lambda c: _jit.filter_fill(starts[c], min(starts[c] + _FILTER_ROWS, n), idx, keep, indptr, out),
             len(starts),
             workers,
         )
-    else:
-        parts = [None] * len(starts)
+        return out
+    parts = [None] * len(starts)
 
-        def chunk(c):  # radius mask and normal filter of rows lo:hi; disjoint outputs
-            lo = starts[c]
-            hi = min(lo + _FILTER_ROWS, n)
-            mask = dist[lo:hi] < radii[lo:hi, None]
-            if nr is not None:
-                safe = np.where(mask, idx[lo:hi], 0)
-                keep = np.einsum("nd,nkd->nk", nr[lo:hi], cn[safe]) > normal_threshold
-                n_filtered[lo:hi] = (mask & ~keep).sum(axis=1)
-                mask &= keep
-            counts[lo:hi] = mask.sum(axis=1)
-            parts[c] = idx[lo:hi][mask].astype(index_dtype, copy=False)
+    def chunk(c):  # radius mask and normal filter of rows lo:hi; disjoint outputs
+        lo = starts[c]
+        hi = min(lo + _FILTER_ROWS, n)
+        mask = dist[lo:hi] < radii[lo:hi, None]
+        if nr is not None:
+            safe = np.where(mask, idx[lo:hi], 0)
+            keep = np.einsum("nd,nkd->nk", nr[lo:hi], cn[safe]) > normal_threshold
+            n_filtered[lo:hi] = (mask & ~keep).sum(axis=1)
+            mask &= keep
+        counts[lo:hi] = mask.sum(axis=1)
+        parts[c] = idx[lo:hi][mask].astype(index_dtype, copy=False)
 
-        run_chunks(chunk, len(starts), workers)
-        np.cumsum(counts, out=indptr[1:])
-        indices = np.concatenate(parts) if parts else np.zeros(0, dtype=index_dtype)
-    return Neighborhood(indptr=indptr, indices=indices, h=hv, support=float(support), n_filtered=int(n_filtered.sum()))
-
-
-#: Rows per chunk of the neighbour filter.
-_FILTER_ROWS = 8192
+    run_chunks(chunk, len(starts), workers)
+    return np.concatenate(parts) if parts else np.zeros(0, dtype=index_dtype)
 
 
 def _radius_knn(tree: cKDTree, pts: np.ndarray, radii: np.ndarray, workers: int):

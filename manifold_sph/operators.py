@@ -25,7 +25,8 @@ from .exceptions import ManifoldSPHWarning
 from ._sparse import RowBlocks
 from ._validation import as_field, check_bool, check_int, check_positive
 from .area import AreaElements, area_elements, check_area_method
-from .assembly import Assembled, assemble
+from .assembly import Assembled, ColumnAreas, assemble
+from .frames import offsets_array
 from .kernels import get_kernel
 from .neighbors import Neighborhood, adaptive_smoothing_length, smoothing_length_for_count
 from .schemes import get_scheme
@@ -103,9 +104,9 @@ class OperatorSet:
         if self.scheme.uses_area:
             # Negative elements (bounded or irregular clouds) are reported in area.n_negative, not
             # warned about: time stepping is guarded by pde.choose_laplacian's spectral check.
-            dV = self.area.dV[self._columns]
+            dV = ColumnAreas(self.area.dV, self._columns)  # looked up per chunk, no (P,) copy
         else:  # the weights do not use area elements: compute them only when asked
-            dV = np.ones(self._columns.size)
+            dV = ColumnAreas(np.ones(nb.n_rows), self._columns)
         self._ops: Assembled = assemble(
             nb, xy, dV, self.kernel, self.scheme, columns=columns, n_cols=nb.n_rows, max_condition=self.max_condition
         )
@@ -130,6 +131,17 @@ class OperatorSet:
             method, total_area, columns = self._area_args
             self._area = area_elements(method, self.neighborhood, self._xy, self.kernel, total_area=total_area, columns=columns)
         return self._area
+
+    def pair_offsets(self) -> np.ndarray:
+        """(P, 2) offsets ``x_j - x_i`` of every neighbour pair in the row particle's frame (CSR order of
+        :attr:`neighborhood`). Surfaces project them anew on each call instead of storing them
+        (16 bytes a pair), so keep the result if you need it twice."""
+        return offsets_array(self._xy)
+
+    @property
+    def pair_columns(self) -> np.ndarray:
+        """(P,) matrix column of every pair: :attr:`neighborhood` ``.indices``, or the owners of mirrored ghosts."""
+        return self._columns
 
     @property
     def n_points(self) -> int:
@@ -260,7 +272,7 @@ class OperatorSet:
             return self._cache["stable"]
         nb = self.neighborhood
         n = nb.n_rows
-        cells = voronoi_cells(nb.indptr, self._xy, nb.support * nb.h)
+        cells = voronoi_cells(nb.indptr, self.pair_offsets(), nb.support * nb.h)
         rows, cols, weights = nb.rows, np.asarray(self._columns), cells.weights
         area, flags = cells.area.copy(), cells.flags.copy()
         redo = np.flatnonzero(flags & (INCOMPLETE | DEGENERATE))

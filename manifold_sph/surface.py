@@ -8,7 +8,7 @@ import numpy as np
 
 from .exceptions import ManifoldSPHWarning
 from . import geometry
-from .frames import check_frames, project_neighborhood, project_pairs, tangent_frames
+from .frames import PairOffsets, check_frames, project_pairs, tangent_frames
 from .neighbors import build_tree, find_neighbors
 from .operators import OperatorSet
 from .pointcloud import PointCloud
@@ -131,7 +131,7 @@ class Surface(OperatorSet):
         self.normal_threshold = float(normal_threshold)
         self.u, self.v = tangent_frames(nrm)
         check_frames(nrm, self.u, self.v)
-        xy = project_neighborhood(pts, self.u, self.v, nb.indptr, nb.indices)
+        xy = PairOffsets(pts, self.u, self.v, nb.indptr, nb.indices)  # projected per chunk when read, never stored
         if total_area is None and cloud.shape is not None:
             total_area = getattr(cloud.shape, "area", None)
         frames = np.stack([self.u, self.v], axis=1)

@@ -80,3 +80,44 @@ def test_bad_targets(cloud):
         smoothing_length_for_count(cloud, 500)
     with pytest.raises(ValueError, match="k must be smaller than the number of points 400"):
         adaptive_smoothing_length(cloud, 400)
+
+
+@pytest.mark.parametrize("jit", [True, False])
+def test_query_in_row_blocks_equals_one_query(monkeypatch, jit):
+    """Regression (memory): the k-NN query runs in row blocks so its (rows, k) arrays stay small;
+    the neighbourhood must be the same as from one query of the whole cloud."""
+    import manifold_sph.neighbors as nbm
+    from manifold_sph import _jit
+
+    rng = np.random.default_rng(5)
+    p = rng.standard_normal((3000, 3))
+    n = p / np.linalg.norm(p, axis=1)[:, None]
+    p = n + 0.01 * rng.standard_normal((3000, 3))
+    n = n + 0.6 * rng.standard_normal((3000, 3))  # noisy normals: some pairs are filtered
+    n /= np.linalg.norm(n, axis=1)[:, None]
+    monkeypatch.setattr(_jit, "ENABLED", jit)
+    h = 0.04 * (1 + rng.random(3000))
+    whole = find_neighbors(p, n, h=h, normal_threshold=0.3)
+    monkeypatch.setattr(nbm, "_QUERY_ROWS", 701)  # blocks that do not divide N
+    blocks = find_neighbors(p, n, h=h, normal_threshold=0.3)
+    np.testing.assert_array_equal(whole.indptr, blocks.indptr)
+    np.testing.assert_array_equal(whole.indices, blocks.indices)
+    assert whole.n_filtered == blocks.n_filtered > 0
+    assert blocks.indices.dtype == blocks.indptr.dtype == np.int32
+
+
+def test_pair_offsets_are_projected_identically():
+    """Surfaces project pair offsets per chunk instead of storing them: the chunks, a few pairs and
+    the whole array must equal the one-pass projection bit for bit (operators stay invariant)."""
+    from manifold_sph import Surface, shapes
+    from manifold_sph.frames import PairOffsets, project_neighborhood
+
+    s = Surface(shapes.sphere(3000))
+    nb = s.neighborhood
+    ref = project_neighborhood(s.points, s.u, s.v, nb.indptr, nb.indices)
+    xy = PairOffsets(s.points, s.u, s.v, nb.indptr, nb.indices)
+    np.testing.assert_array_equal(s.pair_offsets(), ref)
+    np.testing.assert_array_equal(xy.rows(1000, 2345), ref[nb.indptr[1000] : nb.indptr[2345]])
+    pos = np.array([[5, 17], [40000, nb.indices.size - 1]])
+    np.testing.assert_array_equal(xy.at(pos), ref[pos])
+    assert xy.shape == ref.shape
