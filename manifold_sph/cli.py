@@ -35,8 +35,10 @@ class UserError(ValueError):
     """A mistake in the command line or its inputs (exit code 2)."""
 
 
-#: Whether the command line being parsed asked for ``--json`` (argument errors are then JSON too).
+#: Whether the command line being parsed asked for ``--json`` (argument errors are then JSON too),
+#: and its first word (the subcommand, if it is one).
 _JSON = False
+_COMMAND_WORD = None
 
 #: Largest picture side in pixels (an off-screen VTK window of 100000 x 100000 aborts in std::bad_alloc).
 MAX_WINDOW = 8192
@@ -56,7 +58,8 @@ class _Parser(argparse.ArgumentParser):
 
     def error(self, message):
         if _JSON:
-            command = self.prog.split()[1] if len(self.prog.split()) > 1 else None
+            words = self.prog.split()
+            command = words[1] if len(words) > 1 else _COMMAND_WORD
             _error_json(" ".join(message.split()), "ArgumentError", command, 2)
         super().error(message)
 
@@ -939,9 +942,11 @@ def main(argv=None) -> int:
     {"error": "--n must be at least 10 points, got 5", "type": "UserError", "command": "operators", "exit_code": 2}
     2
     """
-    global _JSON
+    global _JSON, _COMMAND_WORD
     argv = list(sys.argv[1:] if argv is None else argv)
     _JSON = "--json" in argv
+    _COMMAND_WORD = next((a for a in argv if not a.startswith("-")), None)
+    _COMMAND_WORD = _COMMAND_WORD if _COMMAND_WORD in _COMMANDS else None
     parser = _parser()
     args = parser.parse_args(_join_negative_values(argv, _value_options(parser)))
     command = args.command
