@@ -54,6 +54,9 @@ class ReadError(ValueError):
 def split_columns(path, names: list[str], data: np.ndarray):
     """Points, normals and fields from named columns (a partial normal trio stays fields)."""
     lower = [n.lower() for n in names]
+    if len(set(lower)) != len(lower):
+        twice = sorted({n for n in lower if lower.count(n) > 1})
+        raise ReadError(path, f"column/property name(s) {twice} appear more than once among {names}")
     try:
         ixyz = [lower.index(c) for c in ("x", "y", "z")]
     except ValueError:

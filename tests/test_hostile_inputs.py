@@ -540,3 +540,10 @@ def test_ply_binary_mixed_polygons_read_in_runs(tmp_path):
     (tmp_path / "t.ply").write_bytes(head + body[:-3])
     with pytest.raises(ReadError, match="truncated in element 'face'"):
         read_mesh(tmp_path / "t.ply")
+
+
+def test_repeated_column_names_refused(tmp_path, cloud):
+    text = "x,y,z,X\n" + "".join(f"{a!r},{b!r},{c!r},1\n" for a, b, c in cloud.points.tolist())
+    (tmp_path / "d.csv").write_text(text)
+    with pytest.raises(ReadError, match=r"\['x'\] appear more than once"):
+        read(tmp_path / "d.csv")
