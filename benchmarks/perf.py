@@ -2,6 +2,7 @@
 
     python benchmarks/perf.py                                   # N = 10000, 100000
     python benchmarks/perf.py --sizes 10000,100000,1000000 --repeat 3 --json perf.json --peers
+    python benchmarks/perf.py --ratios --sizes 10000,131072,1000000,4000000   # issue 22: ratios, RSS
 
 Unit sphere, Fibonacci points (``manifold_sph.shapes.sphere``), exact normals,
 f = cos(xz - sin y). Every speed figure stands next to the relative L2 error of
@@ -481,7 +482,74 @@ def warm_up():
     quiet(lambda: heat(Surface(cloud), cloud.points[:, 2], dt=0.01, steps=1, method="implicit", solver="iterative"))()
 
 
+RATIO_MODES = ("query", "default", "shepard")
+
+
+def ratio_child(n: int, mode: str, repeat: int) -> dict:
+    """One measurement in a fresh process (so ``ru_maxrss`` is this step's peak): the bare KD-tree
+    query of the issue (``cKDTree(p).query(p, k=40, distance_upper_bound=3 h, workers=-1)``, h the
+    default build's), or ``Surface(p, n)`` with defaults, or with ``area="shepard"``."""
+    from scipy.spatial import cKDTree
+
+    from manifold_sph.neighbors import smoothing_length_for_count
+
+    c = shapes.sphere(n)
+    p, nn = c.points.copy(), c.normals.copy()
+    del c
+    quiet(lambda: Surface(shapes.sphere(2000)))()  # numba's cache loaded
+    h = float(smoothing_length_for_count(p, 27))  # msph's default count
+    rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        if mode == "query":
+            cKDTree(p).query(p, k=40, distance_upper_bound=3 * h, workers=-1)
+        elif mode == "default":
+            quiet(lambda: Surface(p, nn))()
+        else:
+            quiet(lambda: Surface(p, nn, area="shepard"))()
+        times.append(time.perf_counter() - t0)
+    rss1 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    return {"n": n, "mode": mode, "seconds": float(np.median(times)), "rss_before_mb": rss0, "rss_peak_mb": rss1}
+
+
+def ratio_table(sizes, repeat: int) -> list[dict]:
+    """Issue 22's table: default and Shepard builds as ratios of the bare KD-tree query, each in a fresh
+    process with its peak resident memory, and the fitted scaling exponent of the default build."""
+    import subprocess
+
+    print(f"cores {os.cpu_count()}, load average at start {' '.join(f'{x:.2f}' for x in os.getloadavg())}; "
+          f"Fibonacci sphere, exact normals; median of {repeat} runs, each row in a fresh process")
+    print(f"{'N':>9} {'query s':>8} {'default s':>10} {'ratio':>6} {'shepard s':>10} {'ratio':>6} "
+          f"{'peak RSS MB':>12} {'RSS before':>11} {'build MB per 1M':>16}")
+    rows = []
+    for n in sizes:
+        r = {}
+        for mode in RATIO_MODES:
+            out = subprocess.run([sys.executable, __file__, "--ratio-child", f"{n},{mode},{repeat}"], check=True,
+                                 capture_output=True, text=True).stdout
+            r[mode] = json.loads(out.strip().splitlines()[-1])
+        q, d, sh = (r[m]["seconds"] for m in RATIO_MODES)
+        peak, before = r["default"]["rss_peak_mb"], r["default"]["rss_before_mb"]
+        print(f"{n:>9d} {q:>8.3f} {d:>10.3f} {d / q:>6.2f} {sh:>10.3f} {sh / q:>6.2f} {peak:>12.0f} {before:>11.0f} "
+              f"{(peak - before) / n * 1e6:>16.0f}", flush=True)
+        rows.append({"n": n, "query_s": q, "default_s": d, "shepard_s": sh, "default_ratio": d / q, "shepard_ratio": sh / q,
+                     "rss_peak_mb": peak, "rss_before_mb": before})
+    if len(rows) >= 2:
+        x = np.log([r["n"] for r in rows])
+        for key in ("default_s", "query_s"):
+            slope = np.polyfit(x, np.log([r[key] for r in rows]), 1)[0]
+            print(f"scaling exponent of {key[:-2]} time, N = {rows[0]['n']} .. {rows[-1]['n']}: {slope:.3f}")
+    print("targets (issue 22): default <= 2.0x and shepard <= 1.5x the query; build <= 1000 MB per 1M points; "
+          f"exponent <= 1.05. Load average at end {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+    return rows
+
+
 def main(argv=None):
+    if argv is None and len(sys.argv) == 3 and sys.argv[1] == "--ratio-child":
+        n, mode, repeat = sys.argv[2].split(",")
+        print(json.dumps(ratio_child(int(n), mode, int(repeat))))
+        return
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sizes", default="10000,100000", help="comma-separated cloud sizes (default 10000,100000)")
     ap.add_argument("--repeat", type=int, default=3, help="runs per timing; the median is reported")
@@ -492,8 +560,17 @@ def main(argv=None):
     ap.add_argument("--scan", default=str(DEFAULT_SCAN),
                     help="a scan to time as users would (read, estimate normals, build); 'none' skips it "
                          "(default: the Igea scan of ../shared, skipped when absent)")
+    ap.add_argument("--ratios", action="store_true",
+                    help="only issue 22's table: builds as ratios of the bare KD-tree query, peak RSS per million "
+                         "points, scaling exponent (each row in a fresh process)")
     args = ap.parse_args(argv)
     sizes = [int(float(x)) for x in args.sizes.split(",") if x]
+    if args.ratios:
+        rows = ratio_table(sizes, args.repeat)
+        if args.json:
+            with open(args.json, "w") as fh:
+                json.dump(rows, fh, indent=1)
+        return
     meta = {
         "cores": os.cpu_count(), "OMP_NUM_THREADS": os.environ.get("OMP_NUM_THREADS", "unset"),
         "OMP_WAIT_POLICY": os.environ.get("OMP_WAIT_POLICY"),

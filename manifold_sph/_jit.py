@@ -206,6 +206,18 @@ def _quintic(R):
 
 
 @_jit
+def near_pairs(lo, hi, indptr, xy, h, cols, row0, tol, out):
+    """``out[p] = 1`` for the pairs of rows ``lo:hi`` with ``|xy_p| < tol h_i`` and column ``!= row0 + i``."""
+    for i in range(lo, hi):
+        lim = tol * h[i]
+        lim2 = lim * lim
+        for p in range(_u(indptr[i]), _u(indptr[i + 1])):
+            x = xy[p, 0]
+            y = xy[p, 1]
+            out[p] = 1 if (x * x + y * y < lim2 and cols[p] != row0 + i) else 0
+
+
+@_jit
 def quintic_values(lo, hi, indptr, xy, h, alpha, out):
     """``out[p] = alpha w(|xy_p| / h_i) / h_i^2`` for the pairs of rows ``lo:hi``."""
     for i in range(lo, hi):

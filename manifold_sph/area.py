@@ -69,9 +69,12 @@ def near_duplicate_pairs(nb: Neighborhood, xy, columns=None, tol: float | None =
         hi = min(lo + _ROWS, n)
         p0, p1 = nb.indptr[lo], nb.indptr[hi]
         xc = offsets_of_rows(xy, nb.indptr, lo, hi)
-        counts = np.diff(nb.indptr[lo : hi + 1])
-        rows = np.repeat(np.arange(lo, hi), counts)
-        close = (np.hypot(xc[:, 0], xc[:, 1]) < tol * nb.h[rows]) & (cols[p0:p1] != rows)
+        if _jit.ENABLED:
+            close = np.empty(p1 - p0, dtype=np.uint8)
+            _jit.near_pairs(0, hi - lo, nb.indptr[lo : hi + 1] - p0, xc, nb.h[lo:hi], cols[p0:p1], lo, tol, close)
+        else:
+            rows = np.repeat(np.arange(lo, hi), np.diff(nb.indptr[lo : hi + 1]))
+            close = (np.hypot(xc[:, 0], xc[:, 1]) < tol * nb.h[rows]) & (cols[p0:p1] != rows)
         found.append(p0 + np.flatnonzero(close))
     return np.concatenate(found) if found else np.zeros(0, dtype=np.int64)
 

@@ -308,3 +308,21 @@ def test_environment_variable_is_validated():
     out = subprocess.run([sys.executable, "-c", "import manifold_sph"], env=env, capture_output=True, text=True)
     assert out.returncode != 0
     assert "MANIFOLD_SPH_JIT must be 0 or 1" in out.stderr and "'maybe'" in out.stderr
+
+
+def test_near_duplicate_pairs_equal_numpy(monkeypatch):
+    """The compiled near-duplicate search of the numerical area solve finds the numpy twin's pairs."""
+    from manifold_sph.area import near_duplicate_pairs
+
+    p = shapes.sphere(2000).points.copy()
+    rng = np.random.default_rng(2)
+    twins = rng.choice(2000, 30, replace=False)
+    q = p[twins] + 1e-4 * rng.standard_normal((30, 3))  # within 0.01 h of their twins
+    pts = np.vstack([p, q / np.linalg.norm(q, axis=1)[:, None]])
+    s = Surface(pts, pts.copy(), area="shepard")
+    nb = s.neighborhood
+    xy = s.pair_offsets()
+    fast, plain = _both(monkeypatch, lambda: near_duplicate_pairs(nb, xy))
+    np.testing.assert_array_equal(fast, plain)
+    rows = np.searchsorted(nb.indptr, fast, side="right") - 1
+    assert set(rows) == set(twins) | set(range(2000, 2030))  # each twin sees its partner, and back
