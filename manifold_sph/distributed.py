@@ -340,9 +340,10 @@ def _build_tile_arrays(spec: dict) -> dict:
     nrm_s = np.asarray(s.normals)
     L = _head_rows(s.laplacian_matrix(), n_own)
     dx, dy = (_head_rows(m, n_own) for m in s.derivative_matrices())
-    from . import geometry
-
-    H_n = geometry.mean_curvature(s, "normals")[:n_own]
+    # H from the shape operator's trace, u . d n/du + v . d n/dv (geometry.mean_curvature(s, "normals") on the own
+    # rows only: that function builds the whole (3 N, N) gradient matrix of tile + halo, half the tile's time)
+    u_own, v_own = np.asarray(s.u[:n_own]), np.asarray(s.v[:n_own])
+    H_n = 0.5 * (np.einsum("ij,ij->i", u_own, dx @ nrm_s) + np.einsum("ij,ij->i", v_own, dy @ nrm_s))
     LX = L @ spts
     H_l = -0.5 * np.einsum("ij,ij->i", LX, nrm_s[:n_own])
     fallback = {k: int(np.count_nonzero(np.asarray(v) < n_own)) for k, v in s.fallback.items()}
