@@ -255,27 +255,6 @@ def test_chunk_size_does_not_change_the_operators(monkeypatch, scheme):
     assert diff <= 1e-12 * abs(ref).max(), diff
 
 
-def test_bicgstab_diag_matches_scipy():
-    import scipy.sparse.linalg as spla
-
-    from manifold_sph._sparse import bicgstab_diag
-
-    rng = np.random.default_rng(4)
-    n = 400
-    A = sp.random(n, n, density=0.02, random_state=3, format="csr") + sp.diags(4.0 + rng.random(n))
-    A = A.tocsr()
-    b = rng.standard_normal(n)
-    dinv = 1.0 / A.diagonal()
-    x, info = bicgstab_diag(RowBlocks(A, n_blocks=2), b, dinv, np.zeros(n), rtol=1e-13, maxiter=500)
-    ref, rinfo = spla.bicgstab(A, b, x0=np.zeros(n), rtol=1e-13, atol=0.0, M=sp.diags(dinv), maxiter=500)
-    assert info == 0 and rinfo == 0
-    assert np.linalg.norm(A @ x - b) <= 1e-13 * np.linalg.norm(b)
-    np.testing.assert_allclose(x, ref, rtol=0, atol=1e-10 * np.abs(ref).max())
-    # too few iterations: the count comes back, not a silent answer
-    _, info = bicgstab_diag(A, b, dinv, np.zeros(n), rtol=1e-15, maxiter=2)
-    assert info == 2
-
-
 def test_radius_knn_asks_again_for_dense_rows(monkeypatch):
     # a dense clump the strided probe misses: its rows come back full, are asked again,
     # and every neighbour inside the radius is found (the arrays widen only as needed)

@@ -7,8 +7,6 @@ deliberate change of the renderer's look).
 from __future__ import annotations
 
 import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -34,22 +32,7 @@ def golden_scene():
     return render_field(cloud, cloud.points[:, 2], clim=(-1, 1), camera="iso", window_size=(160, 120), point_size=9)
 
 
-def _probe() -> tuple[bool, str]:
-    """Render in a child process with no DISPLAY (a GL crash must not take pytest down)."""
-    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
-    code = "from manifold_sph.render import rendering_available as r; ok, why = r(); print(ok, why)"
-    try:
-        res = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
-    except subprocess.TimeoutExpired:
-        return False, "the rendering probe timed out"
-    line = res.stdout.strip().splitlines()[-1] if res.stdout.strip() else ""
-    if res.returncode != 0 or not line.startswith("True"):
-        return False, f"off-screen rendering is not available here: {line or res.stderr.strip()[-300:]}"
-    return True, line
-
-
-_OK, _WHY = _probe()
-needs_gl = pytest.mark.skipif(not _OK, reason=_WHY)
+needs_gl = pytest.mark.gl  # skipped by conftest.py when off-screen rendering is unavailable
 
 
 @pytest.fixture(autouse=True)
@@ -245,8 +228,12 @@ def test_animate_mp4(cloud, tmp_path):
 def test_render_field_bad_input(cloud, kwargs, exc, match):
     args = {"field": cloud.points[:, 2], **kwargs}
     f = args.pop("field")
-    if ("camera" in kwargs or "up" in kwargs) and not _OK:
-        pytest.skip(_WHY)
+    if "camera" in kwargs or "up" in kwargs:
+        from conftest import gl_probe
+
+        ok, why = gl_probe()
+        if not ok:
+            pytest.skip(why)
     with pytest.raises(exc, match=match):
         render_field(cloud, f, **args)
 
