@@ -773,8 +773,9 @@ def animate(
     snapshots : array_like, shape (S, N), or an object with ``.snapshots`` (and ``.times``)
         E.g. the result of :func:`manifold_sph.pde.heat` with ``every=``.
     filename : str or path
-        ``.gif`` (Pillow) or ``.mp4`` (needs ``imageio`` and ``imageio-ffmpeg``;
-        the ffmpeg binary ships inside the ``imageio-ffmpeg`` wheel).
+        ``.gif`` or ``.mp4``, written frame by frame by pyvista's ``open_gif`` /
+        ``open_movie`` (imageio); MP4 needs ``imageio-ffmpeg`` (the ``video`` extra:
+        the ffmpeg binary ships inside its wheel).
     times : array_like, shape (S,), optional
         Shown in a corner as ``t = ...`` (default: ``snapshots.times`` if present).
     fps : float
@@ -809,15 +810,14 @@ def animate(
     progress = check_bool("progress", progress)
     ws = _check_window(window_size)
     path = _check_target(filename, overwrite, (".gif", ".mp4"))
-    if path.suffix.lower() == ".mp4":
+    mp4 = path.suffix.lower() == ".mp4"
+    if mp4:
         ws = (ws[0] + ws[0] % 2, ws[1] + ws[1] % 2)  # H.264 wants even sizes
         try:
-            import imageio.v2 as iio
             import imageio_ffmpeg  # noqa: F401
         except ImportError:
             raise ValueError(
-                "MP4 output needs the packages imageio and imageio-ffmpeg (pip install imageio imageio-ffmpeg); "
-                "write a .gif instead"
+                "MP4 output needs the package imageio-ffmpeg (pip install 'manifold-sph[video]'); write a .gif instead"
             ) from None
     lim = color_limits(snaps, clim, robust)
     zoom = check_positive("zoom", zoom)
@@ -825,38 +825,35 @@ def animate(
     ps = _point_size(pts, spacing, ws) * zoom if point_size is None else check_positive("point_size", point_size)
     from tqdm import tqdm
 
-    frames = []
-    with _quiet_vtk():
-        p = _plotter(ws, background=background)
-        try:
-            actor = _add_cloud(
-                p, pts, snaps[0], None, spacing=spacing, point_size=ps, cmap=cmap, clim=lim, robust=None,
-                bar_title=bar_title, show_scalar_bar=True, vector_scale=None, vector_color="black",
-            )
-            _title_text(p, title, _font(ws, 12))
-            clock = p.add_text(" ", position="lower_left", font_size=_font(ws, 9), color="black") if times is not None else None
-            _set_camera(p, pts, camera, zoom, up)
-            for k in tqdm(range(snaps.shape[0]), desc=f"frames -> {path.name}", disable=not progress, unit="frame"):
-                data = actor.mapper.dataset
-                data.point_data["field"][:] = np.clip(snaps[k], *lim)
-                data.Modified()
-                p.render()
-                if clock is not None:
-                    _set_text(clock, f"t = {times[k]:.4g}")
-                frames.append(np.asarray(p.screenshot(return_img=True), dtype=np.uint8).copy())
-        finally:
-            p.close()
-    tmp = path.with_name(path.stem + ".partial" + path.suffix)
+    # frames stream to a temporary file beside the target through pyvista's writers (imageio),
+    # renamed into place only when complete
+    tmp = path.with_name(path.stem + ".partial" + path.suffix.lower())
     try:
-        if path.suffix.lower() == ".gif":
-            from PIL import Image
-
-            ims = [Image.fromarray(f) for f in frames]
-            ims[0].save(tmp, format="GIF", save_all=True, append_images=ims[1:], duration=int(round(1000.0 / fps)), loop=0, optimize=False)
-        else:
-            with iio.get_writer(tmp, format="FFMPEG", fps=fps, codec="libx264", macro_block_size=2, pixelformat="yuv420p") as w:
-                for f in frames:
-                    w.append_data(f)
+        with _quiet_vtk():
+            p = _plotter(ws, background=background)
+            try:
+                actor = _add_cloud(
+                    p, pts, snaps[0], None, spacing=spacing, point_size=ps, cmap=cmap, clim=lim, robust=None,
+                    bar_title=bar_title, show_scalar_bar=True, vector_scale=None, vector_color="black",
+                )
+                _title_text(p, title, _font(ws, 12))
+                clock = p.add_text(" ", position="lower_left", font_size=_font(ws, 9), color="black") if times is not None else None
+                _set_camera(p, pts, camera, zoom, up)
+                if mp4:
+                    p.open_movie(str(tmp), framerate=fps, codec="libx264", macro_block_size=2, pixelformat="yuv420p")
+                else:
+                    p.open_gif(str(tmp), fps=fps, loop=0, palettesize=256)
+                for k in tqdm(range(snaps.shape[0]), desc=f"frames -> {path.name}", disable=not progress, unit="frame"):
+                    data = actor.mapper.dataset
+                    data.point_data["field"][:] = np.clip(snaps[k], *lim)
+                    data.Modified()
+                    if clock is not None:
+                        _set_text(clock, f"t = {times[k]:.4g}")
+                    p.write_frame()
+                writer, p.mwriter = p.mwriter, None
+                writer.close()  # here, not in p.close(), which would hide a failed write
+            finally:
+                p.close()
         if path.exists() and not overwrite:  # appeared meanwhile
             raise FileExistsError(f"{str(path)!r} exists; pass overwrite=True to replace it")
         os.replace(tmp, path)
