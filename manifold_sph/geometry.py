@@ -55,7 +55,7 @@ CURVATURE_METHODS = ("auto", "normals", "laplacian")
 
 
 def _check_surface(surface):
-    if not (isinstance(surface, OperatorSet) and surface._dim == 3):  # a Surface (surface.py imports this module)
+    if not (isinstance(surface, OperatorSet) and surface.dim == 3):  # a Surface (surface.py imports this module)
         raise TypeError(f"surface must be a Surface, got {type(surface).__name__}")
 
 
@@ -69,15 +69,16 @@ def shape_operator(surface) -> np.ndarray:
     outward normals. Cached on the surface.
     """
     _check_surface(surface)
-    cache = surface._cache
-    if "shape_operator" not in cache:
+
+    def compute():
         n, N = surface.normals, surface.n_points
         G = surface.gradient_matrix()
         J = np.stack([(G @ n[:, a]).reshape(N, 3) for a in range(3)], axis=1)  # J[i, a, b] = d n_a / d x_b
         E = np.stack([surface.u, surface.v], axis=2)  # (N, 3, 2)
         W = np.einsum("nai,nab,nbj->nij", E, J, E)
-        cache["shape_operator"] = 0.5 * (W + W.transpose(0, 2, 1))
-    return cache["shape_operator"]
+        return 0.5 * (W + W.transpose(0, 2, 1))
+
+    return surface.cached("shape_operator", compute)
 
 
 def curvature_method(surface, method: str = "auto") -> str:
@@ -112,11 +113,8 @@ def mean_curvature(surface, method: str = "auto") -> np.ndarray:
     if curvature_method(surface, method) == "normals":
         W = shape_operator(surface)
         return 0.5 * (W[:, 0, 0] + W[:, 1, 1])
-    key = ("mean_curvature", "laplacian")
-    if key not in surface._cache:
-        LX = surface.laplacian_matrix() @ surface.points
-        surface._cache[key] = -0.5 * np.einsum("ij,ij->i", LX, surface.normals)
-    return surface._cache[key]
+    return surface.cached(("mean_curvature", "laplacian"), lambda: -0.5 * np.einsum(
+        "ij,ij->i", surface.laplacian_matrix() @ surface.points, surface.normals))
 
 
 def gaussian_curvature(surface) -> np.ndarray:
@@ -274,18 +272,13 @@ def geodesic_distance(surface, sources, **options) -> np.ndarray:
     _check_surface(surface)
     if options:
         return GeodesicSolver(surface, **options)(sources)
-    if "geodesic_solver" not in surface._cache:
-        surface._cache["geodesic_solver"] = GeodesicSolver(surface)
-    return surface._cache["geodesic_solver"](sources)
+    return surface.cached("geodesic_solver", lambda: GeodesicSolver(surface))(sources)
 
 
 # ----------------------------------------------------------------------------- descriptors
 def _spectrum(surface, k):
     k = check_int("k", k, minimum=2)
-    key = ("eigs", k)
-    if key not in surface._cache:
-        surface._cache[key] = surface.eigs(k)
-    return surface._cache[key]
+    return surface.cached(("eigs", k), lambda: surface.eigs(k))
 
 
 def heat_kernel_signature(surface, times, *, k: int = 100, scale: bool = False) -> np.ndarray:

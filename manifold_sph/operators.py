@@ -132,6 +132,31 @@ class OperatorSet:
             self._area = area_elements(method, self.neighborhood, self._xy, self.kernel, total_area=total_area, columns=columns)
         return self._area
 
+    @property
+    def dim(self) -> int:
+        """Dimension of the ambient space: 3 for a :class:`Surface`, 2 for a :class:`Domain2D`."""
+        return self._dim
+
+    def cached(self, key, compute):
+        """The value stored on this operator set under ``key``, computed by ``compute()`` on first use.
+
+        For quantities derived from the operators (curvatures, spectra, solver
+        factorisations) that later calls reuse; the store lives as long as the set.
+
+        Examples
+        --------
+        >>> from manifold_sph import Surface, shapes
+        >>> s = Surface(shapes.sphere(500))
+        >>> calls = []
+        >>> first = s.cached("two", lambda: calls.append(1) or 2)
+        >>> second = s.cached("two", lambda: calls.append(1) or 2)
+        >>> first, second, len(calls)
+        (2, 2, 1)
+        """
+        if key not in self._cache:
+            self._cache[key] = compute()
+        return self._cache[key]
+
     def pair_offsets(self) -> np.ndarray:
         """(P, 2) offsets ``x_j - x_i`` of every neighbour pair in the row particle's frame (CSR order of
         :attr:`neighborhood`). Surfaces project them anew on each call instead of storing them
