@@ -30,7 +30,7 @@ from .._validation import check_in, check_positive
 from .constants import C0
 from .layouts import make_layout
 from .operators import cross_gradient
-from .solver import DEFAULT_H_RATIO
+from .solver import DEFAULT_COUPLING, DEFAULT_H_RATIO
 
 __all__ = ["lattice_symbols", "null_mode_response", "phase_velocity", "yee_fdtd_phase_velocity", "measured_phase_velocity",
            "ppw_for_phase_error"]
@@ -148,7 +148,7 @@ def ppw_for_phase_error(tol: float = 0.01, layout: str = "yee", *, angles=(0.0, 
 
 
 def measured_phase_velocity(layout: str = "yee", m: int = 4, *, cells: int = 40, h_ratio: float = DEFAULT_H_RATIO,
-                            kernel="cubic", form="fpm", coupling: str = "direct", courant: float = 0.9,
+                            kernel="cubic", form="fpm", coupling: str = DEFAULT_COUPLING, courant: float = 0.9,
                             steps: int = 300, seed=0) -> tuple[float, float]:
     """Phase velocity over c of the TM_mm mode of a PEC square, measured by running the solver.
 

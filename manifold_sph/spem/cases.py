@@ -14,71 +14,22 @@ Examples
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 from scipy.special import j0, j1, jn_zeros
 
 from .._validation import check_in, check_int, check_positive
+from ._casekit import _every, _fields, _fit_dt, _fitted, _timed, relative_error
+from .cases2d import guided_exact, run_planewave, run_pml, run_waveguide
 from .constants import C0, EPS0, MU0
 from .layouts import disk_layout, line_layout
-from .solver import DEFAULT_H_RATIO, Line1DSolver, TMzSolver
+from .solver import DEFAULT_COUPLING, DEFAULT_H_RATIO, Line1DSolver, TMzSolver
 from .sources import Sinusoid, Source, point_source
 
 __all__ = ["CASES", "relative_error", "cavity_exact", "cavity_frequency", "peak_frequency", "run_line1d",
-           "run_cavity", "run_case"]
+           "run_cavity", "run_waveguide", "run_planewave", "run_pml", "guided_exact", "run_case"]
 
 CASES = ("line1d", "cavity", "waveguide", "planewave", "pml")
-
-
-def relative_error(numerical, exact) -> float:
-    """mean |numerical - exact| / max |exact| (the issue's error measure)."""
-    numerical = np.asarray(numerical, dtype=np.float64)
-    exact = np.asarray(exact, dtype=np.float64)
-    scale = np.abs(exact).max()
-    if not scale > 0:
-        raise ValueError("the exact field is identically zero on the evaluation points; the error is undefined")
-    return float(np.abs(numerical - exact).mean() / scale)
-
-
-def _timed(fn):
-    """Report the total wall time as "seconds" and the stepping time as "step_seconds"."""
-    import functools
-
-    @functools.wraps(fn)
-    def wrapper(*args, **kwargs):
-        t0 = time.perf_counter()
-        out = fn(*args, **kwargs)
-        out["step_seconds"] = out["seconds"]
-        out["seconds"] = time.perf_counter() - t0
-        return out
-
-    return wrapper
-
-
-def _every(steps, frames):
-    frames = check_int("frames", frames, minimum=0)
-    return max(1, steps // frames) if frames else None
-
-
-def _fields(points, field, t, res, frames, exact=None):
-    """Private picture data (keys starting with "_" are dropped from JSON)."""
-    if not frames:
-        return {}
-    snaps = res["snapshots"] or [(t, field.copy())]
-    return {"_points": points, "_snapshots": snaps, "_exact": exact}
-
-
-def _fitted(solver, t_end):
-    """Shrink the solver's dt so that an integer number of steps ends exactly at ``t_end``."""
-    dt, steps = _fit_dt(t_end, solver.dt)
-    solver.set_dt(dt)
-    return dt, steps
-
-
-def _fit_dt(t_end, dt_max):
-    steps = max(1, int(math.ceil(t_end / dt_max - 1e-9)))
-    return t_end / steps, steps
 
 
 # ----------------------------------------------------------------------------- line1d
@@ -173,7 +124,7 @@ def peak_frequency(signal, dt: float, fmin: float = 0.0) -> float:
 @_timed
 def run_cavity(*, r0: float = 0.1, eps_r: float = 10.0, n_radial: int = 40, periods: float = 1.0,
                layout: str = "yee", form: str = "fpm", kernel="cubic", h_ratio: float = DEFAULT_H_RATIO,
-               courant: float = 0.9, coupling: str = "direct", spectrum_periods: float = 0.0, frames: int = 0,
+               courant: float = 0.9, coupling: str = DEFAULT_COUPLING, spectrum_periods: float = 0.0, frames: int = 0,
                progress: bool = False) -> dict:
     """Circular PEC cavity ([2] sec. 4.3), ``Ez(0) = 1 - r^2/r0^2``, compared with the Bessel series.
 
@@ -215,9 +166,6 @@ def run_cavity(*, r0: float = 0.1, eps_r: float = 10.0, n_radial: int = 40, peri
 def run_case(case: str, **kwargs) -> dict:
     """Run a case by name (see :data:`CASES`)."""
     check_in("case", case, CASES)
-    fn = {"line1d": run_line1d, "cavity": run_cavity}.get(case)
-    if fn is None:
-        from . import cases2d
-
-        fn = getattr(cases2d, f"run_{case}")
+    fn = {"line1d": run_line1d, "cavity": run_cavity, "waveguide": run_waveguide, "planewave": run_planewave,
+          "pml": run_pml}[case]
     return fn(**kwargs)

@@ -21,11 +21,11 @@ import math
 import numpy as np
 
 from .._validation import check_in, check_int, check_positive
-from .cases import _every, _fields, _fitted, _timed, relative_error
+from ._casekit import _every, _fields, _fitted, _timed, relative_error
 from .constants import C0
 from .layouts import Layout, make_layout
 from .pml import PML
-from .solver import DEFAULT_H_RATIO, TMzSolver
+from .solver import DEFAULT_COUPLING, DEFAULT_H_RATIO, TMzSolver
 from .sources import GaussianPulse, Sinusoid, Source, point_source
 
 __all__ = ["guided_exact", "adjacent_line_difference", "alternating_amplitude", "run_planewave", "run_waveguide", "run_pml"]
@@ -130,7 +130,7 @@ def _with_pml(interior, pml_cells, dr, sides="all", order=3, reflection=1e-6):
 @_timed
 def run_planewave(*, size: float = 0.5, freq: float = 3.6e9, ppw: float = 40.0, pml_cells: int = 10,
                   layout: str = "yee", form: str = "fpm", kernel="cubic", h_ratio: float = DEFAULT_H_RATIO,
-                  courant: float = 0.9, coupling: str = "direct", travel: float = 0.8, ramp: float = 2.0, seed=0,
+                  courant: float = 0.9, coupling: str = DEFAULT_COUPLING, travel: float = 0.8, ramp: float = 2.0, seed=0,
                   source_span: str = "full", frames: int = 0, progress: bool = False) -> dict:
     """Free-space plane wave in a ``size`` square with PML on all sides ([2] sec. 4.5).
 
@@ -197,7 +197,7 @@ def run_planewave(*, size: float = 0.5, freq: float = 3.6e9, ppw: float = 40.0, 
 def run_waveguide(*, width: float = 0.5, length: float = 0.4, pml_thickness: float = 0.1, ppw: float = 80.0,
                   f_ratio: float = 1.2, t_end: float = 4.1e-9, line_x: float = 0.244, amplitude: float = 0.2,
                   layout: str = "yee", form: str = "fpm", kernel="cubic", h_ratio: float = DEFAULT_H_RATIO,
-                  courant: float = 0.9, coupling: str = "direct", ramp: float = 0.0, frames: int = 0,
+                  courant: float = 0.9, coupling: str = DEFAULT_COUPLING, ramp: float = 0.0, frames: int = 0,
                   progress: bool = False) -> dict:
     """Parallel-plate waveguide ([2] sec. 4.4): PEC plates x = 0 and x = ``width``, TM1 source at y = 0.
 
@@ -252,7 +252,7 @@ def run_waveguide(*, width: float = 0.5, length: float = 0.4, pml_thickness: flo
 @_timed
 def run_pml(*, cells: int = 60, pml_cells: int = 10, order: int = 3, reflection: float = 1e-6,
             layout: str = "yee", form: str = "fpm", kernel="cubic", h_ratio: float = DEFAULT_H_RATIO,
-            courant: float = 0.9, coupling: str = "direct", dr: float = 1e-3, progress: bool = False) -> dict:
+            courant: float = 0.9, coupling: str = DEFAULT_COUPLING, dr: float = 1e-3, progress: bool = False) -> dict:
     """PML reflection: a pulse in a ``cells`` square with PML, against a reference run without echo.
 
     A soft point source (differentiated-Gaussian-like modulated pulse, about

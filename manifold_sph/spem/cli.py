@@ -39,6 +39,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     from .cases import CASES
     from .layouts import LAYOUTS
     from .operators import FORMS
+    from .solver import COUPLINGS, DEFAULT_COUPLING
 
     p = subparsers.add_parser("spem", help="SPEM time-domain Maxwell cases (line1d, cavity, waveguide, planewave, pml)",
                               description="Run a SPEM validation case against its exact solution.")
@@ -47,7 +48,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--form", default="fpm", choices=FORMS, help="derivative system (default fpm)")
     p.add_argument("--kernel", default="cubic", help="kernel (default cubic)")
     p.add_argument("--h-ratio", type=_positive(float), default=None, help="h / dr (default 0.7)")
-    p.add_argument("--coupling", default="direct", choices=["direct", "adjoint"])
+    p.add_argument("--coupling", default=DEFAULT_COUPLING, choices=COUPLINGS,
+                   help=f"E/H coupling (default {DEFAULT_COUPLING}: energy-conserving on every layout; "
+                        "direct is refused where it would grow)")
     p.add_argument("--ppw", type=_positive(float), default=None, help="particles per wavelength (planewave, waveguide)")
     p.add_argument("--n-radial", type=_positive(int), default=None, help="cavity: particles along the radius (default 40)")
     p.add_argument("--r0", type=_positive(float), default=None, help="cavity radius (default 0.1 m)")
@@ -75,10 +78,12 @@ _OPTION_CASES = {
 
 
 def _kwargs(args) -> dict:
+    from .solver import DEFAULT_COUPLING
+
     kw = {"form": args.form, "kernel": args.kernel, "progress": args.progress}
     for name, cases in _OPTION_CASES.items():
         v = getattr(args, name)
-        if v is None or (name in ("layout", "coupling") and v == {"layout": "yee", "coupling": "direct"}[name]):
+        if v is None or (name in ("layout", "coupling") and v == {"layout": "yee", "coupling": DEFAULT_COUPLING}[name]):
             continue
         if args.case not in cases:
             raise ValueError(f"--{name.replace('_', '-')} does not apply to case {args.case!r} (only {', '.join(cases)})")

@@ -37,20 +37,43 @@ import scipy.sparse as sp
 from .._validation import check_in, check_int, check_positive
 from .constants import C0, EPS0, MU0
 from .layouts import Layout
-from .operators import cross_gradient, sbp_correct
+from .operators import cross_gradient, sbp_pair
 from .pml import PML
 from .sources import Source
 
-__all__ = ["TMzSolver", "Line1DSolver", "cfl_number", "DEFAULT_H_RATIO"]
+__all__ = ["TMzSolver", "Line1DSolver", "cfl_number", "leapfrog_growth", "DEFAULT_H_RATIO", "DEFAULT_COUPLING",
+           "COUPLINGS"]
 
 #: Default smoothing length over spacing (cubic kernel, support 2h = 1.4 dr:
 #: the nearest cross neighbours and the next row/column).
 DEFAULT_H_RATIO = 0.7
 
+#: Couplings of the E and H derivative matrices (see :class:`TMzSolver`).
+COUPLINGS = ("sbp", "adjoint", "direct")
+#: The default: energy-conserving (stable for every layout, h_ratio and material).
+DEFAULT_COUPLING = "sbp"
+#: Relative margin on the computed spectral radius in :meth:`TMzSolver.stability_limit`.
+STABILITY_MARGIN = 5e-3
+#: Up to this many free E particles the "direct" spectrum is computed densely.
+DENSE_SPECTRUM = 900
+#: Imaginary parts below this fraction of the spectral radius count as round-off.
+SPECTRUM_TOL = 1e-10
 
-def cfl_number(dt: float, h_min: float) -> float:
-    """``S = sqrt(2) c dt / h_min`` ([2] eq. 3.16)."""
-    return math.sqrt(2.0) * C0 * dt / h_min
+
+def cfl_number(dt: float, h_min: float, c: float = C0) -> float:
+    """``S = sqrt(2) c dt / h_min`` ([2] eq. 3.16), ``c`` the fastest wave speed (default c0).
+
+    >>> round(cfl_number(1e-11, 0.01), 4)
+    0.424
+    >>> cfl_number(1e-11, 0.0)
+    Traceback (most recent call last):
+    ...
+    ValueError: h_min must be a finite positive number, got 0.0
+    """
+    dt = check_positive("dt", dt)
+    h_min = check_positive("h_min", h_min)
+    c = check_positive("c", c)
+    return math.sqrt(2.0) * c * dt / h_min
 
 
 def _per_particle(name, value, points, *, positive=True, allow_zero=False):
@@ -59,7 +82,7 @@ def _per_particle(name, value, points, *, positive=True, allow_zero=False):
     v = value(points) if callable(value) else value
     try:
         arr = np.broadcast_to(np.asarray(v, dtype=np.float64), (n,)).copy()
-    except ValueError:
+    except (ValueError, TypeError):
         raise ValueError(f"{name} must be a scalar or an array of shape ({n},), got shape {np.shape(v)}") from None
     bad = ~np.isfinite(arr) | ((arr < 0) if allow_zero else (arr <= 0)) if positive else ~np.isfinite(arr)
     if bad.any():
@@ -69,33 +92,37 @@ def _per_particle(name, value, points, *, positive=True, allow_zero=False):
     return arr
 
 
-def _volumes(points, h, kernel):
-    """Relative particle volumes ``mean(S) / S_i`` with ``S_i = sum_j w(|x_ij|/h)`` (Shepard density)."""
-    from scipy.spatial import cKDTree
-
-    from ..kernels import get_kernel
-
-    k = get_kernel(kernel)
-    tree = cKDTree(points)
-    D = tree.sparse_distance_matrix(tree, k.support * h, output_type="coo_matrix")
-    S = np.bincount(D.row, weights=k.w(D.data / h), minlength=len(points)) + k.w(0.0)
-    return (S.mean() / S)[:, None]
-
-
-def _check_dt(dt, h_min, courant):
+def _check_dt(dt, h_min, courant, c=C0):
+    """The CFL step ``courant h_min / (sqrt(2) c)``, or ``dt`` checked against it (``c`` the fastest speed)."""
+    limit = h_min / (math.sqrt(2.0) * c)
     if dt is None:
         courant = check_positive("courant", courant)
         if courant > 1:
             raise ValueError(f"courant must be at most 1 (CFL), got {courant}")
-        return courant * h_min / (math.sqrt(2.0) * C0)
+        return courant * limit
     dt = check_positive("dt", dt)
-    S = cfl_number(dt, h_min)
+    S = cfl_number(dt, h_min, c)
     if S > 1.0 + 1e-12:
+        speed = "" if c == C0 else f", c = {c:.4g} m/s the fastest wave speed in the materials"
         raise ValueError(
             f"dt = {dt:.4g} s violates the CFL condition S = sqrt(2) c dt / h_min = {S:.3f} > 1 "
-            f"(h_min = {h_min:.4g} m); use dt <= {h_min / (math.sqrt(2.0) * C0):.4g} s"
+            f"(h_min = {h_min:.4g} m{speed}); use dt <= {limit:.4g} s"
         )
     return dt
+
+
+def leapfrog_growth(lam, dt: float) -> np.ndarray:
+    """Per-step amplification ``max |z|`` of leap-frog for ``y'' = lam y`` (``z^2 - (2 + dt^2 lam) z + 1 = 0``).
+
+    1 for real ``lam`` in ``[-4/dt^2, 0]``, above 1 otherwise (complex or
+    positive ``lam`` grow whatever ``dt``).
+
+    >>> leapfrog_growth(np.array([-1.0, -5.0, 0.01, -1 + 0.1j]), 1.0).round(4).tolist()
+    [1.0, 2.618, 1.1051, 1.0594]
+    """
+    b = 2.0 + dt * dt * np.asarray(lam, dtype=np.complex128)
+    disc = np.sqrt(b * b - 4.0)
+    return np.maximum(np.abs(0.5 * (b + disc)), np.abs(0.5 * (b - disc)))
 
 
 class _Leapfrog:
@@ -112,7 +139,7 @@ class _Leapfrog:
         probes : (P,) int array, optional
             Indices of E particles whose field is recorded after every step.
         snapshot_every : int, optional
-            Store a copy of the E field every this many steps.
+            Store a copy of the E field every this many steps (>= 1).
         progress : bool
             Show a tqdm bar.
 
@@ -128,6 +155,8 @@ class _Leapfrog:
             t_end = check_positive("t_end", t_end, allow_zero=True)
             steps = max(0, int(math.ceil((t_end - self.t) / self.dt - 1e-9)))
         steps = check_int("steps", steps, minimum=0)
+        if snapshot_every is not None:
+            snapshot_every = check_int("snapshot_every", snapshot_every, minimum=1)
         probes = np.zeros(0, dtype=np.int64) if probes is None else np.atleast_1d(np.asarray(probes, dtype=np.int64))
         if probes.size and (probes.min() < 0 or probes.max() >= self.n_e):
             raise ValueError(f"probes must be E particle indices in [0, {self.n_e}), got {probes.tolist()}")
@@ -169,166 +198,272 @@ class TMzSolver(_Leapfrog):
         reproduces the scalar ratios of [2].
     eps_r, mu_r, sigma : float, array or callable
         Relative permittivity and conductivity (S/m) per E particle,
-        relative permeability per H particle.
+        relative permeability per H particle; ``eps_r``, ``mu_r`` finite
+        and > 0, ``sigma`` finite and >= 0.
     pml : PML, optional
         Absorbing layers.
     dt : float, optional
-        Time step; refused above the CFL limit ``h_min / (sqrt(2) c)``.
+        Time step; refused above the CFL limit ``h / (sqrt(2) c_max)``,
+        ``c_max = c0 / sqrt(min eps_r min mu_r)`` the fastest wave speed,
+        and above the spectral limit of the operators (:meth:`stability_limit`).
     courant : float
-        ``S`` used when ``dt`` is None (default 0.9).
+        Fraction of the smaller of the two limits used when ``dt`` is None
+        (default 0.9).
     sources : sequence of Source
         Hard sources replace Ez at their particles (which are then not
         updated), soft sources add to it.
-    coupling : {"direct", "adjoint", "sbp"}
-        "direct" (default): every set's derivatives by its own CSPM system.
-        First-order consistent everywhere and stable on lattices, but on
-        irregular layouts (jittered, Poisson) the pair is not skew-adjoint,
-        its spectrum is complex and the run blows up within a few hundred
-        steps. "adjoint": H rows = the negative adjoint ``-V_H^-1 D^T V_E``
-        of the E rows (energy-conserving, stable, but inconsistent on
-        irregular layouts). "sbp": the E rows are first corrected
-        (:func:`.operators.sbp_correct`) so that their negative adjoint is
-        consistent as well: stable and consistent away from walls and
-        sources; use it for irregular layouts, with ``h_ratio`` about 0.8-1.
-        For the energy-conserving couplings dt is also bounded by the
-        computed spectral limit (:meth:`stability_limit`).
-    boundary_rows : {"adjoint", "direct"}
-        With "sbp": H rows next to PEC or driven E particles from the adjoint
-        (stable, default) or from their own CSPM rows (consistent there, but
-        unstable on irregular layouts).
+    coupling : {"sbp", "adjoint", "direct"}
+        "sbp" (default): the E rows are corrected (:func:`.operators.sbp_pair`)
+        so that the H rows, their negative adjoint plus a boundary closure on
+        the PEC particles, are exact for linear fields as well. The pair is
+        skew-adjoint: leap-frog conserves a discrete energy on every layout,
+        material and ``h_ratio`` (proven; dt bounded by the computed spectral
+        radius). "adjoint": H rows = the negative adjoint of the CSPM E rows
+        (energy-conserving, but inconsistent next to walls and on irregular
+        layouts). "direct": every set's derivatives by its own CSPM system;
+        no energy bound, so its spectrum is computed before stepping and the
+        solver is refused (ValueError) when a leap-frog mode would grow
+        (complex or positive eigenvalues: irregular layouts, wide kernels,
+        curved walls).
     workers : int
         2 runs the two independent sparse products of each half step on two
         threads (scipy releases the GIL in them).
+
+    Attributes
+    ----------
+    dt_stable : float
+        ``2 / sqrt(rho)``, rho the spectral radius of the lossless E -> E operator.
+    growth : float
+        "direct" only: the measured per-step leap-frog amplification at ``dt`` (1 when stable).
     """
 
     def __init__(self, layout: Layout, *, h=None, h_ratio: float = DEFAULT_H_RATIO, kernel="cubic", form="fpm",
                  eps_r=1.0, mu_r=1.0, sigma=0.0, pml: PML | None = None, dt=None, courant: float = 0.9, sources=(),
-                 coupling: str = "direct", workers: int = 1, boundary_rows: str = "adjoint"):
+                 coupling: str = DEFAULT_COUPLING, workers: int = 1):
         if not isinstance(layout, Layout):
             raise TypeError(f"layout must be a Layout, got {type(layout).__name__}")
-        self.layout = layout
-        self.h = check_positive("h", h) if h is not None else check_positive("h_ratio", h_ratio) * layout.dr
-        self.kernel, self.form = kernel, form
-        e, hx, hy = layout.e, layout.hx, layout.hy
-        self.n_e = len(e)
-        self.sources = list(sources)
-        for src in self.sources:
-            if not isinstance(src, Source):
-                raise TypeError(f"sources must be Source objects, got {type(src).__name__}")
-            if src.indices.min() < 0 or src.indices.max() >= self.n_e:
-                raise ValueError(f"source indices must lie in [0, {self.n_e}), got {src.indices.min()}..{src.indices.max()}")
-        # E particles that are updated: not PEC, not driven by a hard source
-        driven = np.zeros(self.n_e, dtype=bool)
-        for src in self.sources:
-            if src.kind == "hard":
-                driven[src.indices] = True
-        self.free = np.flatnonzero(~layout.e_fixed & ~driven)
-        if self.free.size == 0:
-            raise ValueError("every E particle is fixed (PEC) or driven: no E particle left to update")
-        ef = e[self.free]
-        kw = dict(kernel=kernel, form=form)
-        if layout.shared:
-            Dx, Dy = cross_gradient(ef, hx, self.h, row_name="E particles", col_name="H particles", **kw)
-            self.Dx_e, self.Dy_e = Dx, Dy
-            Hx_, Hy_ = cross_gradient(hx, e, self.h, row_name="H particles", col_name="E particles", **kw)
-            self.Dy_hx, self.Dx_hy = Hy_, Hx_
-        else:
-            self.Dx_e = cross_gradient(ef, hy, self.h, row_name="E particles", col_name="Hy particles", **kw)[0]
-            self.Dy_e = cross_gradient(ef, hx, self.h, row_name="E particles", col_name="Hx particles", **kw)[1]
-            self.Dy_hx = cross_gradient(hx, e, self.h, row_name="Hx particles", col_name="E particles", **kw)[1]
-            self.Dx_hy = cross_gradient(hy, e, self.h, row_name="Hy particles", col_name="E particles", **kw)[0]
-        check_in("coupling", coupling, ("direct", "adjoint", "sbp"))
-        check_in("boundary_rows", boundary_rows, ("adjoint", "direct"))
-        self.coupling = coupling
-        if coupling == "sbp":
-            # E rows corrected so that their negative adjoint is consistent too
-            # (operators.sbp_correct); H rows = that adjoint. The driven (hard
-            # source) E particles get rows as well, so that H rows next to a
-            # source stay consistent; their values are imposed, so the
-            # homogeneous part of the scheme is still exactly skew-adjoint.
-            vol_all = _volumes(e, self.h, kernel)[:, 0]
-            vx, vy = _volumes(hx, self.h, kernel)[:, 0], _volumes(hy, self.h, kernel)[:, 0]
-            rows_sd = np.flatnonzero(~layout.e_fixed)
-            try:
-                Dx_sd = cross_gradient(e[rows_sd], hy, self.h, **kw)[0]
-                Dy_sd = cross_gradient(e[rows_sd], hx, self.h, **kw)[1]
-                touch = layout.e_fixed.astype(float)
-            except ValueError:  # degenerate driven rows (a source on a wall): treat them as boundary data
-                rows_sd, Dx_sd, Dy_sd = self.free, self.Dx_e, self.Dy_e
-                touch = np.ones(self.n_e)
-                touch[self.free] = 0.0
-            keep = np.zeros(self.n_e)
-            keep[driven] = 1.0
-            keep[rows_sd] = 0.0
-            Kd = sp.diags(keep)  # driven columns not covered by the adjoint
-            inner_x = (abs(self.Dy_hx) @ touch) == 0
-            inner_y = (abs(self.Dx_hy) @ touch) == 0
-            v_sd = vol_all[rows_sd]
-            Dy_sd = sbp_correct(Dy_sd, e[rows_sd], hx, 1, v_sd, vx, inner_x, scale=layout.dr)
-            Dx_sd = sbp_correct(Dx_sd, e[rows_sd], hy, 0, v_sd, vy, inner_y, scale=layout.dr)
-            where = np.full(self.n_e, -1)
-            where[rows_sd] = np.arange(len(rows_sd))
-            self.Dy_e, self.Dx_e = Dy_sd[where[self.free]], Dx_sd[where[self.free]]
-            Gy = self._expand(-(Dy_sd.T.multiply(v_sd[None, :])).tocsr().multiply(1.0 / vx[:, None]), rows_sd)
-            Gx = self._expand(-(Dx_sd.T.multiply(v_sd[None, :])).tocsr().multiply(1.0 / vy[:, None]), rows_sd)
-            if boundary_rows == "direct":
-                # H rows touching PEC (or degenerate driven) E particles keep their
-                # own consistent CSPM rows (skew-adjointness is lost only there)
-                bx, by = sp.diags((~inner_x).astype(float)), sp.diags((~inner_y).astype(float))
-                ix, iy = sp.diags(inner_x.astype(float)), sp.diags(inner_y.astype(float))
-                self.Dy_hx = (ix @ (Gy + self.Dy_hx @ Kd) + bx @ self.Dy_hx).tocsr()
-                self.Dx_hy = (iy @ (Gx + self.Dx_hy @ Kd) + by @ self.Dx_hy).tocsr()
-            else:
-                self.Dy_hx = (Gy + self.Dy_hx @ Kd).tocsr()
-                self.Dx_hy = (Gx + self.Dx_hy @ Kd).tocsr()
-        if coupling == "adjoint":
-            # H rows from the negative adjoint of the E rows: -V_H^-1 D^T V_E.
-            # The semi-discrete scheme then conserves a discrete energy, which
-            # keeps irregular layouts stable.
-            # Columns of driven (hard-source) E particles keep the direct
-            # weights: they are boundary data, not unknowns.
-            vol_e = _volumes(e, self.h, kernel)[self.free, 0]
-            keep = np.zeros(self.n_e)
-            keep[driven] = 1.0
-            Kd = sp.diags(keep)
-            self.Dy_hx = (self._expand(-(self.Dy_e.T.multiply(vol_e[None, :])).tocsr()
-                                       / _volumes(hx, self.h, kernel)) + self.Dy_hx @ Kd).tocsr()
-            self.Dx_hy = (self._expand(-(self.Dx_e.T.multiply(vol_e[None, :])).tocsr()
-                                       / _volumes(hy, self.h, kernel)) + self.Dx_hy @ Kd).tocsr()
-        self.dt = _check_dt(dt, self.h, courant)
-        self.eps_r = _per_particle("eps_r", eps_r, e)
-        self.sigma = _per_particle("sigma", sigma, e, allow_zero=True)
-        self.mu_r_x = _per_particle("mu_r", mu_r, hx)
-        self.mu_r_y = self.mu_r_x if layout.shared else _per_particle("mu_r", mu_r, hy)
-        self.dt_stable = None
-        if coupling != "direct":
-            # The CFL rule S <= 1 is not enough on irregular layouts: bound dt
-            # by the spectral radius of the lossless E -> E operator.
-            self.dt_stable = self.stability_limit()
-            if dt is None:
-                self.dt = min(self.dt, courant * self.dt_stable)
-            elif self.dt > self.dt_stable:
-                raise ValueError(
-                    f"dt = {self.dt:.4g} s exceeds the stability limit 2/sqrt(rho) = {self.dt_stable:.4g} s of "
-                    f"the {coupling} operators on this layout; use dt <= {self.dt_stable:.4g} s"
-                )
-        self.courant = cfl_number(self.dt, self.h)
-        self.pml = pml
         if pml is not None and not isinstance(pml, PML):
             raise TypeError(f"pml must be a PML or None, got {type(pml).__name__}")
-        zeros_e = np.zeros(self.n_e)
-        sx_e, sy_e = pml.sigma(e) if pml else (zeros_e, zeros_e)
-        _, sy_hx = pml.sigma(hx) if pml else (None, np.zeros(len(hx)))
-        sx_hy, _ = pml.sigma(hy) if pml else (np.zeros(len(hy)), None)
-        self._sigmas = (self.sigma + sx_e, self.sigma + sy_e, sy_hx * MU0 / EPS0, sx_hy * MU0 / EPS0)
-        self._update_coefficients()
+        self.layout, self.pml = layout, pml
+        self.h = check_positive("h", h) if h is not None else check_positive("h_ratio", h_ratio) * layout.dr
+        self.kernel, self.form = kernel, form
+        self.coupling = check_in("coupling", coupling, COUPLINGS)
         self.workers = check_int("workers", workers, minimum=1)
+        self.n_e = len(layout.e)
+        self._set_materials(eps_r, mu_r, sigma)
+        self._set_sources(sources)
+        self._assemble()
+        self._set_time_step(dt, courant)
+        self._set_losses()
         self._pool = None
         if self.workers > 1:
             from concurrent.futures import ThreadPoolExecutor
 
             self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="spem")
         self.reset()
+
+    # ------------------------------------------------------------------ set-up steps
+    def _set_materials(self, eps_r, mu_r, sigma):
+        """eps_r, sigma per E particle and mu_r per H particle (finite, > 0 / >= 0); the fastest speed c_max."""
+        lay = self.layout
+        self.eps_r = _per_particle("eps_r", eps_r, lay.e)
+        self.sigma = _per_particle("sigma", sigma, lay.e, allow_zero=True)
+        self.mu_r_x = _per_particle("mu_r", mu_r, lay.hx)
+        self.mu_r_y = self.mu_r_x if lay.shared else _per_particle("mu_r", mu_r, lay.hy)
+        slowest = float(self.eps_r.min()) * float(min(self.mu_r_x.min(), self.mu_r_y.min()))
+        self.c_max = C0 / math.sqrt(slowest)
+
+    def _set_sources(self, sources):
+        """Check the sources; ``free`` = the E particles updated by the scheme (not PEC, not hard-driven)."""
+        self.sources = list(sources)
+        driven = np.zeros(self.n_e, dtype=bool)
+        for src in self.sources:
+            if not isinstance(src, Source):
+                raise TypeError(f"sources must be Source objects, got {type(src).__name__}")
+            if src.indices.min() < 0 or src.indices.max() >= self.n_e:
+                raise ValueError(f"source indices must lie in [0, {self.n_e}), got {src.indices.min()}..{src.indices.max()}")
+            if src.kind == "hard":
+                driven[src.indices] = True
+        self.driven = driven
+        self.free = np.flatnonzero(~self.layout.e_fixed & ~driven)
+        if self.free.size == 0:
+            raise ValueError("every E particle is fixed (PEC) or driven: no E particle left to update")
+
+    def _gradient(self, rows, cols, axis, row_name, col_name):
+        return cross_gradient(rows, cols, self.h, kernel=self.kernel, form=self.form, row_name=row_name,
+                              col_name=col_name)[axis]
+
+    def _assemble(self):
+        """The four derivative matrices: E rows (free E particles) and H rows (over every E particle)."""
+        lay = self.layout
+        e, hx, hy = lay.e, lay.hx, lay.hy
+        nx, ny = ("H particles", "H particles") if lay.shared else ("Hx particles", "Hy particles")
+        if self.coupling == "sbp":
+            self._assemble_sbp()
+            return
+        ef = e[self.free]
+        self.Dx_e = self._gradient(ef, hy, 0, "E particles", ny)
+        self.Dy_e = self._gradient(ef, hx, 1, "E particles", nx)
+        self.Dy_hx = self._gradient(hx, e, 1, nx, "E particles")
+        self.Dx_hy = self._gradient(hy, e, 0, ny, "E particles")
+        if self.coupling == "adjoint":
+            # H rows at the free columns: the negative adjoint of the E rows (equal
+            # volumes); the PEC and driven columns keep their CSPM weights (those
+            # particles carry boundary data, not unknowns).
+            keep = sp.diags((~np.isin(np.arange(self.n_e), self.free)).astype(float))
+            self.Dy_hx = (self._expand(-self.Dy_e.T) + self.Dy_hx @ keep).tocsr()
+            self.Dx_hy = (self._expand(-self.Dx_e.T) + self.Dx_hy @ keep).tocsr()
+
+    def _assemble_sbp(self):
+        """E rows over every non-PEC E particle corrected by :func:`.operators.sbp_pair`; H rows their adjoint
+        plus the corrected closure on the PEC particles."""
+        lay = self.layout
+        e, hx, hy = lay.e, lay.hx, lay.hy
+        nx, ny = ("H particles", "H particles") if lay.shared else ("Hx particles", "Hy particles")
+        # Rows: the free and the driven E particles (so that H rows next to a
+        # source stay consistent); driven particles on a wall, whose one-sided
+        # derivative system is singular, join the PEC particles as boundary data.
+        boundary = lay.e_fixed
+        try:
+            Ds = [self._gradient(e[~boundary], cols, axis, "E particles", name)
+                  for axis, cols, name in ((0, hy, ny), (1, hx, nx))]
+        except ValueError:
+            boundary = lay.e_fixed | self.driven
+            Ds = [self._gradient(e[~boundary], cols, axis, "E particles", name)
+                  for axis, cols, name in ((0, hy, ny), (1, hx, nx))]
+        rows, wall = np.flatnonzero(~boundary), np.flatnonzero(boundary)
+        er, ew = e[rows], e[wall]
+        ones_r = np.ones(len(rows))
+        out = []
+        for D, (axis, cols, name) in zip(Ds, ((0, hy, ny), (1, hx, nx))):
+            B = self._gradient(cols, e, axis, name, "E particles")[:, wall] if len(wall) else None
+            D, B = sbp_pair(D, er, cols, axis, ones_r, np.ones(len(cols)), B, ew if len(wall) else None,
+                            scale=lay.dr)
+            G = self._expand(-D.T, rows)
+            if B is not None:
+                G = G + self._expand(B, wall)
+            where = np.full(self.n_e, -1)
+            where[rows] = np.arange(len(rows))
+            out.append((D[where[self.free]].tocsr(), G.tocsr()))
+        (self.Dx_e, self.Dx_hy), (self.Dy_e, self.Dy_hx) = out
+
+    def _set_time_step(self, dt, courant):
+        """dt from (or checked against) the CFL rule at the fastest speed and the spectral limit."""
+        self.dt = _check_dt(dt, self.h, courant, self.c_max)
+        self.dt_stable = self.stability_limit()
+        self.growth = 1.0
+        if dt is None:
+            self.dt = min(self.dt, courant * self.dt_stable)
+        elif self.dt >= self.dt_stable:
+            raise ValueError(
+                f"dt = {self.dt:.4g} s exceeds the stability limit 2/sqrt(rho) = {self.dt_stable:.4g} s of "
+                f"the {self.coupling} operators on this layout; use dt < {self.dt_stable:.4g} s"
+            )
+        if self.coupling == "direct":
+            self._check_direct_spectrum()
+        self.courant = cfl_number(self.dt, self.h, self.c_max)
+
+    def _set_losses(self):
+        """Material and PML conductivities -> the semi-implicit update coefficients."""
+        lay, pml = self.layout, self.pml
+        zeros_e = np.zeros(self.n_e)
+        sx_e, sy_e = pml.sigma(lay.e) if pml else (zeros_e, zeros_e)
+        _, sy_hx = pml.sigma(lay.hx) if pml else (None, np.zeros(len(lay.hx)))
+        sx_hy, _ = pml.sigma(lay.hy) if pml else (np.zeros(len(lay.hy)), None)
+        self._sigmas = (self.sigma + sx_e, self.sigma + sy_e, sy_hx * MU0 / EPS0, sx_hy * MU0 / EPS0)
+        self._update_coefficients()
+
+    # ------------------------------------------------------------------ stability
+    def _lossless_operator(self):
+        """The lossless E -> E operator ``L`` on the free particles (``E'' = L E``), as (L, symmetric form or None).
+
+        For the energy-conserving couplings ``S = eps^(1/2) L eps^(-1/2)`` is
+        symmetric negative semi-definite; it is returned so that its extreme
+        eigenvalue can be computed by the symmetric Lanczos method.
+        """
+        fr = self.free
+        A = self.Dx_e @ sp.diags(1.0 / (MU0 * self.mu_r_y)) @ self.Dx_hy[:, fr] \
+            + self.Dy_e @ sp.diags(1.0 / (MU0 * self.mu_r_x)) @ self.Dy_hx[:, fr]
+        eps = EPS0 * self.eps_r[fr]
+        L = (sp.diags(1.0 / eps) @ A).tocsr()
+        if self.coupling == "direct":
+            return L, None
+        S = (sp.diags(eps**-0.5) @ A @ sp.diags(eps**-0.5)).tocsr()
+        return L, 0.5 * (S + S.T)
+
+    def stability_limit(self) -> float:
+        """Largest stable leap-frog dt, ``2 / sqrt(rho)``, rho the spectral radius of the lossless E -> E operator.
+
+        Exact (Lanczos on the symmetric form, 0.5 % safety margin) for the
+        energy-conserving couplings "sbp" and "adjoint", whose eigenvalues are
+        real and non-positive by construction. For "direct" the spectrum may
+        be complex and no dt is stable then: :meth:`_check_direct_spectrum`
+        decides.
+        """
+        from scipy.sparse.linalg import ArpackNoConvergence, eigs, eigsh
+
+        L, S = self._lossless_operator()
+        try:
+            if S is not None:
+                rho = float(np.abs(eigsh(S, k=1, which="LM", return_eigenvectors=False, tol=1e-8,
+                                         maxiter=20000)).max())
+            else:
+                rho = float(np.abs(eigs(L, k=1, which="LM", return_eigenvectors=False, tol=1e-6,
+                                        maxiter=20000)).max())
+        except ArpackNoConvergence:  # pragma: no cover - the Gershgorin bound is safe
+            rho = float(abs(L).sum(axis=1).max())
+        return 2.0 / math.sqrt(rho * (1.0 + STABILITY_MARGIN))
+
+    def _check_direct_spectrum(self):
+        """Refuse the "direct" coupling when some leap-frog mode grows at this dt (measured spectrum).
+
+        Every eigenvalue (dense) up to :data:`DENSE_SPECTRUM` free particles.
+        Above, ARPACK gives only the eigenvalues of largest modulus, largest
+        imaginary part and those nearest 0 (shift-invert): a partial check,
+        said in a RuntimeWarning (the "sbp" coupling has a proven bound).
+        """
+        import warnings
+
+        from scipy.sparse.linalg import ArpackError, ArpackNoConvergence, eigs
+
+        if getattr(self, "_spectrum", None) is not None:
+            self._refuse_growth(self._spectrum)
+            return
+        L, _ = self._lossless_operator()
+        n = L.shape[0]
+        if n <= DENSE_SPECTRUM:
+            lam = np.linalg.eigvals(L.toarray())
+        else:
+            try:
+                lam = np.concatenate([eigs(L, k=8, which="LM", return_eigenvectors=False, tol=1e-8, maxiter=3000),
+                                      eigs(L, k=8, which="LI", return_eigenvectors=False, tol=1e-8, maxiter=3000),
+                                      eigs(L.tocsc(), k=8, sigma=0.0, return_eigenvectors=False, tol=1e-8,
+                                           maxiter=3000)])
+            except (ArpackNoConvergence, ArpackError, RuntimeError):
+                raise ValueError(
+                    f"the spectrum of the direct coupling could not be computed on {n} free E particles, so its "
+                    f"stability is not guaranteed; use coupling='sbp' (energy-conserving)"
+                ) from None
+            warnings.warn(
+                f"direct coupling on {n} free E particles: only the extreme eigenvalues were checked (partial "
+                f"stability check); coupling='sbp' has a proven energy bound",
+                RuntimeWarning, stacklevel=4,
+            )
+        rho = float(np.abs(lam).max())
+        self._spectrum = np.where(np.abs(lam.imag) <= SPECTRUM_TOL * rho, lam.real, lam)  # round-off
+        self._refuse_growth(self._spectrum)
+
+    def _refuse_growth(self, lam):
+        g = float(leapfrog_growth(lam, self.dt).max())
+        self.growth = g
+        if g > 1.0 + 1e-12:
+            k = int(np.argmax(leapfrog_growth(lam, self.dt)))
+            raise ValueError(
+                f"the direct coupling is unstable on this layout (h_ratio = {self.h / self.layout.dr:.3g}): its "
+                f"E -> E operator has the eigenvalue {complex(lam[k]):.4g} (complex or positive), so a leap-frog "
+                f"mode grows by {g:.6f} per step ({g ** 10000:.3g} in 10^4 steps) whatever dt; use "
+                f"coupling='sbp' (energy-conserving)"
+            )
 
     def _update_coefficients(self):
         sxe, sye, sxh, syh = self._sigmas
@@ -341,40 +476,24 @@ class TMzSolver(_Leapfrog):
         self._cax, self._cbx, self._cay, self._cby = self.ca_x[fr], self.cb_x[fr], self.ca_y[fr], self.cb_y[fr]
 
     def set_dt(self, dt: float):
-        """Change the time step (checked against the CFL rule and, if computed, the stability limit).
+        """Change the time step (checked against the CFL rule and the stability limit).
 
         Call it before ``set_initial`` / ``run``; the fields are not rescaled.
         """
-        dt = _check_dt(dt, self.h, 1.0)
-        if self.dt_stable is not None and dt > self.dt_stable:
+        dt = _check_dt(dt, self.h, 1.0, self.c_max)
+        if dt >= self.dt_stable:
             raise ValueError(f"dt = {dt:.4g} s exceeds the stability limit {self.dt_stable:.4g} s of this layout")
         self.dt = dt
-        self.courant = cfl_number(dt, self.h)
+        if self.coupling == "direct":
+            self._check_direct_spectrum()
+        self.courant = cfl_number(dt, self.h, self.c_max)
         self._update_coefficients()
-
-    def stability_limit(self) -> float:
-        """Largest stable leap-frog dt, ``2 / sqrt(rho)``, rho the spectral radius of the lossless E -> E operator.
-
-        Exact for the energy-conserving couplings ("adjoint", "sbp"), an
-        estimate for "direct" (whose spectrum may be complex).
-        """
-        from scipy.sparse.linalg import ArpackNoConvergence, eigs
-
-        fr = self.free
-        inv_eps = 1.0 / (EPS0 * self.eps_r[fr])
-        L = sp.diags(inv_eps) @ (self.Dx_e @ sp.diags(1.0 / (MU0 * self.mu_r_y)) @ self.Dx_hy[:, fr]
-                                 + self.Dy_e @ sp.diags(1.0 / (MU0 * self.mu_r_x)) @ self.Dy_hx[:, fr])
-        try:
-            rho = float(np.abs(eigs(L, k=1, which="LM", return_eigenvectors=False, tol=1e-4, maxiter=5000)).max())
-        except ArpackNoConvergence as exc:  # pragma: no cover - fall back to a Gershgorin bound
-            rho = float(abs(L).sum(axis=1).max()) if not len(exc.eigenvalues) else float(np.abs(exc.eigenvalues).max())
-        return 2.0 / math.sqrt(rho)
 
     def _expand(self, D, cols=None):
         """Columns over the E particles ``cols`` (default: the free ones) -> columns over every E particle."""
         cols = self.free if cols is None else cols
-        P = sp.csr_matrix((np.ones(len(cols)), (cols, np.arange(len(cols)))), shape=(self.n_e, len(cols)))
-        return (sp.csr_matrix(D) @ P.T).tocsr()
+        D = sp.csr_matrix(D)
+        return sp.csr_matrix((D.data, np.asarray(cols)[D.indices], D.indptr), shape=(D.shape[0], self.n_e))
 
     def _coefficients(self, s, m):
         a = s * self.dt / (2.0 * m)

@@ -91,12 +91,41 @@ class Source:
             raise TypeError(f"waveform must be callable t -> value, got {type(self.waveform).__name__}")
 
 
-def point_source(e_points, position, waveform, kind: str = "hard") -> Source:
-    """A source at the E particle nearest to ``position``."""
-    e = np.asarray(e_points, dtype=np.float64)
-    p = np.asarray(position, dtype=np.float64).reshape(1, -1)
-    idx = int(np.argmin(((e - p) ** 2).sum(axis=1)))
-    return Source(np.array([idx]), waveform, kind)
+def point_source(e_points, position, waveform, kind: str = "hard", max_distance: float | None = None) -> Source:
+    """A source at the E particle nearest to ``position``.
+
+    ``position`` farther than ``max_distance`` from every E particle (default:
+    one spacing, the median nearest-neighbour distance of the E particles) is
+    refused: a source outside the domain is a mistake, not something to snap.
+
+    >>> e = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
+    >>> point_source(e, (0.9, 0.2), Sinusoid(1e9)).indices.tolist()
+    [1]
+    >>> point_source(e, (5.0, 5.0), Sinusoid(1e9))
+    Traceback (most recent call last):
+    ...
+    ValueError: position (5.0, 5.0) is 5.657 from the nearest E particle, farther than max_distance = 1 (one spacing): it lies outside the domain
+    """
+    from scipy.spatial import cKDTree
+
+    from .._validation import as_points
+
+    e = as_points("e_points", e_points, dim=(1, 2))
+    p = as_points("position", np.asarray(position, dtype=np.float64).reshape(1, -1), dim=e.shape[1])
+    tree = cKDTree(e)
+    if max_distance is None:
+        max_distance = float(np.median(tree.query(e, k=2)[0][:, 1])) if len(e) > 1 else np.inf
+        what = " (one spacing)"
+    else:
+        max_distance = check_positive("max_distance", max_distance)
+        what = ""
+    dist, idx = tree.query(p[0])
+    if dist > max_distance:
+        raise ValueError(
+            f"position {tuple(float(v) for v in p[0])} is {dist:.4g} from the nearest E particle, farther than "
+            f"max_distance = {max_distance:.4g}{what}: it lies outside the domain"
+        )
+    return Source(np.array([int(idx)]), waveform, kind)
 
 
 def line_source(e_points, y: float, waveform, kind: str = "hard", tol: float | None = None) -> Source:

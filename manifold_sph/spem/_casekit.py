@@ -1,0 +1,69 @@
+"""Helpers shared by the validation cases (:mod:`.cases`, :mod:`.cases2d`): error measure, timing, snapshots, dt fitting.
+
+Both case modules import from here and :mod:`.cases` imports :mod:`.cases2d`
+(one direction, no import cycle).
+
+>>> relative_error([1.0, 2.0], [1.0, 4.0])
+0.25
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from .._validation import check_int
+
+__all__ = ["relative_error"]
+
+
+def relative_error(numerical, exact) -> float:
+    """mean |numerical - exact| / max |exact| (the issue's error measure)."""
+    numerical = np.asarray(numerical, dtype=np.float64)
+    exact = np.asarray(exact, dtype=np.float64)
+    scale = np.abs(exact).max()
+    if not scale > 0:
+        raise ValueError("the exact field is identically zero on the evaluation points; the error is undefined")
+    return float(np.abs(numerical - exact).mean() / scale)
+
+
+def _timed(fn):
+    """Report the total wall time as "seconds" and the stepping time as "step_seconds"."""
+    import functools
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        t0 = time.perf_counter()
+        out = fn(*args, **kwargs)
+        out["step_seconds"] = out["seconds"]
+        out["seconds"] = time.perf_counter() - t0
+        return out
+
+    return wrapper
+
+
+def _every(steps, frames):
+    frames = check_int("frames", frames, minimum=0)
+    return max(1, steps // frames) if frames else None
+
+
+def _fields(points, field, t, res, frames, exact=None):
+    """Private picture data (keys starting with "_" are dropped from JSON)."""
+    if not frames:
+        return {}
+    snaps = res["snapshots"] or [(t, field.copy())]
+    return {"_points": points, "_snapshots": snaps, "_exact": exact}
+
+
+def _fitted(solver, t_end):
+    """Shrink the solver's dt so that an integer number of steps ends exactly at ``t_end``."""
+    dt, steps = _fit_dt(t_end, solver.dt)
+    solver.set_dt(dt)
+    return dt, steps
+
+
+def _fit_dt(t_end, dt_max):
+    steps = max(1, int(math.ceil(t_end / dt_max - 1e-9)))
+    return t_end / steps, steps
