@@ -61,7 +61,7 @@ def curvature_rows(sizes):
     for n in sizes:
         c = shapes.torus(n)
         P = c.points
-        H, K = 0.5 * c.shape.mean_curvature(P), c.shape.gaussian_curvature(P)
+        H, K = 0.5 * c.geometry.mean_curvature(P), c.geometry.gaussian_curvature(P)
         for label, make in (
             ("ours msph, exact normals", lambda: Surface(c, scheme="msph")),
             ("ours msph4, exact normals", lambda: Surface(c, scheme="msph4")),
@@ -78,7 +78,7 @@ def curvature_rows(sizes):
             _, _, k1, k2, _ = igl.principal_curvature(V, F.astype(np.int64))
             tt = time.perf_counter() - t
             ref = shapes.torus(100)  # for its shape: the exact curvatures at the mesh vertices
-            Hm, Km = 0.5 * ref.shape.mean_curvature(V), ref.shape.gaussian_curvature(V)
+            Hm, Km = 0.5 * ref.geometry.mean_curvature(V), ref.geometry.gaussian_curvature(V)
             hh, kk = 0.5 * (k1 + k2), k1 * k2
             if np.dot(hh, Hm) < 0:  # libigl's sign follows its normals
                 hh = -hh

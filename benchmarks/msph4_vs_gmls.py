@@ -82,7 +82,7 @@ def gmls(pc, cloud, order, power=None):
     """pycompadre's manifold GMLS; ``power=None`` keeps its default weighting.
 
     A cloud without an analytic shape (a scan) gets its build time only (errors NaN)."""
-    if cloud.shape is not None:
+    if cloud.geometry is not None:
         f, grad, lap = exact_operators(cloud, get_function(FUNCTION))
     else:
         f, grad, lap = get_function(FUNCTION).value(cloud.points), None, None

@@ -208,7 +208,7 @@ def noisy_sphere(n=4000, levels=(0.0, 0.1, 0.2, 0.3), seed=0, area="shepard"):
         nrm = estimate_normals(p)
         xp = p / np.linalg.norm(p, axis=1)[:, None]  # exact reference at the nearest sphere points
         f = fn.value(xp)
-        lap = c.shape.laplace_beltrami(xp, fn.gradient(xp), fn.hessian(xp))
+        lap = c.geometry.laplace_beltrami(xp, fn.gradient(xp), fn.hessian(xp))
         row = {"noise": level, "normal_err_deg": float(np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", nrm, xp), -1, 1))).mean())}
         for name in SCHEMES:
             with warnings.catch_warnings():

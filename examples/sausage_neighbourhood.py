@@ -23,7 +23,7 @@ def main(argv=None) -> int:
     end1 = x[:, 1] > 0  # the ends are mirror images in the plane y = 0
     # particles of one end within reach of the other end; of those the outermost (seen by the camera)
     d_other = np.min(np.linalg.norm(x[end1][:, None, :] - x[~end1][None, ::7, :], axis=2), axis=1) if n < 5000 else None
-    close = np.flatnonzero(end1)[d_other < 2.0 * cloud.shape.gap + 0.05]
+    close = np.flatnonzero(end1)[d_other < 2.0 * cloud.geometry.gap + 0.05]
     i = int(close[np.argmin(x[close, 0])])
     h = float(s.h[i])  # the smoothing length the Surface uses
     raw = find_neighbors(x[i : i + 1], None, h=h, support=s.kernel.support, candidates=x).neighbors_of(0)

@@ -25,8 +25,8 @@ def main(argv=None) -> int:
     x = cloud.points
     fn = functions.cos_xz_sin_y
     f = fn.value(x)
-    exact = cloud.shape.laplace_beltrami(x, fn.gradient(x), fn.hessian(x))
-    tip_dist = np.min(np.linalg.norm(x[:, None, :] - cloud.shape.tips[None], axis=2), axis=1)
+    exact = cloud.geometry.laplace_beltrami(x, fn.gradient(x), fn.hessian(x))
+    tip_dist = np.min(np.linalg.norm(x[:, None, :] - cloud.geometry.tips[None], axis=2), axis=1)
     errs = {}
     for name in SCHEMES:
         errs[name] = absolute_error(Surface(cloud, scheme=name).laplacian(f), exact)

@@ -46,7 +46,7 @@ def main(argv=None) -> int:
     else:
         torus = shapes.torus(1500 if args.quick else 8000, seed=0)
         points, name = torus.points, "torus"
-        exact_H = 0.5 * torus.shape.mean_curvature(points)  # the shapes give the sum k1 + k2
+        exact_H = 0.5 * torus.geometry.mean_curvature(points)  # the shapes give the sum k1 + k2
     t0 = time.perf_counter()
     s = Surface(points, scheme="msph")  # no normals given: estimated (and oriented) from the points
     H = s.mean_curvature()  # "auto": from the Laplacian of the coordinates, as the normals are estimated

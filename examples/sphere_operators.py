@@ -23,11 +23,11 @@ def main(argv=None) -> int:
     x = cloud.points
     fn = functions.cos_xz_sin_y
     f, g, H = fn.value(x), fn.gradient(x), fn.hessian(x)
-    grad_ex = cloud.shape.surface_gradient(x, g)
-    lap_ex = cloud.shape.laplace_beltrami(x, g, H)
+    grad_ex = cloud.geometry.surface_gradient(x, g)
+    lap_ex = cloud.geometry.laplace_beltrami(x, g, H)
     # F = grad_S(xyz), the tangent part of (yz, xz, xy): div_S F = Lap_S(xyz) exactly
-    F = cloud.shape.surface_gradient(x, functions.xyz.gradient(x))
-    div_ex = cloud.shape.laplace_beltrami(x, functions.xyz.gradient(x), functions.xyz.hessian(x))
+    F = cloud.geometry.surface_gradient(x, functions.xyz.gradient(x))
+    div_ex = cloud.geometry.laplace_beltrami(x, functions.xyz.gradient(x), functions.xyz.hessian(x))
     errs = {"gradient": {}, "divergence": {}, "laplacian": {}}
     surfaces = {}
     print(f"sphere, N = {n}: relative L2 errors")

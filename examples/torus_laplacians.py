@@ -27,7 +27,7 @@ def main(argv=None) -> int:
     for shape, cloud in clouds.items():
         x = cloud.points
         f = fn.value(x)
-        exact = cloud.shape.laplace_beltrami(x, fn.gradient(x), fn.hessian(x))
+        exact = cloud.geometry.laplace_beltrami(x, fn.gradient(x), fn.hessian(x))
         errs, lap = {}, {}
         for name in SCHEMES:
             lap[name] = Surface(cloud, scheme=name).laplacian(f)

@@ -50,11 +50,11 @@ def get_function(name: str):
 
 def exact_operators(cloud: PointCloud, function) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(f, grad_S f, Lap_S f)`` at the cloud's points from its exact shape."""
-    if cloud.shape is None:
+    if cloud.geometry is None:
         raise ValueError("the cloud has no exact shape: exact references need a cloud from manifold_sph.shapes")
     x = cloud.points
     g, H = function.gradient(x), function.hessian(x)
-    return function.value(x), cloud.shape.surface_gradient(x, g), cloud.shape.laplace_beltrami(x, g, H)
+    return function.value(x), cloud.geometry.surface_gradient(x, g), cloud.geometry.laplace_beltrami(x, g, H)
 
 
 def operator_errors(cloud: PointCloud, function="cos_xz_sin_y", schemes=None, **surface_kwargs) -> list[dict]:
@@ -133,11 +133,11 @@ def curvature_errors(cloud: PointCloud, schemes=("msph", "msph4"), *, estimated_
     >>> bool(row["H_l2"] < 5e-3 and row["K_l2"] < 2e-2)
     True
     """
-    if cloud.shape is None:
+    if cloud.geometry is None:
         raise ValueError("cloud must carry its exact shape (a cloud from manifold_sph.shapes)")
     x = cloud.points
-    H = 0.5 * cloud.shape.mean_curvature(x)
-    K = cloud.shape.gaussian_curvature(x)
+    H = 0.5 * cloud.geometry.mean_curvature(x)
+    K = cloud.geometry.gaussian_curvature(x)
     rows = []
     for scheme in schemes:
         t = time.perf_counter()

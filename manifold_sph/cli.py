@@ -305,7 +305,7 @@ def _attach_shape(cloud, shape_name: str, path: str):
             f"the points of {path!r} do not lie on the default {shape_name} (largest distance {dist:.3g}); "
             "give the --shape they sample"
         )
-    return PointCloud(x, cloud.normals, shape=shape)
+    return PointCloud(x, cloud.normals, geometry=shape)
 
 
 def _initial_state(name: str, points: np.ndarray) -> np.ndarray:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from ._validation import as_points
@@ -21,9 +23,11 @@ class PointCloud:
         Finite coordinates. Duplicated points are rejected.
     normals : array_like, shape (N, 3), optional
         Normals, normalised to unit length on input. Zero normals are rejected.
-    shape : object, optional
+    geometry : object, optional
         The exact geometry the cloud samples (an implicit shape from
         :mod:`manifold_sph.shapes`), giving exact references. ``None`` for scans.
+    shape : object, optional
+        Deprecated name of ``geometry`` (a DeprecationWarning says so).
 
     Raises
     ------
@@ -41,7 +45,12 @@ class PointCloud:
     (20, True)
     """
 
-    def __init__(self, points, normals=None, *, shape=None):
+    def __init__(self, points, normals=None, *, geometry=None, shape=None):
+        if shape is not None:
+            if geometry is not None:
+                raise TypeError("pass geometry= only: shape= is its deprecated name")
+            warnings.warn("PointCloud(shape=...) is deprecated: pass geometry=", DeprecationWarning, stacklevel=2)
+            geometry = shape
         pts = as_points("points", points)
         n = pts.shape[0]
         if n < MIN_POINTS:
@@ -64,7 +73,15 @@ class PointCloud:
                 )
             self._normals = nrm / length[:, None]
             self._normals.flags.writeable = False
-        self.shape = shape
+        #: The exact geometry the cloud samples (a :mod:`manifold_sph.shapes` shape), or None.
+        self.geometry = geometry
+
+    @property
+    def shape(self):
+        """Deprecated: the sampled geometry, now :attr:`geometry` (``.shape`` suggested an array shape)."""
+        warnings.warn("PointCloud.shape is deprecated (it is the sampled geometry, not an array shape): "
+                      "use PointCloud.geometry", DeprecationWarning, stacklevel=2)
+        return self.geometry
 
     @property
     def points(self) -> np.ndarray:
@@ -84,8 +101,9 @@ class PointCloud:
         return self._points.shape[0]
 
     def __repr__(self) -> str:
-        shape = "" if self.shape is None else f", shape={getattr(self.shape, 'name', type(self.shape).__name__)}"
-        return f"PointCloud(n_points={len(self)}, normals={'yes' if self._normals is not None else 'no'}{shape})"
+        g = self.geometry
+        geo = "" if g is None else f", geometry={getattr(g, 'name', type(g).__name__)}"
+        return f"PointCloud(n_points={len(self)}, normals={'yes' if self._normals is not None else 'no'}{geo})"
 
 
 def _check_duplicates(pts: np.ndarray) -> None:

@@ -485,7 +485,7 @@ class ImplicitShape:
             With ``normals`` exact and ``shape`` set to this shape.
         """
         pts = self._sample_points(n, sampling, seed, density_ratio)
-        return PointCloud(pts, self.normal(pts), shape=self)
+        return PointCloud(pts, self.normal(pts), geometry=self)
 
     def _sample_points(self, n, sampling, seed, density_ratio) -> np.ndarray:
         n = check_int("n", n, minimum=MIN_POINTS)
@@ -1048,7 +1048,7 @@ def sphere(n, radius=1.0, center=(0.0, 0.0, 0.0), sampling="fibonacci", seed=0, 
     Examples
     --------
     >>> cloud = sphere(100)
-    >>> len(cloud), cloud.shape.name
+    >>> len(cloud), cloud.geometry.name
     (100, 'sphere')
     >>> import numpy as np
     >>> float(np.abs(np.linalg.norm(cloud.points, axis=1) - 1).max()) < 1e-15
@@ -1063,7 +1063,7 @@ def torus(n, R=0.8, r=0.2, center=(0.0, 0.0, 0.0), sampling="poisson", seed=0, d
     Examples
     --------
     >>> cloud = torus(200, seed=1)
-    >>> len(cloud), cloud.shape.name
+    >>> len(cloud), cloud.geometry.name
     (200, 'torus')
     """
     return Torus(R, r, center).sample(n, sampling, seed=seed, density_ratio=density_ratio)
@@ -1075,7 +1075,7 @@ def double_torus(n, c=0.04, sampling="poisson", seed=0, density_ratio=4.0) -> Po
     Examples
     --------
     >>> cloud = double_torus(300)
-    >>> len(cloud), cloud.shape.name
+    >>> len(cloud), cloud.geometry.name
     (300, 'double_torus')
     """
     return DoubleTorus(c).sample(n, sampling, seed=seed, density_ratio=density_ratio)
@@ -1096,7 +1096,7 @@ def sausage(
     Examples
     --------
     >>> cloud = sausage(300)
-    >>> len(cloud), cloud.shape.name
+    >>> len(cloud), cloud.geometry.name
     (300, 'sausage')
     """
     return Sausage(arc_radius, tube_radius, theta0, power).sample(n, sampling, seed=seed, density_ratio=density_ratio)

@@ -108,13 +108,13 @@ class Surface(OperatorSet):
         max_condition: float = 1e8,
     ):
         if isinstance(points, PointCloud):
-            cloud = points if normals is None else PointCloud(points.points, normals, shape=points.shape)
+            cloud = points if normals is None else PointCloud(points.points, normals, geometry=points.geometry)
         else:
             cloud = PointCloud(points, normals)
         #: Whether the normals were estimated here from the points (none were given).
         self.normals_estimated = cloud.normals is None
         if cloud.normals is None:
-            cloud = PointCloud(cloud.points, _estimate_normals(cloud.points), shape=cloud.shape)
+            cloud = PointCloud(cloud.points, _estimate_normals(cloud.points), geometry=cloud.geometry)
         self.cloud = cloud
         self._resolve(kernel, scheme, neighbors, max_condition)
         pts, nrm = cloud.points, cloud.normals
@@ -127,13 +127,13 @@ class Surface(OperatorSet):
         self._knn = None
         nb, nrm = self._widen_lonely(nb, pts, nrm, hv, normal_threshold, tree)
         if nrm is not cloud.normals:  # some normals were flipped to agree with their neighbours
-            self.cloud = cloud = PointCloud(cloud.points, nrm, shape=cloud.shape)
+            self.cloud = cloud = PointCloud(cloud.points, nrm, geometry=cloud.geometry)
         self.normal_threshold = float(normal_threshold)
         self.u, self.v = tangent_frames(nrm)
         check_frames(nrm, self.u, self.v)
         xy = PairOffsets(pts, self.u, self.v, nb.indptr, nb.indices)  # projected per chunk when read, never stored
-        if total_area is None and cloud.shape is not None:
-            total_area = getattr(cloud.shape, "area", None)
+        if total_area is None and cloud.geometry is not None:
+            total_area = getattr(cloud.geometry, "area", None)
         frames = np.stack([self.u, self.v], axis=1)
         self._setup(nb, xy, frames, area, total_area, column_normals=nrm)
 

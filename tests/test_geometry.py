@@ -45,8 +45,8 @@ def test_torus_curvature_converges_at_second_order(tori):
     eH, eK = [], []
     for c in tori:
         s = Surface(c, scheme="msph")
-        eH.append(rel(s.mean_curvature(), 0.5 * c.shape.mean_curvature(c.points)))
-        eK.append(rel(s.gaussian_curvature(), c.shape.gaussian_curvature(c.points)))
+        eH.append(rel(s.mean_curvature(), 0.5 * c.geometry.mean_curvature(c.points)))
+        eK.append(rel(s.gaussian_curvature(), c.geometry.gaussian_curvature(c.points)))
     for e in (eH, eK):
         order = np.log(e[0] / e[1]) / np.log(2.0)  # N x 4: h / 2
         assert order > 1.8, (e, order)
@@ -57,10 +57,10 @@ def test_torus_curvature_msph4_and_principal_directions(tori):
     c = tori[0]
     s = Surface(c, scheme="msph4")
     P = c.points
-    assert rel(s.mean_curvature(), 0.5 * c.shape.mean_curvature(P)) < 1e-4  # measured 2.0e-5
-    assert rel(s.gaussian_curvature(), c.shape.gaussian_curvature(P)) < 5e-4  # measured 1.0e-4
+    assert rel(s.mean_curvature(), 0.5 * c.geometry.mean_curvature(P)) < 1e-4  # measured 2.0e-5
+    assert rel(s.gaussian_curvature(), c.geometry.gaussian_curvature(P)) < 5e-4  # measured 1.0e-4
     k1, k2, d1, _ = s.principal_curvatures()
-    exact = c.shape.principal_curvatures(P)
+    exact = c.geometry.principal_curvatures(P)
     assert rel(k1, exact[:, 0]) < 1e-4 and rel(k2, exact[:, 1]) < 1e-3
     ephi = np.stack([-P[:, 1], P[:, 0], np.zeros(len(P))], axis=1)
     tube = np.cross(c.normals, ephi / np.linalg.norm(ephi, axis=1)[:, None])  # the direction of k1 = 1 / r
@@ -73,7 +73,7 @@ def test_curvature_from_bare_points(tori):
     c = tori[1]
     s = quiet(c.points, scheme="msph4")
     assert s.normals_estimated
-    H = 0.5 * c.shape.mean_curvature(c.points)
+    H = 0.5 * c.geometry.mean_curvature(c.points)
     assert rel(s.mean_curvature(), H) < 3e-4  # measured 1.1e-4 (7.5e-4 from the normals' gradient)
     assert rel(s.mean_curvature(), H) < rel(s.mean_curvature("normals"), H)
 

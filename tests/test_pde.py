@@ -159,8 +159,8 @@ def test_screened_poisson(surf, sphere):
 
 def test_helmholtz_hodge_recovers_potentials(sphere, surf):
     x, n = sphere.points, sphere.normals
-    gphi = sphere.shape.surface_gradient(x, functions.cos_xz_sin_y.gradient(x))
-    cog = np.cross(n, sphere.shape.surface_gradient(x, functions.xyz.gradient(x)))
+    gphi = sphere.geometry.surface_gradient(x, functions.cos_xz_sin_y.gradient(x))
+    cog = np.cross(n, sphere.geometry.surface_gradient(x, functions.xyz.gradient(x)))
     d = pde.helmholtz_hodge(surf, gphi + cog + 0.3 * n)  # the normal part is discarded
     assert rel(d.gradient, gphi) < 3e-2
     assert rel(d.cogradient, cog) < 3e-2

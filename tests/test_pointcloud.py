@@ -47,3 +47,20 @@ def test_bad_input(points, normals, match):
 def test_non_numeric_is_a_type_error():
     with pytest.raises(TypeError, match="points must be a numeric array"):
         PointCloud([["a", "b", "c"]] * 12)
+
+
+def test_geometry_replaces_the_shape_name():
+    """``PointCloud.shape`` read like numpy's array shape but held the sampled geometry: it is now
+    ``geometry``; the old name still works for one release, with a DeprecationWarning."""
+    from manifold_sph import shapes
+
+    c = shapes.sphere(50)
+    assert c.geometry is not None and c.geometry.name == "sphere"
+    with pytest.warns(DeprecationWarning, match="PointCloud.shape is deprecated"):
+        assert c.shape is c.geometry
+    with pytest.warns(DeprecationWarning, match=r"PointCloud\(shape=...\) is deprecated"):
+        old = PointCloud(c.points, shape=c.geometry)
+    assert old.geometry is c.geometry
+    with pytest.raises(TypeError, match="pass geometry= only"):
+        PointCloud(c.points, geometry=c.geometry, shape=c.geometry)
+    assert "geometry=sphere" in repr(c)

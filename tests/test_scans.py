@@ -43,7 +43,7 @@ def noisy_sphere_errors(n, levels, seed=0):
         p = c.points + level * spacing * np.random.default_rng(seed + 1).standard_normal(c.points.shape)
         nrm = estimate_normals(p)
         xp = p / np.linalg.norm(p, axis=1)[:, None]
-        lap = c.shape.laplace_beltrami(xp, fn.gradient(xp), fn.hessian(xp))
+        lap = c.geometry.laplace_beltrami(xp, fn.gradient(xp), fn.hessian(xp))
         for s in SCHEMES:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")

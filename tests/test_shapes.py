@@ -59,7 +59,7 @@ def test_points_on_surface_and_cloud(shape_points):
     shape, p = shape_points
     assert np.abs(shape.phi(p)).max() <= 1e-12
     cloud = shape.sample(200, seed=0)
-    assert isinstance(cloud, PointCloud) and cloud.shape is shape and len(cloud) == 200
+    assert isinstance(cloud, PointCloud) and cloud.geometry is shape and len(cloud) == 200
     assert np.abs(shape.phi(cloud.points)).max() <= 1e-12
 
 

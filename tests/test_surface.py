@@ -115,7 +115,7 @@ def test_area_elements_sum(sphere4032):
 def test_sausage_filter_keeps_the_ends_apart():
     cloud = shapes.sausage(2652)
     x = cloud.points
-    theta = cloud.shape.arc_angle(x)
+    theta = cloud.geometry.arc_angle(x)
     with_filter = Surface(cloud, scheme="cspm")
     nb = with_filter.neighborhood
     rows, cols = nb.rows, nb.indices
