@@ -44,8 +44,8 @@ __all__ = [
     "fibonacci_sphere",
     "sample_surface",
     "square",
-    "nearest_neighbour_distances",
-    "nearest_neighbour_cv",
+    "nearest_neighbor_distances",
+    "nearest_neighbor_cv",
     "local_density",
 ]
 
@@ -103,12 +103,12 @@ def fibonacci_sphere(n: int) -> np.ndarray:
     return np.stack([rad * np.cos(az), rad * np.sin(az), z], axis=1)
 
 
-def nearest_neighbour_distances(points) -> np.ndarray:
+def nearest_neighbor_distances(points) -> np.ndarray:
     """Distance from each point to its nearest other point, (N,).
 
     Examples
     --------
-    >>> nearest_neighbour_distances(np.array([[0.0, 0], [1, 0], [3, 0]])).tolist()
+    >>> nearest_neighbor_distances(np.array([[0.0, 0], [1, 0], [3, 0]])).tolist()
     [1.0, 1.0, 2.0]
     """
     p = as_points("points", points, dim=(2, 3))
@@ -116,7 +116,7 @@ def nearest_neighbour_distances(points) -> np.ndarray:
     return d[:, 1]
 
 
-def nearest_neighbour_cv(points) -> float:
+def nearest_neighbor_cv(points) -> float:
     """Coefficient of variation (std / mean) of nearest-neighbour distances.
 
     About 0.52 for area-uniform random points on a surface; below ~0.1 for the
@@ -125,10 +125,10 @@ def nearest_neighbour_cv(points) -> float:
     Examples
     --------
     >>> g = np.stack(np.meshgrid(np.arange(5.0), np.arange(5.0)), -1).reshape(-1, 2)
-    >>> nearest_neighbour_cv(g)
+    >>> nearest_neighbor_cv(g)
     0.0
     """
-    d = nearest_neighbour_distances(points)
+    d = nearest_neighbor_distances(points)
     return float(d.std() / d.mean())
 
 
@@ -229,7 +229,7 @@ def sample_surface(shape, n: int, sampling: str = "poisson", seed=0, density_rat
     --------
     >>> from manifold_sph.shapes import Torus
     >>> p = sample_surface(Torus(), 500, "poisson", seed=3)
-    >>> p.shape, nearest_neighbour_cv(p) < 0.2
+    >>> p.shape, nearest_neighbor_cv(p) < 0.2
     ((500, 3), True)
     """
     n = check_int("n", n, minimum=MIN_POINTS)
@@ -391,3 +391,15 @@ def square(n: int, bounds=(-1.0, 1.0, -1.0, 1.0), sampling: str = "poisson", see
     if len(np.unique(P, axis=0)) != n:  # pragma: no cover - probability zero
         raise RuntimeError("square sampling produced duplicate points; try another seed")
     return P
+
+
+def __getattr__(name: str):
+    """The old British spellings, kept for one release (the public API spells ``neighbor``)."""
+    old = {"nearest_neighbour_distances": nearest_neighbor_distances, "nearest_neighbour_cv": nearest_neighbor_cv}
+    if name in old:
+        import warnings
+
+        new = old[name].__name__
+        warnings.warn(f"manifold_sph.sampling.{name} is deprecated: use {new}", DeprecationWarning, stacklevel=2)
+        return old[name]
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

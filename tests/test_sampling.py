@@ -10,8 +10,8 @@ from manifold_sph import sampling as S
 from manifold_sph.sampling import (
     fibonacci_sphere,
     local_density,
-    nearest_neighbour_cv,
-    nearest_neighbour_distances,
+    nearest_neighbor_cv,
+    nearest_neighbor_distances,
     sample_surface,
     square,
 )
@@ -51,7 +51,7 @@ def test_fibonacci_lattice():
     assert np.hypot(p[:, 0], p[:, 1]).min() > 0.04
     assert _distinct(p)
     # near uniform: nearest-neighbour distances vary little
-    assert nearest_neighbour_cv(p) < 0.05
+    assert nearest_neighbor_cv(p) < 0.05
     s = Sphere(2.0, center=(1, 0, 0)).sample(1000)
     np.testing.assert_allclose(s.points, 2 * p + [1, 0, 0], atol=1e-15)
 
@@ -60,13 +60,13 @@ def test_fibonacci_lattice():
 def test_poisson_more_uniform_than_random(name):
     shape = SHAPES[name]
     n = 2000
-    cv_p = nearest_neighbour_cv(shape.sample(n, "poisson", seed=0).points)
-    cv_r = nearest_neighbour_cv(shape.sample(n, "random", seed=0).points)
+    cv_p = nearest_neighbor_cv(shape.sample(n, "poisson", seed=0).points)
+    cv_r = nearest_neighbor_cv(shape.sample(n, "random", seed=0).points)
     # random points on a surface: CV ~ 0.52; the relaxed ones ~ 0.07
     assert cv_r > 0.4
     assert cv_p < 0.15 and cv_p < 0.3 * cv_r
     # and the mean spacing matches the hexagonal spacing of the area
-    d = nearest_neighbour_distances(shape.sample(n, "poisson", seed=0).points)
+    d = nearest_neighbor_distances(shape.sample(n, "poisson", seed=0).points)
     hexs = math.sqrt(2 / math.sqrt(3) * shape.area / n)
     assert 0.85 * hexs < d.mean() < 1.05 * hexs
 
@@ -120,9 +120,9 @@ def test_square_basic(sampling):
 def test_square_poisson_uniform_up_to_the_boundary():
     n = 1007
     p = square(n, seed=0)
-    cv_p = nearest_neighbour_cv(p)
-    cv_r = nearest_neighbour_cv(square(n, sampling="random", seed=0))
-    cv_h = nearest_neighbour_cv(square(n, sampling="halton", seed=0))
+    cv_p = nearest_neighbor_cv(p)
+    cv_r = nearest_neighbor_cv(square(n, sampling="random", seed=0))
+    cv_h = nearest_neighbor_cv(square(n, sampling="halton", seed=0))
     assert cv_p < 0.12 and cv_p < 0.3 * cv_r and cv_p < cv_h
     spacing = math.sqrt(2 / math.sqrt(3) * 4 / n)
     wall = np.min(np.stack([p[:, 0] + 1, 1 - p[:, 0], p[:, 1] + 1, 1 - p[:, 1]]), axis=0)
@@ -160,7 +160,7 @@ def test_local_density_and_cv_helpers():
     d = local_density(p, k=10)
     inner = (p[:, 0] > 0.2) & (p[:, 0] < 3.8) & (p[:, 1] > 0.2) & (p[:, 1] < 0.8)
     assert abs(np.mean(d[inner]) / 5000 - 1) < 0.15
-    assert 0.45 < nearest_neighbour_cv(p) < 0.58
+    assert 0.45 < nearest_neighbor_cv(p) < 0.58
     with pytest.raises(ValueError, match="k must be smaller than the number of points 3"):
         local_density(p[:3], k=3)
 
@@ -203,4 +203,15 @@ def test_poisson_timing_large(name):
     p = shape.sample(131072, "poisson", seed=0).points
     elapsed = time.perf_counter() - t0
     assert len(p) == 131072 and elapsed < 10.0
-    assert nearest_neighbour_cv(p) < 0.1
+    assert nearest_neighbor_cv(p) < 0.1
+
+
+def test_old_spelling_still_works_with_a_warning():
+    """The public API spells "neighbor" (as find_neighbors, Neighborhood, neighbors=); the British
+    names of the sampling helpers remain for one release."""
+    import manifold_sph.sampling as smp
+
+    with pytest.warns(DeprecationWarning, match="use nearest_neighbor_cv"):
+        assert smp.nearest_neighbour_cv is nearest_neighbor_cv
+    with pytest.raises(AttributeError):
+        smp.nearest_neighbour_nothing
