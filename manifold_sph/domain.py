@@ -2,11 +2,19 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ._validation import as_points, check_finite
 from .neighbors import build_tree, find_neighbors
 from .operators import OperatorSet
+
+if TYPE_CHECKING:
+    from .kernels import Kernel
+    from .schemes import Scheme
 
 __all__ = ["Domain2D", "mirror_ghosts"]
 
@@ -21,7 +29,7 @@ def _check_bounds(bounds) -> tuple[float, float, float, float]:
     return tuple(float(t) for t in b)
 
 
-def mirror_ghosts(points, bounds, width: float) -> tuple[np.ndarray, np.ndarray]:
+def mirror_ghosts(points: np.ndarray, bounds: Sequence[float], width: float) -> tuple[np.ndarray, np.ndarray]:
     """Ghost copies of the strips of ``width`` along each side of a rectangle, translated periodically.
 
     Parameters
@@ -91,17 +99,17 @@ class Domain2D(OperatorSet):
 
     def __init__(
         self,
-        points,
+        points: ArrayLike,
         *,
-        scheme="msph",
-        kernel="quintic",
+        scheme: str | Scheme = "msph",
+        kernel: str | Kernel | type[Kernel] = "quintic",
         neighbors: int | None = None,
-        h=None,
+        h: float | str | ArrayLike | None = None,
         area: str = "numerical",
-        bounds=None,
+        bounds: Sequence[float] | None = None,
         mirror: bool = False,
         max_condition: float = 1e8,
-    ):
+    ) -> None:
         pts = as_points("points", points, dim=2)
         if pts.shape[0] < 10:
             raise ValueError(f"points must hold at least 10 points, got {pts.shape[0]}")

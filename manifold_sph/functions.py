@@ -20,10 +20,16 @@ basis of the parametrisation (1.14) of the unit sphere, with exact divergence
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ._validation import as_points, check_in
+
+if TYPE_CHECKING:
+    from .shapes import ImplicitShape
 
 __all__ = [
     "ScalarFunction",
@@ -74,7 +80,16 @@ class ScalarFunction:
     [[0.0, 3.0, 2.0], [3.0, 0.0, 1.0], [2.0, 1.0, 0.0]]
     """
 
-    def __init__(self, name, value, gradient, hessian, *, dim=3, expression=""):
+    def __init__(
+        self,
+        name: str,
+        value: Callable[..., ArrayLike],
+        gradient: Callable[..., Sequence[ArrayLike]],
+        hessian: Callable[..., Sequence[Sequence[ArrayLike]]],
+        *,
+        dim: int = 3,
+        expression: str = "",
+    ) -> None:
         self.name = name
         self.dim = dim
         self.expression = expression
@@ -86,35 +101,35 @@ class ScalarFunction:
         x = as_points("x", x, dim=self.dim)
         return x, [x[:, a] for a in range(self.dim)]
 
-    def value(self, x) -> np.ndarray:
+    def value(self, x: ArrayLike) -> np.ndarray:
         """f(x), shape (N,)."""
         x, c = self._cols(x)
         return np.broadcast_to(np.asarray(self._value(*c), dtype=float), (len(x),)).copy()
 
-    def gradient(self, x) -> np.ndarray:
+    def gradient(self, x: ArrayLike) -> np.ndarray:
         """Ambient gradient, shape (N, d)."""
         x, c = self._cols(x)
         return np.stack([np.broadcast_to(g, (len(x),)) for g in self._gradient(*c)], axis=1).astype(float)
 
-    def hessian(self, x) -> np.ndarray:
+    def hessian(self, x: ArrayLike) -> np.ndarray:
         """Ambient Hessian, shape (N, d, d)."""
         x, c = self._cols(x)
         rows = [np.stack([np.broadcast_to(h, (len(x),)) for h in row], axis=1) for row in self._hessian(*c)]
         return np.stack(rows, axis=1).astype(float)
 
-    def laplacian(self, x) -> np.ndarray:
+    def laplacian(self, x: ArrayLike) -> np.ndarray:
         """Ambient Laplacian (trace of the Hessian), shape (N,)."""
         return np.trace(self.hessian(x), axis1=1, axis2=2)
 
-    def surface_gradient(self, shape, x) -> np.ndarray:
+    def surface_gradient(self, shape: ImplicitShape, x: ArrayLike) -> np.ndarray:
         """Exact tangential gradient on ``shape`` at ``x``, (N, 3)."""
         return shape.surface_gradient(x, self.gradient(x))
 
-    def laplace_beltrami(self, shape, x) -> np.ndarray:
+    def laplace_beltrami(self, shape: ImplicitShape, x: ArrayLike) -> np.ndarray:
         """Exact Laplace-Beltrami on ``shape`` at ``x``, (N,)."""
         return shape.laplace_beltrami(x, self.gradient(x), self.hessian(x))
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return f"ScalarFunction({self.name!r}: {self.expression})"
 
 
@@ -129,7 +144,15 @@ class VectorField:
     ([[1.0, 0.0]], [3.14159265359])
     """
 
-    def __init__(self, name, value, jacobian, *, dim=3, expression=""):
+    def __init__(
+        self,
+        name: str,
+        value: Callable[..., Sequence[ArrayLike]],
+        jacobian: Callable[..., Sequence[Sequence[ArrayLike]]],
+        *,
+        dim: int = 3,
+        expression: str = "",
+    ) -> None:
         self.name = name
         self.dim = dim
         self.expression = expression
@@ -140,26 +163,26 @@ class VectorField:
         x = as_points("x", x, dim=self.dim)
         return x, [x[:, a] for a in range(self.dim)]
 
-    def value(self, x) -> np.ndarray:
+    def value(self, x: ArrayLike) -> np.ndarray:
         """F(x), shape (N, d)."""
         x, c = self._cols(x)
         return np.stack([np.broadcast_to(v, (len(x),)) for v in self._value(*c)], axis=1).astype(float)
 
-    def jacobian(self, x) -> np.ndarray:
+    def jacobian(self, x: ArrayLike) -> np.ndarray:
         """Jacobian, shape (N, d, d), ``[k, a, b] = dF_a / dx_b``."""
         x, c = self._cols(x)
         rows = [np.stack([np.broadcast_to(h, (len(x),)) for h in row], axis=1) for row in self._jacobian(*c)]
         return np.stack(rows, axis=1).astype(float)
 
-    def divergence(self, x) -> np.ndarray:
+    def divergence(self, x: ArrayLike) -> np.ndarray:
         """Ambient divergence (trace of the Jacobian), shape (N,)."""
         return np.trace(self.jacobian(x), axis1=1, axis2=2)
 
-    def surface_divergence(self, shape, x) -> np.ndarray:
+    def surface_divergence(self, shape: ImplicitShape, x: ArrayLike) -> np.ndarray:
         """Exact divergence of the tangent projection of the field on ``shape``, (N,)."""
         return shape.divergence(x, self.value(x), self.jacobian(x))
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return f"VectorField({self.name!r}: {self.expression})"
 
 
@@ -363,7 +386,7 @@ def _sphere_points(x, check_unit: bool) -> np.ndarray:
     return x
 
 
-def sphere_basis(x):
+def sphere_basis(x: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Coordinate basis of (1.14)-(1.16) written in x, y, z on the unit sphere.
 
     With ``s = sin u = sqrt(x^2 + y^2)``: ``x_u = (x z / s, y z / s, -s)``,
@@ -420,24 +443,24 @@ class SphereField:
     [0.48]
     """
 
-    def __init__(self, name: str, F1: ScalarFunction, F2: ScalarFunction):
+    def __init__(self, name: str, F1: ScalarFunction, F2: ScalarFunction) -> None:
         self.name = name
         self.F1 = F1
         self.F2 = F2
         self.expression = f"({F1.expression}) x_u + ({F2.expression}) x_v"
 
-    def coefficients(self, x):
+    def coefficients(self, x: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """``(F1, F2)`` at ``x``, each (N,)."""
         x = _sphere_points(x, check_unit=False)
         return self.F1.value(x), self.F2.value(x)
 
-    def value(self, x) -> np.ndarray:
+    def value(self, x: ArrayLike) -> np.ndarray:
         """``F1 x_u + F2 x_v``, (N, 3); ``x`` off the polar axis."""
         xu, xv, _ = sphere_basis(x)
         f1, f2 = self.coefficients(x)
         return f1[:, None] * xu + f2[:, None] * xv
 
-    def jacobian(self, x) -> np.ndarray:
+    def jacobian(self, x: ArrayLike) -> np.ndarray:
         """Ambient Jacobian of the extension, (N, 3, 3), ``[k, a, b] = dF_a/dx_b``."""
         x = _sphere_points(x, check_unit=False)
         X, Y, Z = x[:, 0], x[:, 1], x[:, 2]
@@ -460,7 +483,7 @@ class SphereField:
             + f2[:, None, None] * Dxv
         )
 
-    def exact_divergence(self, x) -> np.ndarray:
+    def exact_divergence(self, x: ArrayLike) -> np.ndarray:
         """Eq. (3.13) on the unit sphere: ``grad F1 . x_u + grad F2 . x_v + F1 cot u``, (N,).
 
         Raises
@@ -476,7 +499,7 @@ class SphereField:
             + self.F1.value(x) * cot
         )
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return f"SphereField({self.name!r}: {self.expression})"
 
 

@@ -34,6 +34,7 @@ import functools
 import math
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy import integrate, special
 
 from ._validation import as_points, check_finite, check_in, check_int, check_positive
@@ -128,7 +129,7 @@ class Kernel:
 
     name: str = ""
     support: float = 1.0
-    knots: tuple = ()
+    knots: tuple[float, ...] = ()
 
     # -- profile (subclasses) -------------------------------------------------
     def _w(self, R):  # pragma: no cover - abstract
@@ -153,7 +154,7 @@ class Kernel:
         return out if out.ndim else out[()]
 
     # -- public profile -------------------------------------------------------
-    def w(self, R):
+    def w(self, R: ArrayLike) -> np.ndarray:
         """Dimensionless profile ``w(R)``; zero for ``R >= support``.
 
         Parameters
@@ -173,7 +174,7 @@ class Kernel:
         """
         return self._mask(R, self._w)
 
-    def dw(self, R):
+    def dw(self, R: ArrayLike) -> np.ndarray:
         """First derivative ``dw/dR``; zero for ``R >= support``.
 
         Examples
@@ -183,7 +184,7 @@ class Kernel:
         """
         return self._mask(R, self._dw)
 
-    def d2w(self, R):
+    def d2w(self, R: ArrayLike) -> np.ndarray:
         """Second derivative ``d2w/dR2``; zero for ``R >= support``.
 
         Examples
@@ -193,7 +194,7 @@ class Kernel:
         """
         return self._mask(R, self._d2w)
 
-    def dw_over_R(self, R):
+    def dw_over_R(self, R: ArrayLike) -> np.ndarray:
         """``dw(R) / R``, with its finite limit ``d2w(0)`` at ``R = 0``.
 
         Evaluated without division warnings (and, for the spline kernels,
@@ -216,7 +217,7 @@ class Kernel:
         """
         return self.w(R)
 
-    def radial_terms(self, R: np.ndarray):
+    def radial_terms(self, R: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(w, w'/R, (w'' - w'/R) / R^2)`` at non-negative scaled distances, in one pass.
 
         The three radial factors of the kernel, its gradient (``x w'/R``) and
@@ -252,7 +253,7 @@ class Kernel:
         cls, support, knots = self._cache_key()
         return _radial_moment(cls, support, knots, d)
 
-    def alpha(self, d: int, h=1.0):
+    def alpha(self, d: int, h: ArrayLike = 1.0) -> float | np.ndarray:
         """Normalisation ``alpha_d(h) = 1 / (S_d h^d int_0^kappa R^(d-1) w dR)``.
 
         The radial integral is computed numerically with ``scipy.integrate.quad``
@@ -285,7 +286,7 @@ class Kernel:
         h = _check_h(h)
         return 1.0 / (_SPHERE[d] * self.moment(d) * h**d)
 
-    def closed_form_alpha(self, d: int, h=1.0):
+    def closed_form_alpha(self, d: int, h: ArrayLike = 1.0) -> float | np.ndarray:
         """Closed-form ``alpha_d(h)`` where known.
 
         Raises
@@ -309,7 +310,7 @@ class Kernel:
         return None
 
     # -- dimensional kernel ---------------------------------------------------
-    def value(self, r, h, d: int):
+    def value(self, r: ArrayLike, h: ArrayLike, d: int) -> np.ndarray:
         """``W_h(r) = alpha_d(h) w(r / h)``.
 
         Parameters
@@ -350,7 +351,7 @@ class Kernel:
             raise ValueError(f"h must be a scalar or have shape ({x.shape[0]},) to match x, got shape {h.shape}")
         return x, h
 
-    def gradient(self, x, h):
+    def gradient(self, x: ArrayLike, h: ArrayLike) -> np.ndarray:
         """Gradient of ``W_h`` with respect to ``x``.
 
         ``grad W_h(x) = alpha_d w'(R) / h * x / r = alpha_d / h^2 * (w'(R)/R) x``,
@@ -382,7 +383,7 @@ class Kernel:
         coef = self.alpha(d, h) / np.square(h) * self.dw_over_R(R)
         return coef[:, None] * x + 0.0  # + 0.0 turns -0.0 into 0.0
 
-    def hessian(self, x, h):
+    def hessian(self, x: ArrayLike, h: ArrayLike) -> np.ndarray:
         """Hessian of ``W_h`` with respect to ``x``.
 
         ``H = alpha_d [ w''/h^2 e e^T + w'/(h r) (I - e e^T) ]`` with ``e = x / r``;
@@ -477,7 +478,7 @@ class QuinticSpline(Kernel):
         a2, b2, c2 = a * a, b * b, c * c
         return a2 * a2 * a - 6.0 * (b2 * b2 * b) + 15.0 * (c2 * c2 * c)
 
-    def radial_terms(self, R: np.ndarray):
+    def radial_terms(self, R: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         # Fused: one set of powers of (3-R)_+, (2-R)_+, (1-R)_+ for all three factors.
         R = np.asarray(R, dtype=np.float64)
         a, b, c = np.maximum(3.0 - R, 0.0), np.maximum(2.0 - R, 0.0), np.maximum(1.0 - R, 0.0)
@@ -564,7 +565,7 @@ class Gaussian(Kernel):
     name = "gaussian"
     support = 3.0
 
-    def __init__(self, support: float = 3.0):
+    def __init__(self, support: float = 3.0) -> None:
         self.support = check_positive("support", support)
 
     def _cache_key(self):
@@ -645,7 +646,7 @@ class QuarticSpline(Kernel):
     name = "quartic"
     support = 2.0
 
-    def __init__(self, support: float = 2.0):
+    def __init__(self, support: float = 2.0) -> None:
         self.support = check_positive("support", support)
 
     def _cache_key(self):
@@ -678,7 +679,7 @@ KERNELS: dict[str, type] = {
 }
 
 
-def get_kernel(kernel) -> Kernel:
+def get_kernel(kernel: str | Kernel | type[Kernel]) -> Kernel:
     """Return a :class:`Kernel` from a name or an instance.
 
     Parameters

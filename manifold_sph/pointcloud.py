@@ -3,10 +3,15 @@
 from __future__ import annotations
 
 import warnings
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ._validation import as_points
+
+if TYPE_CHECKING:
+    from .shapes import ImplicitShape
 
 __all__ = ["PointCloud", "MIN_POINTS"]
 
@@ -45,7 +50,14 @@ class PointCloud:
     (20, True)
     """
 
-    def __init__(self, points, normals=None, *, geometry=None, shape=None):
+    def __init__(
+        self,
+        points: ArrayLike,
+        normals: ArrayLike | None = None,
+        *,
+        geometry: ImplicitShape | None = None,
+        shape: ImplicitShape | None = None,
+    ) -> None:
         if shape is not None:
             if geometry is not None:
                 raise TypeError("pass geometry= only: shape= is its deprecated name")
@@ -74,10 +86,10 @@ class PointCloud:
             self._normals = nrm / length[:, None]
             self._normals.flags.writeable = False
         #: The exact geometry the cloud samples (a :mod:`manifold_sph.shapes` shape), or None.
-        self.geometry = geometry
+        self.geometry: ImplicitShape | None = geometry
 
     @property
-    def shape(self):
+    def shape(self) -> ImplicitShape | None:
         """Deprecated: the sampled geometry, now :attr:`geometry` (``.shape`` suggested an array shape)."""
         warnings.warn("PointCloud.shape is deprecated (it is the sampled geometry, not an array shape): "
                       "use PointCloud.geometry", DeprecationWarning, stacklevel=2)

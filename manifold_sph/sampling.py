@@ -28,13 +28,19 @@ Every random sampler takes ``seed`` and is reproducible
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 
 from ._validation import as_points, check_finite, check_in, check_int, check_positive
 from .pointcloud import MIN_POINTS
 from .threads import get_num_threads
+
+if TYPE_CHECKING:
+    from .shapes import ImplicitShape
 
 __all__ = [
     "SURFACE_SAMPLINGS",
@@ -103,7 +109,7 @@ def fibonacci_sphere(n: int) -> np.ndarray:
     return np.stack([rad * np.cos(az), rad * np.sin(az), z], axis=1)
 
 
-def nearest_neighbor_distances(points) -> np.ndarray:
+def nearest_neighbor_distances(points: ArrayLike) -> np.ndarray:
     """Distance from each point to its nearest other point, (N,).
 
     Examples
@@ -116,7 +122,7 @@ def nearest_neighbor_distances(points) -> np.ndarray:
     return d[:, 1]
 
 
-def nearest_neighbor_cv(points) -> float:
+def nearest_neighbor_cv(points: ArrayLike) -> float:
     """Coefficient of variation (std / mean) of nearest-neighbour distances.
 
     About 0.52 for area-uniform random points on a surface; below ~0.1 for the
@@ -132,7 +138,7 @@ def nearest_neighbor_cv(points) -> float:
     return float(d.std() / d.mean())
 
 
-def local_density(points, k: int = 10) -> np.ndarray:
+def local_density(points: ArrayLike, k: int = 10) -> np.ndarray:
     """Points per unit area near each point: ``k / (pi d_k^2)``, (N,).
 
     ``d_k`` is the distance to the k-th nearest other point (the disc holds the
@@ -203,7 +209,14 @@ def _surface_move(shape):
     return move
 
 
-def sample_surface(shape, n: int, sampling: str = "poisson", seed=0, density_ratio: float = 4.0, iterations: int | None = None) -> np.ndarray:
+def sample_surface(
+    shape: ImplicitShape,
+    n: int,
+    sampling: str = "poisson",
+    seed: int | np.random.Generator | None = 0,
+    density_ratio: float = 4.0,
+    iterations: int | None = None,
+) -> np.ndarray:
     """Sample ``n`` points on an implicit shape (see :mod:`manifold_sph.shapes`).
 
     Parameters
@@ -288,7 +301,13 @@ def _as_bounds(bounds):
     return b
 
 
-def square(n: int, bounds=(-1.0, 1.0, -1.0, 1.0), sampling: str = "poisson", seed=0, density_ratio: float = 4.0) -> np.ndarray:
+def square(
+    n: int,
+    bounds: Sequence[float] = (-1.0, 1.0, -1.0, 1.0),
+    sampling: str = "poisson",
+    seed: int | np.random.Generator | None = 0,
+    density_ratio: float = 4.0,
+) -> np.ndarray:
     """Sample ``n`` distinct points in the rectangle ``[xmin, xmax] x [ymin, ymax]``.
 
     Parameters
@@ -393,7 +412,7 @@ def square(n: int, bounds=(-1.0, 1.0, -1.0, 1.0), sampling: str = "poisson", see
     return P
 
 
-def __getattr__(name: str):
+def __getattr__(name: str) -> Callable[..., Any]:
     """The old British spellings, kept for one release (the public API spells ``neighbor``)."""
     old = {"nearest_neighbour_distances": nearest_neighbor_distances, "nearest_neighbour_cv": nearest_neighbor_cv}
     if name in old:

@@ -24,6 +24,7 @@ import math
 import warnings
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .exceptions import ManifoldSPHWarning
 from ._validation import as_field, as_points, check_finite, check_in, check_int, check_positive
@@ -181,11 +182,11 @@ class ImplicitShape:
         raise NotImplementedError
 
     @property
-    def bounds(self) -> tuple:
+    def bounds(self) -> tuple[float, ...]:
         """Axis-aligned bounding box ``(xmin, xmax, ymin, ymax, zmin, zmax)``."""
         raise NotImplementedError  # pragma: no cover - abstract
 
-    def axis_coordinate(self, x) -> np.ndarray:
+    def axis_coordinate(self, x: ArrayLike) -> np.ndarray:
         """Normalised coordinate ``s`` in [-1, 1] along which "variable" sampling varies.
 
         The "variable" density is proportional to ``density_ratio ** s``.
@@ -196,15 +197,15 @@ class ImplicitShape:
         raise NotImplementedError  # pragma: no cover - abstract
 
     # -- implicit function ---------------------------------------------------
-    def phi(self, x) -> np.ndarray:
+    def phi(self, x: ArrayLike) -> np.ndarray:
         """Implicit function, (N,); the surface is ``phi = 0``, ``phi < 0`` inside."""
         return self._phi(as_points("x", x))
 
-    def grad_phi(self, x) -> np.ndarray:
+    def grad_phi(self, x: ArrayLike) -> np.ndarray:
         """Gradient of :meth:`phi`, (N, 3)."""
         return self._grad(as_points("x", x))
 
-    def hess_phi(self, x) -> np.ndarray:
+    def hess_phi(self, x: ArrayLike) -> np.ndarray:
         """Hessian of :meth:`phi`, (N, 3, 3)."""
         return self._hess(as_points("x", x))
 
@@ -219,7 +220,7 @@ class ImplicitShape:
             )
         return g / gn[:, None], gn
 
-    def normal(self, x) -> np.ndarray:
+    def normal(self, x: ArrayLike) -> np.ndarray:
         """Outward unit normal ``grad phi / |grad phi|``, (N, 3)."""
         return self._unit_normal(as_points("x", x))[0]
 
@@ -227,7 +228,7 @@ class ImplicitShape:
         H = self._hess(x)
         return (np.trace(H, axis1=1, axis2=2) - np.einsum("ni,nij,nj->n", n, H, n)) / gn
 
-    def mean_curvature(self, x) -> np.ndarray:
+    def mean_curvature(self, x: ArrayLike) -> np.ndarray:
         """``div n``, the SUM of the principal curvatures, (N,).
 
         ``div n = (tr H - n^T H n) / |grad phi|``; it is ``2 / r`` on a sphere of
@@ -237,7 +238,7 @@ class ImplicitShape:
         n, gn = self._unit_normal(x)
         return self._div_n(x, n, gn)
 
-    def gaussian_curvature(self, x) -> np.ndarray:
+    def gaussian_curvature(self, x: ArrayLike) -> np.ndarray:
         """Gaussian curvature ``K = grad phi^T adj(H) grad phi / |grad phi|^4``, (N,)."""
         x = as_points("x", x)
         g = self._grad(x)
@@ -247,7 +248,7 @@ class ImplicitShape:
         gn2 = np.einsum("ni,ni->n", g, g)
         return np.einsum("ni,nij,nj->n", g, cof, g) / (gn2 * gn2)
 
-    def principal_curvatures(self, x) -> np.ndarray:
+    def principal_curvatures(self, x: ArrayLike) -> np.ndarray:
         """Principal curvatures (N, 2), largest first, signed like :meth:`mean_curvature`."""
         half = 0.5 * self.mean_curvature(x)
         disc = np.sqrt(np.maximum(half * half - self.gaussian_curvature(x), 0.0))
@@ -279,7 +280,7 @@ class ImplicitShape:
         x, _ = self._newton_step(x)
         return x
 
-    def project(self, x, tol: float = 1e-13, maxiter: int = 50) -> np.ndarray:
+    def project(self, x: ArrayLike, tol: float = 1e-13, maxiter: int = 50) -> np.ndarray:
         """Project points onto ``phi = 0`` by Newton steps along ``grad phi``.
 
         Each step is ``x <- x - phi grad phi / |grad phi|^2`` (length clamped), run
@@ -324,7 +325,7 @@ class ImplicitShape:
         return x
 
     # -- exact surface operators ---------------------------------------------------
-    def surface_gradient(self, x, grad_f) -> np.ndarray:
+    def surface_gradient(self, x: ArrayLike, grad_f: ArrayLike) -> np.ndarray:
         """Tangential gradient ``grad_S f = grad f - (n . grad f) n``, (N, 3).
 
         Parameters
@@ -339,7 +340,7 @@ class ImplicitShape:
         n, _ = self._unit_normal(x)
         return gf - np.einsum("ni,ni->n", n, gf)[:, None] * n
 
-    def laplace_beltrami(self, x, grad_f, hess_f) -> np.ndarray:
+    def laplace_beltrami(self, x: ArrayLike, grad_f: ArrayLike, hess_f: ArrayLike) -> np.ndarray:
         """``Lap_S f = Lap f - n^T (Hess f) n - (div n)(n . grad f)``, (N,).
 
         Parameters
@@ -360,7 +361,7 @@ class ImplicitShape:
             - self._div_n(x, n, gn) * np.einsum("ni,ni->n", n, gf)
         )
 
-    def divergence(self, x, F, DF) -> np.ndarray:
+    def divergence(self, x: ArrayLike, F: ArrayLike, DF: ArrayLike) -> np.ndarray:
         """Surface divergence of the tangent projection ``P F`` of an ambient field.
 
         ``div_S(P F) = tr(DF) - n^T DF n - (F . n)(div n)``, (N,). For a tangent
@@ -385,7 +386,7 @@ class ImplicitShape:
         )
 
     # -- meshes, area, sampling ------------------------------------------------
-    def triangle_mesh(self, spacing: float | None = None, subdivisions: int = 0):
+    def triangle_mesh(self, spacing: float | None = None, subdivisions: int = 0) -> tuple[np.ndarray, np.ndarray]:
         """Triangulate the surface: marching cubes, vertices projected onto it.
 
         Parameters
@@ -459,7 +460,9 @@ class ImplicitShape:
         p = (1 - r1)[:, None] * a + (r1 * (1 - r2))[:, None] * b + (r1 * r2)[:, None] * c
         return self.project(p)
 
-    def sample(self, n: int, sampling: str | None = None, seed=0, density_ratio: float = 4.0) -> PointCloud:
+    def sample(
+        self, n: int, sampling: str | None = None, seed: int | np.random.Generator | None = 0, density_ratio: float = 4.0
+    ) -> PointCloud:
         """Sample ``n`` distinct surface points with exact outward normals.
 
         Parameters
@@ -528,7 +531,7 @@ class Sphere(ImplicitShape):
     default_sampling = "fibonacci"
     area_is_exact = True
 
-    def __init__(self, radius: float = 1.0, center=(0.0, 0.0, 0.0)):
+    def __init__(self, radius: float = 1.0, center: ArrayLike = (0.0, 0.0, 0.0)) -> None:
         self.radius = check_positive("radius", radius)
         self.center = _as_center(center)
         self._mesh_spacing = self.radius / 10
@@ -551,7 +554,7 @@ class Sphere(ImplicitShape):
         return np.broadcast_to(np.eye(3) / self.radius, (len(x), 3, 3)).copy()
 
     @property
-    def bounds(self):
+    def bounds(self) -> tuple[float, ...]:
         c, r = self.center, self.radius
         return (c[0] - r, c[0] + r, c[1] - r, c[1] + r, c[2] - r, c[2] + r)
 
@@ -560,11 +563,11 @@ class Sphere(ImplicitShape):
         """Exact area ``4 pi r^2``."""
         return 4.0 * math.pi * self.radius**2
 
-    def axis_coordinate(self, x):
+    def axis_coordinate(self, x: ArrayLike) -> np.ndarray:
         x = as_points("x", x)
         return np.clip((x[:, 2] - self.center[2]) / self.radius, -1.0, 1.0)
 
-    def project(self, x, tol: float = 1e-13, maxiter: int = 50) -> np.ndarray:
+    def project(self, x: ArrayLike, tol: float = 1e-13, maxiter: int = 50) -> np.ndarray:
         """Closest point ``c + r (x - c) / |x - c|`` (exact; ``tol``, ``maxiter`` unused)."""
         x = as_points("x", x)
         check_positive("tol", tol)
@@ -612,7 +615,7 @@ class Torus(ImplicitShape):
     name = "torus"
     area_is_exact = True
 
-    def __init__(self, R: float = 0.8, r: float = 0.2, center=(0.0, 0.0, 0.0)):
+    def __init__(self, R: float = 0.8, r: float = 0.2, center: ArrayLike = (0.0, 0.0, 0.0)) -> None:
         self.R = check_positive("R", R)
         self.r = check_positive("r", r)
         if not self.r < self.R:
@@ -654,7 +657,7 @@ class Torus(ImplicitShape):
         return H / self.r
 
     @property
-    def bounds(self):
+    def bounds(self) -> tuple[float, ...]:
         c, e = self.center, self.R + self.r
         return (c[0] - e, c[0] + e, c[1] - e, c[1] + e, c[2] - self.r, c[2] + self.r)
 
@@ -663,11 +666,11 @@ class Torus(ImplicitShape):
         """Exact area ``4 pi^2 R r``."""
         return 4.0 * math.pi**2 * self.R * self.r
 
-    def axis_coordinate(self, x):
+    def axis_coordinate(self, x: ArrayLike) -> np.ndarray:
         x = as_points("x", x)
         return np.clip((x[:, 2] - self.center[2]) / self.r, -1.0, 1.0)
 
-    def project(self, x, tol: float = 1e-13, maxiter: int = 50) -> np.ndarray:
+    def project(self, x: ArrayLike, tol: float = 1e-13, maxiter: int = 50) -> np.ndarray:
         """Exact closest point on the torus (``tol``, ``maxiter`` unused)."""
         x = as_points("x", x)
         check_positive("tol", tol)
@@ -688,7 +691,7 @@ class Torus(ImplicitShape):
     def _approx_project(self, x):
         return self.project(x)
 
-    def parametrization(self, t, p) -> np.ndarray:
+    def parametrization(self, t: ArrayLike, p: ArrayLike) -> np.ndarray:
         """Points of eq. (1.15): ``t`` around the tube, ``p`` around the z axis, (N, 3)."""
         t = np.asarray(t, dtype=float)
         p = np.asarray(p, dtype=float)
@@ -749,7 +752,7 @@ class DoubleTorus(ImplicitShape):
 
     name = "double_torus"
 
-    def __init__(self, c: float = 0.04):
+    def __init__(self, c: float = 0.04) -> None:
         c = check_positive("c", c)
         if not c < 1.0 / 16.0:
             raise ValueError(f"c must be in (0, 1/16) for a smooth genus-2 surface, got {c!r}")
@@ -802,7 +805,7 @@ class DoubleTorus(ImplicitShape):
         return H
 
     @property
-    def bounds(self):
+    def bounds(self) -> tuple[float, ...]:
         return (1 - self._x_half, 1 + self._x_half, -self._y_half, self._y_half, -self._z_half, self._z_half)
 
     @property
@@ -810,7 +813,7 @@ class DoubleTorus(ImplicitShape):
         """Numerical area (projected marching-cubes mesh, Richardson-extrapolated)."""
         return self._numerical_area()
 
-    def axis_coordinate(self, x):
+    def axis_coordinate(self, x: ArrayLike) -> np.ndarray:
         x = as_points("x", x)
         return np.clip((x[:, 0] - 1.0) / self._x_half, -1.0, 1.0)
 
@@ -857,7 +860,9 @@ class Sausage(ImplicitShape):
 
     name = "sausage"
 
-    def __init__(self, arc_radius: float = 1.0, tube_radius: float = 0.25, theta0: float = math.pi - 0.045, power: int = 16):
+    def __init__(
+        self, arc_radius: float = 1.0, tube_radius: float = 0.25, theta0: float = math.pi - 0.045, power: int = 16
+    ) -> None:
         self.arc_radius = check_positive("arc_radius", arc_radius)
         self.tube_radius = check_positive("tube_radius", tube_radius)
         if not self.tube_radius < self.arc_radius:
@@ -882,12 +887,12 @@ class Sausage(ImplicitShape):
     def _key(self):
         return ("sausage", self.arc_radius, self.tube_radius, self.theta0, self.power)
 
-    def arc_angle(self, x) -> np.ndarray:
+    def arc_angle(self, x: ArrayLike) -> np.ndarray:
         """``theta = atan2(y, x)`` in (-pi, pi]: the ends are near ``+theta0`` and ``-theta0``."""
         x = as_points("x", x)
         return np.arctan2(x[:, 1], x[:, 0])
 
-    def axis_coordinate(self, x):
+    def axis_coordinate(self, x: ArrayLike) -> np.ndarray:
         return np.clip(self.arc_angle(x) / self.theta0, -1.0, 1.0)
 
     def _parts(self, x):
@@ -940,7 +945,7 @@ class Sausage(ImplicitShape):
         return H
 
     @property
-    def bounds(self):
+    def bounds(self) -> tuple[float, ...]:
         e = self.arc_radius + self.tube_radius
         return (-e, e, -e, e, -self.tube_radius, self.tube_radius)
 
@@ -948,7 +953,7 @@ class Sausage(ImplicitShape):
     def _a2(self, theta):
         return self.tube_radius**2 * (1 - (theta / self.theta0) ** self.power)
 
-    def parametrization(self, theta, alpha) -> np.ndarray:
+    def parametrization(self, theta: ArrayLike, alpha: ArrayLike) -> np.ndarray:
         """Surface point at arc angle ``theta`` (|theta| <= theta0) and tube angle ``alpha``."""
         theta = np.asarray(theta, dtype=float)
         alpha = np.asarray(alpha, dtype=float)
@@ -1039,7 +1044,14 @@ SHAPES = {"sphere": Sphere, "torus": Torus, "double_torus": DoubleTorus, "sausag
 # ----------------------------------------------------------------------------
 # sampled clouds
 # ----------------------------------------------------------------------------
-def sphere(n, radius=1.0, center=(0.0, 0.0, 0.0), sampling="fibonacci", seed=0, density_ratio=4.0) -> PointCloud:
+def sphere(
+    n: int,
+    radius: float = 1.0,
+    center: ArrayLike = (0.0, 0.0, 0.0),
+    sampling: str = "fibonacci",
+    seed: int | np.random.Generator | None = 0,
+    density_ratio: float = 4.0,
+) -> PointCloud:
     """Sample a sphere (see :meth:`ImplicitShape.sample`).
 
     Samplings: "fibonacci" (golden-spiral lattice, deterministic, ``seed``
@@ -1057,7 +1069,15 @@ def sphere(n, radius=1.0, center=(0.0, 0.0, 0.0), sampling="fibonacci", seed=0, 
     return Sphere(radius, center).sample(n, sampling, seed=seed, density_ratio=density_ratio)
 
 
-def torus(n, R=0.8, r=0.2, center=(0.0, 0.0, 0.0), sampling="poisson", seed=0, density_ratio=4.0) -> PointCloud:
+def torus(
+    n: int,
+    R: float = 0.8,
+    r: float = 0.2,
+    center: ArrayLike = (0.0, 0.0, 0.0),
+    sampling: str = "poisson",
+    seed: int | np.random.Generator | None = 0,
+    density_ratio: float = 4.0,
+) -> PointCloud:
     """Sample a torus ([1]: ``R = 0.8``, ``r = 0.2``, 4800 points).
 
     Examples
@@ -1069,7 +1089,9 @@ def torus(n, R=0.8, r=0.2, center=(0.0, 0.0, 0.0), sampling="poisson", seed=0, d
     return Torus(R, r, center).sample(n, sampling, seed=seed, density_ratio=density_ratio)
 
 
-def double_torus(n, c=0.04, sampling="poisson", seed=0, density_ratio=4.0) -> PointCloud:
+def double_torus(
+    n: int, c: float = 0.04, sampling: str = "poisson", seed: int | np.random.Generator | None = 0, density_ratio: float = 4.0
+) -> PointCloud:
     """Sample the genus-2 :class:`DoubleTorus` ("Bitoro" in [1], 3070 points).
 
     Examples
@@ -1082,14 +1104,14 @@ def double_torus(n, c=0.04, sampling="poisson", seed=0, density_ratio=4.0) -> Po
 
 
 def sausage(
-    n,
-    arc_radius=1.0,
-    tube_radius=0.25,
-    theta0=math.pi - 0.045,
-    power=16,
-    sampling="poisson",
-    seed=0,
-    density_ratio=4.0,
+    n: int,
+    arc_radius: float = 1.0,
+    tube_radius: float = 0.25,
+    theta0: float = math.pi - 0.045,
+    power: int = 16,
+    sampling: str = "poisson",
+    seed: int | np.random.Generator | None = 0,
+    density_ratio: float = 4.0,
 ) -> PointCloud:
     """Sample the bent capsule :class:`Sausage` ([1]: 2652 points).
 

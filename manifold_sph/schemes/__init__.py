@@ -17,7 +17,7 @@ from .standard import Standard
 SCHEMES: dict[str, type[Scheme]] = {cls.name: cls for cls in (Standard, CSPM, MSPH, NCSPH, MSPH3, MSPH4, MSPH5)}
 
 
-def get_scheme(scheme) -> Scheme:
+def get_scheme(scheme: str | Scheme) -> Scheme:
     """Return a scheme instance from a name or an instance.
 
     Examples

@@ -26,6 +26,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 __all__ = [
     "LocalPairs",
@@ -91,7 +92,16 @@ class LocalPairs:
         return np.matmul(rows, cols)
 
     @classmethod
-    def from_flat(cls, indptr, xy, dV, W, dW, d2W, dw_over_r) -> "LocalPairs":
+    def from_flat(
+        cls,
+        indptr: ArrayLike,
+        xy: ArrayLike,
+        dV: ArrayLike,
+        W: ArrayLike,
+        dW: ArrayLike,
+        d2W: ArrayLike,
+        dw_over_r: ArrayLike,
+    ) -> "LocalPairs":
         """Pad flat CSR-ordered pair arrays (P, ...) with row offsets ``indptr`` (n + 1,).
 
         Each row's first pair must be the particle itself. Mainly for tests and
@@ -254,7 +264,7 @@ def difference_to_weights(c: np.ndarray) -> np.ndarray:
     return w
 
 
-def corrected_weights(grad_c: np.ndarray, lap_c: np.ndarray, failed: np.ndarray, condition) -> SchemeWeights:
+def corrected_weights(grad_c: np.ndarray, lap_c: np.ndarray, failed: np.ndarray, condition: np.ndarray) -> SchemeWeights:
     """Weights of a corrected scheme from its weights on ``f_j - f_i``; failed particles get zeros."""
     grad = difference_to_weights(grad_c)
     lap = difference_to_weights(lap_c)

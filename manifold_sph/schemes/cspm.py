@@ -24,7 +24,9 @@ def linear_columns(xy: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(xy.transpose(0, 2, 1))
 
 
-def first_derivative_weights(pairs: LocalPairs, max_condition: float, cols1=None):
+def first_derivative_weights(
+    pairs: LocalPairs, max_condition: float, cols1: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """CSPM weights ``c`` (n, 2, K) on ``f_j - f_i`` for ``(f_x, f_y)``, with ``M1^-1``, condition and failures."""
     rows = pairs.dW * pairs.dV[:, None, :]
     M1 = pairs.moments(rows, linear_columns(pairs.xy) if cols1 is None else cols1)
@@ -33,7 +35,9 @@ def first_derivative_weights(pairs: LocalPairs, max_condition: float, cols1=None
     return c, M1inv, cond, failed
 
 
-def second_derivative_weights(rows2, K, N1, c, max_condition):
+def second_derivative_weights(
+    rows2: np.ndarray, K: np.ndarray, N1: np.ndarray, c: np.ndarray, max_condition: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Laplacian weights (n, K) on ``f_j - f_i`` from ``K H = b2 - N1 g`` (g with weights ``c``)."""
     Kinv, cond, failed = batched_inverse(K, max_condition)
     y = Kinv[:, 0, :] + Kinv[:, 2, :]  # y = K^-T e, e = LAPLACE_ROW

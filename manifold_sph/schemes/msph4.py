@@ -129,7 +129,7 @@ class HighOrderCorrected(Scheme):
     #: Highest total degree of the Taylor terms.
     degree: int = 4
 
-    def __init__(self):
+    def __init__(self) -> None:
         exps = taylor_exponents(self.degree)
         self.exponents = exps
         self.n_unknowns = len(exps)
