@@ -721,16 +721,20 @@ class TiledSurface:
     def _read_las(self, path: Path) -> np.ndarray:
         import laspy
 
+        st = path.stat()
+        tag = hashlib.blake2b(f"{path.resolve()}|{st.st_size}|{st.st_mtime_ns}".encode(), digest_size=8).hexdigest()
+        target = str(self.cache_dir / f"las-{tag}.npy")
         with laspy.open(str(path)) as f:
             n = int(f.header.point_count)
-            out = np.lib.format.open_memmap(str(self.cache_dir / "las-points.npy"), mode="w+", dtype=np.float64, shape=(n, 3))
+            out = np.lib.format.open_memmap(target, mode="w+", dtype=np.float64, shape=(n, 3))
             pos = 0
             for chunk in f.chunk_iterator(1 << 20):
                 m = len(chunk)
                 out[pos : pos + m] = np.stack([np.asarray(chunk.x), np.asarray(chunk.y), np.asarray(chunk.z)], axis=1)
                 pos += m
         out.flush()
-        return np.load(str(self.cache_dir / "las-points.npy"), mmap_mode="r")
+        del out
+        return np.load(target, mmap_mode="r")
 
     def _write_sorted(self, path: str, arr) -> None:
         if os.path.exists(path):

@@ -141,6 +141,23 @@ def test_npy_source_and_cache_reuse(cloud, tmp_path):
     assert cache.exists()  # a cache directory given by the user is kept
 
 
+def test_las_source(cloud, tmp_path):
+    laspy = pytest.importorskip("laspy")
+    header = laspy.LasHeader(point_format=0, version="1.2")
+    header.scales = np.array([1e-7, 1e-7, 1e-7])
+    header.offsets = np.zeros(3)
+    las = laspy.LasData(header)
+    las.x, las.y, las.z = cloud.points.T
+    las.write(str(tmp_path / "s.las"))
+    back = laspy.read(str(tmp_path / "s.las"))
+    pts = np.c_[back.x, back.y, back.z]
+    s = Surface(pts, cloud.normals, area="shepard")
+    with TiledSurface(str(tmp_path / "s.las"), cloud.normals, tile_points=1000, scheduler="synchronous") as ts:
+        f, _ = fields(pts)
+        assert rel(ts.gather(ts.points), pts) == 0
+        assert rel(ts.gather(ts.laplacian(f)), s.laplacian(f)) < RTOL
+
+
 def test_failing_tile_reported(cloud):
     pts = cloud.points.copy()
     pts[7] = pts[8]  # a duplicate point: the tile holding it (and its neighbours' halos) cannot build
