@@ -31,7 +31,6 @@ order) or :meth:`TiledSurface.to_zarr`.
 
 from __future__ import annotations
 
-import glob as _glob
 import hashlib
 import json
 import os
@@ -663,7 +662,7 @@ class TiledSurface:
                 raise ValueError("area='geometric' needs total_area (the surface area, > 0)")
             total_area = check_positive("total_area", total_area)
         scheme = get_scheme(o.get("scheme", "msph"))
-        kernel = get_kernel(o.get("kernel", "quintic"))
+        get_kernel(o.get("kernel", "quintic"))  # raises on an unknown kernel
         neighbors = o.get("neighbors")
         if neighbors is None:
             neighbors = scheme.default_neighbors
@@ -680,7 +679,6 @@ class TiledSurface:
                "area": area, "normal_threshold": float(thr), "max_condition": check_positive("max_condition", o.get("max_condition", 1e8))}
         if total_area is not None:
             out["total_area"] = total_area
-        del kernel
         return out
 
     def _read_source(self, source, normals):
