@@ -7,11 +7,15 @@ These are the measurements behind the README's figures and the CLI's
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from . import functions, shapes
 from .errors import ConvergenceTable, convergence_study, error_summary
+from .functions import ScalarFunction
 from .pointcloud import PointCloud
 from .schemes import SCHEMES
 from .surface import Surface
@@ -41,14 +45,14 @@ def make_cloud(shape: str, n: int, sampling: str | None = None, seed: int = 0) -
     return SHAPES[shape](n, seed=seed, **kwargs)
 
 
-def get_function(name: str):
+def get_function(name: str) -> ScalarFunction:
     """A scalar test function from :mod:`manifold_sph.functions` by name."""
     if name not in SCALAR_FUNCTIONS:
         raise ValueError(f"function must be one of {list(SCALAR_FUNCTIONS)}, got {name!r}")
     return getattr(functions, name)
 
 
-def exact_operators(cloud: PointCloud, function) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def exact_operators(cloud: PointCloud, function: ScalarFunction) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(f, grad_S f, Lap_S f)`` at the cloud's points from its exact shape."""
     if cloud.geometry is None:
         raise ValueError("the cloud has no exact shape: exact references need a cloud from manifold_sph.shapes")
@@ -57,7 +61,12 @@ def exact_operators(cloud: PointCloud, function) -> tuple[np.ndarray, np.ndarray
     return function.value(x), cloud.geometry.surface_gradient(x, g), cloud.geometry.laplace_beltrami(x, g, H)
 
 
-def operator_errors(cloud: PointCloud, function="cos_xz_sin_y", schemes=None, **surface_kwargs) -> list[dict]:
+def operator_errors(
+    cloud: PointCloud,
+    function: str | ScalarFunction = "cos_xz_sin_y",
+    schemes: Sequence[str] | None = None,
+    **surface_kwargs: Any,
+) -> list[dict[str, Any]]:
     """Relative L2 and Linf errors of the Laplace-Beltrami and gradient of each scheme.
 
     Parameters
@@ -110,7 +119,9 @@ def operator_errors(cloud: PointCloud, function="cos_xz_sin_y", schemes=None, **
     return rows
 
 
-def curvature_errors(cloud: PointCloud, schemes=("msph", "msph4"), *, estimated_normals: bool = False) -> list[dict]:
+def curvature_errors(
+    cloud: PointCloud, schemes: Sequence[str] = ("msph", "msph4"), *, estimated_normals: bool = False
+) -> list[dict[str, Any]]:
     """Relative L2 errors of the mean and Gaussian curvature against the shape's exact ones.
 
     Parameters
@@ -154,14 +165,14 @@ def curvature_errors(cloud: PointCloud, schemes=("msph", "msph4"), *, estimated_
 
 def convergence(
     shape: str,
-    sizes,
+    sizes: Sequence[int] | np.ndarray,
     scheme: str = "cspm",
     function: str = "cos_xz_sin_y",
     *,
     sampling: str | None = None,
     seed: int = 0,
-    progress=None,
-    **surface_kwargs,
+    progress: Callable[[], object] | None = None,
+    **surface_kwargs: Any,
 ) -> ConvergenceTable:
     """Convergence of one scheme on a built-in shape over the cloud sizes ``sizes``.
 
@@ -179,7 +190,7 @@ def convergence(
     return convergence_study(sizes, run, kind="N", dim=2)
 
 
-def format_rows(rows: list[dict]) -> str:
+def format_rows(rows: list[dict[str, Any]]) -> str:
     """Plain-text table of :func:`operator_errors` rows."""
     head = f"{'scheme':<9} {'N':>7} {'lap L2':>10} {'lap Linf':>10} {'grad L2':>10} {'grad Linf':>10} {'build s':>8} {'fallback':>8}"
     lines = [head, "-" * len(head)]
@@ -191,7 +202,14 @@ def format_rows(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
-def planar_errors(points, schemes=None, *, bounds=(-1.0, 1.0, -1.0, 1.0), mirror: bool = False, **domain_kwargs) -> list[dict]:
+def planar_errors(
+    points: ArrayLike,
+    schemes: Sequence[str] | None = None,
+    *,
+    bounds: Sequence[float] = (-1.0, 1.0, -1.0, 1.0),
+    mirror: bool = False,
+    **domain_kwargs: Any,
+) -> list[dict[str, Any]]:
     """The chapter-2 cases of [1] (docs/method.md) in a planar domain, relative L2 and Linf errors per scheme.
 
     Gradient of ``xy``, divergence of ``(sin pi x, sin pi y)``, Laplacian of

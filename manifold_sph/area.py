@@ -22,7 +22,7 @@ from .exceptions import ManifoldSPHWarning
 from . import _jit
 from ._sparse import bicgstab_csr
 from .kernels import Kernel, QuinticSpline
-from .frames import offsets_of_rows
+from .frames import PairOffsets, offsets_of_rows
 from .neighbors import Neighborhood
 from .threads import run_chunks
 
@@ -31,7 +31,7 @@ __all__ = ["AREA_METHODS", "AreaElements", "area_elements", "check_area_method",
 AREA_METHODS = ("geometric", "numerical", "shepard")
 
 
-def kernel_values(nb: Neighborhood, xy, kernel: Kernel) -> np.ndarray:
+def kernel_values(nb: Neighborhood, xy: np.ndarray | PairOffsets, kernel: Kernel) -> np.ndarray:
     """Kernel values ``W_ij = W_{h_i}(x_ij)`` (d = 2) of the neighbour pairs, shape (P,), in row chunks on threads.
 
     ``xy`` is the (P, 2) array of pair offsets or a :class:`manifold_sph.frames.PairOffsets`
@@ -59,7 +59,9 @@ def kernel_values(nb: Neighborhood, xy, kernel: Kernel) -> np.ndarray:
     return vals
 
 
-def near_duplicate_pairs(nb: Neighborhood, xy, columns=None, tol: float | None = None) -> np.ndarray:
+def near_duplicate_pairs(
+    nb: Neighborhood, xy: np.ndarray | PairOffsets, columns: np.ndarray | None = None, tol: float | None = None
+) -> np.ndarray:
     """Positions of the pairs ``i != j`` closer than ``tol h_i`` (default :data:`MERGE_TOL`), in row chunks."""
     tol = MERGE_TOL if tol is None else tol
     n = nb.n_rows
@@ -79,7 +81,15 @@ def near_duplicate_pairs(nb: Neighborhood, xy, columns=None, tol: float | None =
     return np.concatenate(found) if found else np.zeros(0, dtype=np.int64)
 
 
-def kernel_matrix(nb: Neighborhood, xy: np.ndarray, kernel: Kernel, columns=None, n_cols=None, *, _share=False) -> sp.csr_matrix:
+def kernel_matrix(
+    nb: Neighborhood,
+    xy: np.ndarray | PairOffsets,
+    kernel: Kernel,
+    columns: np.ndarray | None = None,
+    n_cols: int | None = None,
+    *,
+    _share: bool = False,
+) -> sp.csr_matrix:
     """Sparse matrix of kernel values ``W_ij = W_{h_i}(x_ij)`` (d = 2) on the neighbour pairs.
 
     ``columns`` (P,) maps pairs to matrix columns (ghosts to their owners; duplicates are summed).
@@ -131,7 +141,7 @@ class AreaElements:
         return float(self.dV.sum())
 
 
-def check_area_method(method, total_area=None) -> None:
+def check_area_method(method: str, total_area: float | None = None) -> None:
     """Raise ValueError for an unknown method, or ``"geometric"`` without a positive total area."""
     if method not in AREA_METHODS:
         raise ValueError(f"area must be one of {list(AREA_METHODS)}, got {method!r}")
@@ -145,11 +155,11 @@ def check_area_method(method, total_area=None) -> None:
 def area_elements(
     method: str,
     nb: Neighborhood,
-    xy: np.ndarray,
+    xy: np.ndarray | PairOffsets,
     kernel: Kernel,
     *,
     total_area: float | None = None,
-    columns=None,
+    columns: np.ndarray | None = None,
 ) -> AreaElements:
     """Area element of every particle.
 

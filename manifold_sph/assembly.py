@@ -14,12 +14,14 @@ through the numpy schemes above, down the fallback chain.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import scipy.sparse as sp
 
 from . import _jit
 from .kernels import Kernel, QuinticSpline
-from .frames import offsets_at, offsets_of_rows
+from .frames import PairOffsets, offsets_at, offsets_of_rows
 from .neighbors import Neighborhood
 from .schemes import Scheme, get_scheme
 from .schemes.base import LocalPairs
@@ -88,14 +90,24 @@ class Assembled:
         ``{scheme name: indices}`` of particles that fell back *to* that scheme.
     """
 
-    def __init__(self, pair_dx, pair_dy, pair_lap, make_csr, condition, used_code, used_names, fallback):
+    def __init__(
+        self,
+        pair_dx: np.ndarray,
+        pair_dy: np.ndarray,
+        pair_lap: np.ndarray,
+        make_csr: Callable[[np.ndarray], sp.csr_matrix],
+        condition: np.ndarray,
+        used_code: np.ndarray,
+        used_names: tuple[str, ...],
+        fallback: dict[str, np.ndarray],
+    ) -> None:
         self.pair_dx, self.pair_dy, self.pair_lap = pair_dx, pair_dy, pair_lap
         self._make_csr = make_csr
         self.condition = condition
         self.used_code = used_code
         self.used_names = used_names
         self.fallback = fallback
-        self._matrices = {}
+        self._matrices: dict[str, sp.csr_matrix] = {}
 
     def _matrix(self, name: str) -> sp.csr_matrix:
         if name not in self._matrices:
@@ -130,7 +142,9 @@ def _chain(scheme: Scheme) -> tuple:
     return tuple(names)
 
 
-def pair_kernel_data(kernel: Kernel, x: np.ndarray, y: np.ndarray, h: np.ndarray):
+def pair_kernel_data(
+    kernel: Kernel, x: np.ndarray, y: np.ndarray, h: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Kernel data for padded offsets ``x``, ``y`` (n, K) of rows with smoothing lengths ``h`` (n,).
 
     Returns normalised ``(xi, W, dW, d2W, dw_over_r)`` as in :class:`LocalPairs` (h = 1 units):
@@ -164,7 +178,7 @@ def pair_kernel_data(kernel: Kernel, x: np.ndarray, y: np.ndarray, h: np.ndarray
 class ColumnAreas:
     """Area elements looked up per pair (``dV[columns[p]]``) instead of a stored (P,) array."""
 
-    def __init__(self, dV: np.ndarray, columns: np.ndarray):
+    def __init__(self, dV: np.ndarray, columns: np.ndarray) -> None:
         self.dV, self.columns = dV, columns
 
     def take(self, p0: int, p1: int) -> np.ndarray:
@@ -233,12 +247,12 @@ def _weights_with_fallback(pairs: LocalPairs, scheme: Scheme, max_condition: flo
 
 def assemble(
     nb: Neighborhood,
-    xy: np.ndarray,
-    dV_pairs: np.ndarray,
+    xy: np.ndarray | PairOffsets,
+    dV_pairs: np.ndarray | ColumnAreas,
     kernel: Kernel,
     scheme: Scheme,
     *,
-    columns=None,
+    columns: np.ndarray | None = None,
     n_cols: int | None = None,
     max_condition: float = 1e8,
     workers: int = -1,

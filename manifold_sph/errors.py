@@ -24,10 +24,12 @@ from __future__ import annotations
 import math
 import numbers
 import warnings
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .exceptions import ManifoldSPHWarning
 from ._validation import check_bool, check_finite, check_in, check_int, check_positive
@@ -83,7 +85,7 @@ def _pointwise_norm(a: np.ndarray) -> np.ndarray:
 # --- pointwise measures ---------------------------------------------------------
 
 
-def absolute_error(approx, exact) -> np.ndarray:
+def absolute_error(approx: ArrayLike, exact: ArrayLike) -> np.ndarray:
     """Pointwise absolute error ``e_a = |approx - exact|`` ([1] eq. 2.32).
 
     Parameters
@@ -111,7 +113,7 @@ def absolute_error(approx, exact) -> np.ndarray:
     return _pointwise_norm(a - e)
 
 
-def relative_error(approx, exact, floor: float = 1e-6) -> np.ndarray:
+def relative_error(approx: ArrayLike, exact: ArrayLike, floor: float = 1e-6) -> np.ndarray:
     """Pointwise relative error ``|approx - exact| / max(|exact|, floor)``.
 
     The thesis [1] (eq. 2.32) uses a lower bound of ``1e-6`` on ``|exact|`` to avoid
@@ -139,7 +141,7 @@ def relative_error(approx, exact, floor: float = 1e-6) -> np.ndarray:
     return _pointwise_norm(a - e) / np.maximum(_pointwise_norm(e), floor)
 
 
-def phase_error(approx, exact, floor: float = 1e-12) -> np.ndarray:
+def phase_error(approx: ArrayLike, exact: ArrayLike, floor: float = 1e-12) -> np.ndarray:
     """Pointwise angle, in radians, between approximate and exact vectors ([1] eq. 2.35).
 
     ``e_f = arccos(<a, e> / (|a| |e|))``, evaluated as
@@ -190,7 +192,7 @@ def _zero_exact(kind: str) -> ValueError:
     return ValueError(f"the relative {kind} error is undefined: exact is identically zero; use relative=False")
 
 
-def l2_error(approx, exact, relative: bool = True) -> float:
+def l2_error(approx: ArrayLike, exact: ArrayLike, relative: bool = True) -> float:
     """Global L2 error.
 
     - ``relative=True``: ``sqrt(sum_i |a_i - e_i|^2) / sqrt(sum_i |e_i|^2)``
@@ -225,7 +227,7 @@ def l2_error(approx, exact, relative: bool = True) -> float:
     return float(np.sqrt(diff2.sum())) / den
 
 
-def linf_error(approx, exact, relative: bool = True) -> float:
+def linf_error(approx: ArrayLike, exact: ArrayLike, relative: bool = True) -> float:
     """Global maximum error.
 
     - ``relative=True``: ``max_i |a_i - e_i| / max_i |e_i|``;
@@ -267,7 +269,7 @@ def _as_mask(mask, n: int) -> np.ndarray:
     return out
 
 
-def error_summary(approx, exact, mask=None) -> dict:
+def error_summary(approx: ArrayLike, exact: ArrayLike, mask: ArrayLike | None = None) -> dict[str, Any]:
     """Global errors of a field in one dictionary.
 
     Parameters
@@ -346,7 +348,7 @@ class BoxplotSummary:
     outliers: np.ndarray
     n: int
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         """JSON-serialisable dictionary (outliers as a list of ints).
 
         Examples
@@ -366,7 +368,7 @@ class BoxplotSummary:
         }
 
 
-def boxplot_summary(errors) -> BoxplotSummary:
+def boxplot_summary(errors: ArrayLike) -> BoxplotSummary:
     """Tukey boxplot of a sample: quartiles, whiskers and outliers.
 
     Outliers are the values above ``q3 + 1.5 (q3 - q1)`` or below
@@ -453,7 +455,7 @@ def _order_factor(kind: str, dim: int) -> float:
     return -float(dim) if kind == "N" else 1.0
 
 
-def fit_order(sizes, errors, kind: str = "N", dim: int = 2) -> float:
+def fit_order(sizes: ArrayLike, errors: ArrayLike, kind: str = "N", dim: int = 2) -> float:
     """Convergence order from a least-squares fit of log(error) on log(size).
 
     Parameters
@@ -531,12 +533,12 @@ class ConvergenceTable:
     """
 
     sizes: np.ndarray
-    errors: dict
-    orders: dict
-    local_orders: dict
+    errors: dict[str, np.ndarray]
+    orders: dict[str, float]
+    local_orders: dict[str, np.ndarray]
     kind: str = "N"
     dim: int = 2
-    names: list = field(default_factory=list)
+    names: list[str] = field(default_factory=list)
 
     def to_text(self) -> str:
         """Plain aligned table: sizes, each error (%.3e) and local orders, then fitted orders.
@@ -567,7 +569,7 @@ class ConvergenceTable:
         lines.append(f"fitted order:  {fitted}")
         return "\n".join(lines)
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         """JSON-serialisable dictionary (NaN orders become None).
 
         Examples
@@ -593,7 +595,9 @@ def _size_json(s):
     return int(s) if s.is_integer() else s
 
 
-def convergence_study(sizes, run: Callable, kind: str = "N", dim: int = 2) -> ConvergenceTable:
+def convergence_study(
+    sizes: Sequence[float] | np.ndarray, run: Callable[[Any], Mapping[str, float]], kind: str = "N", dim: int = 2
+) -> ConvergenceTable:
     """Run a computation at several sizes and fit convergence orders.
 
     Parameters

@@ -10,6 +10,7 @@ Any orthonormal frame gives the same operators; this one is only a convention.
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from . import _jit
 from .threads import run_chunks
@@ -20,7 +21,7 @@ __all__ = ["tangent_frames", "check_frames", "project_pairs", "project_neighborh
 PARALLEL_TOL = 0.1
 
 
-def tangent_frames(normals) -> tuple[np.ndarray, np.ndarray]:
+def tangent_frames(normals: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Orthonormal tangent vectors ``(u, v)`` for unit normals.
 
     Parameters
@@ -58,7 +59,7 @@ def tangent_frames(normals) -> tuple[np.ndarray, np.ndarray]:
     return u, v
 
 
-def check_frames(normals, u, v, tol: float = 1e-10) -> None:
+def check_frames(normals: ArrayLike, u: np.ndarray, v: np.ndarray, tol: float = 1e-10) -> None:
     """Raise ValueError unless ``(u, v, n)`` are orthonormal at every particle."""
     n = np.asarray(normals)
     checks = {
@@ -74,7 +75,14 @@ def check_frames(normals, u, v, tol: float = 1e-10) -> None:
             raise ValueError(f"tangent frame is not orthonormal: {name} = {dev[i]:.3e} at particle {i} (tolerance {tol:g})")
 
 
-def project_pairs(points, u, v, rows, cols, candidates=None) -> np.ndarray:
+def project_pairs(
+    points: np.ndarray,
+    u: np.ndarray,
+    v: np.ndarray,
+    rows: np.ndarray,
+    cols: np.ndarray,
+    candidates: np.ndarray | None = None,
+) -> np.ndarray:
     """Local 2D coordinates of each neighbour ``j`` seen from its row particle ``i``.
 
     Parameters
@@ -99,7 +107,15 @@ def project_pairs(points, u, v, rows, cols, candidates=None) -> np.ndarray:
 _PROJECT_ROWS = 4096
 
 
-def project_neighborhood(points, u, v, indptr, indices, candidates=None, workers: int = -1) -> np.ndarray:
+def project_neighborhood(
+    points: np.ndarray,
+    u: np.ndarray,
+    v: np.ndarray,
+    indptr: np.ndarray,
+    indices: np.ndarray,
+    candidates: np.ndarray | None = None,
+    workers: int = -1,
+) -> np.ndarray:
     """:func:`project_pairs` for CSR neighbour lists, in row chunks on threads.
 
     Same result as ``project_pairs(points, u, v, rows, indices, candidates)``
@@ -187,7 +203,7 @@ class PairOffsets:
     True
     """
 
-    def __init__(self, points, u, v, indptr, indices):
+    def __init__(self, points: np.ndarray, u: np.ndarray, v: np.ndarray, indptr: np.ndarray, indices: np.ndarray) -> None:
         self.points, self.u, self.v, self.indptr, self.indices = points, u, v, indptr, indices
 
     @property
@@ -215,20 +231,20 @@ class PairOffsets:
         return project_neighborhood(self.points, self.u, self.v, self.indptr, self.indices, workers=workers)
 
 
-def offsets_of_rows(xy, indptr, lo: int, hi: int) -> np.ndarray:
+def offsets_of_rows(xy: np.ndarray | PairOffsets, indptr: np.ndarray, lo: int, hi: int) -> np.ndarray:
     """The offsets of the pairs of rows ``lo:hi`` from a (P, 2) array or a :class:`PairOffsets`."""
     if isinstance(xy, PairOffsets):
         return xy.rows(lo, hi)
     return xy[indptr[lo] : indptr[hi]]
 
 
-def offsets_at(xy, pos: np.ndarray) -> np.ndarray:
+def offsets_at(xy: np.ndarray | PairOffsets, pos: np.ndarray) -> np.ndarray:
     """The offsets at pair positions ``pos`` (any shape) from an array or a :class:`PairOffsets`."""
     if isinstance(xy, PairOffsets):
         return xy.at(pos)
     return xy[pos]
 
 
-def offsets_array(xy) -> np.ndarray:
+def offsets_array(xy: np.ndarray | PairOffsets) -> np.ndarray:
     """The whole (P, 2) array from an array or a :class:`PairOffsets`."""
     return xy.full() if isinstance(xy, PairOffsets) else xy

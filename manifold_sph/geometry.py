@@ -30,13 +30,19 @@ on ``Surface`` call them) and uses only its operators:
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from numpy.typing import ArrayLike
 from scipy.sparse.csgraph import connected_components
 
 from ._validation import check_bool, check_in, check_int, check_positive
 from .operators import OperatorSet
+
+if TYPE_CHECKING:
+    from .surface import Surface
 
 __all__ = [
     "shape_operator",
@@ -60,7 +66,7 @@ def _check_surface(surface):
 
 
 # ----------------------------------------------------------------------------- curvature
-def shape_operator(surface) -> np.ndarray:
+def shape_operator(surface: Surface) -> np.ndarray:
     """Shape operator (Weingarten map) in each particle's tangent frame, shape (N, 2, 2).
 
     ``W[i] = E_i^T (grad_S n)_i E_i`` symmetrised, with ``E_i = [u_i, v_i]`` (the
@@ -81,7 +87,7 @@ def shape_operator(surface) -> np.ndarray:
     return surface.cached("shape_operator", compute)
 
 
-def curvature_method(surface, method: str = "auto") -> str:
+def curvature_method(surface: Surface, method: str = "auto") -> str:
     """The method :func:`mean_curvature` uses for ``method``: ``"normals"`` or ``"laplacian"``."""
     check_in("method", method, CURVATURE_METHODS)
     if method == "auto":
@@ -89,7 +95,7 @@ def curvature_method(surface, method: str = "auto") -> str:
     return method
 
 
-def mean_curvature(surface, method: str = "auto") -> np.ndarray:
+def mean_curvature(surface: Surface, method: str = "auto") -> np.ndarray:
     """Mean curvature ``H = (k1 + k2) / 2``, shape (N,): ``1 / r`` on a sphere of radius ``r`` with outward normals.
 
     Parameters
@@ -117,13 +123,13 @@ def mean_curvature(surface, method: str = "auto") -> np.ndarray:
         "ij,ij->i", surface.laplacian_matrix() @ surface.points, surface.normals))
 
 
-def gaussian_curvature(surface) -> np.ndarray:
+def gaussian_curvature(surface: Surface) -> np.ndarray:
     """Gaussian curvature ``K = k1 k2``, shape (N,): the determinant of :func:`shape_operator`."""
     W = shape_operator(surface)
     return W[:, 0, 0] * W[:, 1, 1] - W[:, 0, 1] * W[:, 1, 0]
 
 
-def principal_curvatures(surface):
+def principal_curvatures(surface: Surface) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Principal curvatures and directions from :func:`shape_operator`.
 
     Returns
@@ -185,7 +191,9 @@ class GeodesicSolver:
     ``t``: 2.2e-2 with two sources at N = 4000.
     """
 
-    def __init__(self, surface, *, t: float | None = None, source_radius: float = 3.0, divergence: str = "weak"):
+    def __init__(
+        self, surface: Surface, *, t: float | None = None, source_radius: float = 3.0, divergence: str = "weak"
+    ) -> None:
         _check_surface(surface)
         self.surface = surface
         self.divergence = check_in("divergence", divergence, ("weak", "strong"))
@@ -216,7 +224,7 @@ class GeodesicSolver:
             raise ValueError(f"sources must lie in [0, {n}), got {arr[bad][:5].tolist()}")
         return np.unique(arr)
 
-    def __call__(self, sources) -> np.ndarray:
+    def __call__(self, sources: ArrayLike) -> np.ndarray:
         """Distance from the nearest of ``sources`` (an index or indices), shape (N,).
 
         Particles in a connected piece of the cloud that holds no source get ``inf``.
@@ -254,7 +262,7 @@ def _nearest_source_distance(P, src):
     return cKDTree(P[src]).query(P)[0]
 
 
-def geodesic_distance(surface, sources, **options) -> np.ndarray:
+def geodesic_distance(surface: Surface, sources: ArrayLike, **options: Any) -> np.ndarray:
     """Geodesic distance from ``sources`` (an index or indices), shape (N,); see :class:`GeodesicSolver`.
 
     The solver (and its factorisations) is cached on the surface for the default options.
@@ -281,7 +289,7 @@ def _spectrum(surface, k):
     return surface.cached(("eigs", k), lambda: surface.eigs(k))
 
 
-def heat_kernel_signature(surface, times, *, k: int = 100, scale: bool = False) -> np.ndarray:
+def heat_kernel_signature(surface: Surface, times: ArrayLike, *, k: int = 100, scale: bool = False) -> np.ndarray:
     """Heat kernel signature ``HKS(x, t) = sum_i exp(-lambda_i t) phi_i(x)^2``, shape (N, T).
 
     Parameters
@@ -307,7 +315,14 @@ def heat_kernel_signature(surface, times, *, k: int = 100, scale: bool = False) 
     return H
 
 
-def wave_kernel_signature(surface, energies=None, *, k: int = 100, n_energies: int = 100, sigma: float | None = None) -> np.ndarray:
+def wave_kernel_signature(
+    surface: Surface,
+    energies: ArrayLike | None = None,
+    *,
+    k: int = 100,
+    n_energies: int = 100,
+    sigma: float | None = None,
+) -> np.ndarray:
     """Wave kernel signature, shape (N, E): ``sum_i phi_i(x)^2 exp(-(e - log lambda_i)^2 / 2 sigma^2)``, normalised.
 
     Parameters

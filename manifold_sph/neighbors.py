@@ -10,8 +10,10 @@ first. ``j`` belongs to particle ``i``'s neighbourhood iff
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal, overload
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 
 from . import _jit
@@ -79,7 +81,7 @@ def _knn(tree: cKDTree, query: np.ndarray, k: int, radius: float, workers: int):
     return dist, idx
 
 
-def build_tree(points) -> cKDTree:
+def build_tree(points: ArrayLike) -> cKDTree:
     """The KD-tree of the neighbour searches: ``cKDTree(points, leafsize=32, balanced_tree=False)``.
 
     Measured at N = 131072 (Fibonacci sphere, 2 cores): the 31-nearest-neighbour query
@@ -111,16 +113,42 @@ def _sample(n: int, size: int) -> np.ndarray:
     return np.linspace(0, n - 1, size).round().astype(np.int64)
 
 
+@overload
 def smoothing_length_for_count(
-    points,
+    points: ArrayLike,
+    target: float = ...,
+    support: float = ...,
+    *,
+    tree: cKDTree | None = ...,
+    workers: int = ...,
+    return_knn: Literal[False] = ...,
+    sample: int | None = ...,
+) -> float: ...
+
+
+@overload
+def smoothing_length_for_count(
+    points: ArrayLike,
+    target: float = ...,
+    support: float = ...,
+    *,
+    tree: cKDTree | None = ...,
+    workers: int = ...,
+    return_knn: Literal[True],
+    sample: int | None = ...,
+) -> tuple[float, tuple[np.ndarray, np.ndarray] | None]: ...
+
+
+def smoothing_length_for_count(
+    points: ArrayLike,
     target: float = 27,
     support: float = 3.0,
     *,
-    tree=None,
+    tree: cKDTree | None = None,
     workers: int = -1,
     return_knn: bool = False,
     sample: int | None = H_SAMPLE,
-):
+) -> float | tuple[float, tuple[np.ndarray, np.ndarray] | None]:
     """Uniform ``h`` such that the mean number of particles inside ``support * h`` is ``target``.
 
     The particle itself is counted (docs/method.md section 2.1).
@@ -181,7 +209,9 @@ def smoothing_length_for_count(
         k = min(2 * k, n)
 
 
-def adaptive_smoothing_length(points, k: int = 27, support: float = 3.0, *, tree=None, workers: int = -1) -> np.ndarray:
+def adaptive_smoothing_length(
+    points: ArrayLike, k: int = 27, support: float = 3.0, *, tree: cKDTree | None = None, workers: int = -1
+) -> np.ndarray:
     """Per-particle ``h_i`` so that exactly ``k`` particles (itself included) lie inside ``support * h_i``.
 
     The support radius is put midway between the k-th and the (k+1)-th nearest
@@ -207,17 +237,17 @@ def adaptive_smoothing_length(points, k: int = 27, support: float = 3.0, *, tree
 
 
 def find_neighbors(
-    points,
-    normals=None,
+    points: ArrayLike,
+    normals: ArrayLike | None = None,
     *,
-    h,
+    h: float | ArrayLike,
     support: float = 3.0,
     normal_threshold: float = 0.0,
-    candidates=None,
-    candidate_normals=None,
-    tree=None,
+    candidates: ArrayLike | None = None,
+    candidate_normals: ArrayLike | None = None,
+    tree: cKDTree | None = None,
     workers: int = -1,
-    knn=None,
+    knn: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> Neighborhood:
     """Radius search with the normal dot-product filter.
 

@@ -50,6 +50,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+from numpy.typing import ArrayLike
 
 from . import _jit
 from ._validation import _describe, as_points, check_finite, check_int, check_positive
@@ -225,7 +226,7 @@ def _cells_numpy(lo, hi, indptr, xy, radius, dup_tol, w, area, flags):
     flags[lo:hi] = fl
 
 
-def voronoi_cells(indptr, xy, radius, *, dup_tol: float = DUPLICATE_TOL) -> VoronoiCells:
+def voronoi_cells(indptr: ArrayLike, xy: ArrayLike, radius: ArrayLike, *, dup_tol: float = DUPLICATE_TOL) -> VoronoiCells:
     """Voronoi cell of each particle among its neighbours, in its tangent plane.
 
     Parameters
@@ -282,7 +283,7 @@ def voronoi_cells(indptr, xy, radius, *, dup_tol: float = DUPLICATE_TOL) -> Voro
     return VoronoiCells(weights=w, area=area, flags=flags)
 
 
-def stiffness_matrix(rows, cols, weights, n: int) -> sp.csr_matrix:
+def stiffness_matrix(rows: ArrayLike, cols: ArrayLike, weights: ArrayLike, n: int) -> sp.csr_matrix:
     """Symmetric stiffness ``K`` from per-pair flux weights.
 
     ``K_ij = -(w_ij + w_ji) / 2`` (pairs listed twice are summed), ``K_ii = -sum_j K_ij``.
