@@ -314,7 +314,7 @@ class TMzSolver(_Leapfrog):
             self.Dy_hx = (self._expand(-self.Dy_e.T) + self.Dy_hx @ keep).tocsr()
             self.Dx_hy = (self._expand(-self.Dx_e.T) + self.Dx_hy @ keep).tocsr()
 
-    def _assemble_sbp(self):
+    def _assemble_sbp(self, degree=1):
         """E rows over every non-PEC E particle corrected by :func:`.operators.sbp_pair`; H rows their adjoint
         plus the corrected closure on the PEC particles."""
         lay = self.layout
@@ -338,7 +338,7 @@ class TMzSolver(_Leapfrog):
         for D, (axis, cols, name) in zip(Ds, ((0, hy, ny), (1, hx, nx))):
             B = self._gradient(cols, e, axis, name, "E particles")[:, wall] if len(wall) else None
             D, B = sbp_pair(D, er, cols, axis, ones_r, np.ones(len(cols)), B, ew if len(wall) else None,
-                            scale=lay.dr)
+                            scale=lay.dr, degree=degree)
             G = self._expand(-D.T, rows)
             if B is not None:
                 G = G + self._expand(B, wall)
