@@ -100,6 +100,33 @@ FORMATS = {
 _ARCHIVES = {".zip", ".gz", ".tgz", ".bz2", ".xz", ".7z", ".rar", ".tar", ".zst", ".lzma"}
 
 
+#: Magic bytes at the start of a file -> its format (binary formats and headed text formats).
+_MAGIC = ((b"ply\n", "ply"), (b"ply\r\n", "ply"), (b"\x93NUMPY", "npy"), (b"PK\x03\x04", "npz"), (b"LASF", "las"),
+          (b"ASTM-E57", "e57"), (b"# vtk DataFile", "vtk"))
+
+
+def _sniff(path: Path) -> str | None:
+    """The format a file's first bytes announce, or None (plain text, unknown)."""
+    with open(path, "rb") as fh:
+        head = fh.read(64)
+    for magic, fmt in _MAGIC:
+        if head.startswith(magic):
+            return fmt
+    if head.lstrip().startswith(b"<?xml") and b"VTKFile" in head or head.lstrip().startswith(b"<VTKFile"):
+        return "vtk"
+    return None
+
+
+def _check_content(path: Path, fmt: str) -> None:
+    """Refuse a file whose first bytes announce another format than ``fmt`` (a misnamed file),
+    naming the format it looks like, instead of a confusing parse error."""
+    seen = _sniff(path)
+    same = {"las": {"las", "laz"}, "npz": {"npz"}, "npy": {"npy"}}.get(seen, {seen})
+    if seen is not None and fmt not in same:
+        raise ReadError(path, f"its first bytes are those of a {seen.upper()} file, not {fmt.upper()}; "
+                              f"rename it or pass format={seen!r}")
+
+
 def _format_of(path: Path, format: str | None) -> str:
     if format is not None:
         check_in("format", format, set(FORMATS.values()))
@@ -263,6 +290,7 @@ def read(path, *, format: str | None = None, normals: str = "file", duplicates: 
     want_faces = normals == "mesh"
     if want_faces and fmt not in ("ply", "obj", "vtk"):
         raise ValueError(f"normals='mesh' needs a mesh file (ply, obj, vtk), got format {fmt!r}")
+    _check_content(path, fmt)
     try:
         pts, nrm, fields, faces = read_format(path, fmt, want_faces)
         if want_faces and fmt == "vtk":

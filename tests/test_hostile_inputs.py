@@ -547,3 +547,15 @@ def test_repeated_column_names_refused(tmp_path, cloud):
     (tmp_path / "d.csv").write_text(text)
     with pytest.raises(ReadError, match=r"\['x'\] appear more than once"):
         read(tmp_path / "d.csv")
+
+
+def test_misnamed_file_names_the_format_it_holds(tmp_path, cloud):
+    write(tmp_path / "c.ply", cloud)
+    (tmp_path / "c.xyz").write_bytes((tmp_path / "c.ply").read_bytes())
+    with pytest.raises(ReadError, match="first bytes are those of a PLY file, not XYZ.*format='ply'"):
+        read(tmp_path / "c.xyz")
+    write(tmp_path / "c.laz", cloud)
+    (tmp_path / "l.csv").write_bytes((tmp_path / "c.laz").read_bytes())
+    with pytest.raises(ReadError, match="LAS file, not CSV"):
+        read(tmp_path / "l.csv")
+    assert len(read(tmp_path / "c.xyz", format="ply")) == 40
