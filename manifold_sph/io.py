@@ -528,16 +528,53 @@ def to_open3d(cloud):
     return pc
 
 
-def from_open3d(pc):
-    """A PointCloud from an ``open3d.geometry.PointCloud`` (or the vertices of a TriangleMesh)."""
+def from_open3d(pc, *, return_fields: bool = False):
+    """A PointCloud from an open3d point cloud (legacy ``open3d.geometry.PointCloud`` or tensor
+    ``open3d.t.geometry.PointCloud``) or the vertices of a ``TriangleMesh``.
+
+    With ``return_fields`` also a dict of the per-point data: colours as ``red, green,
+    blue`` and, for tensor clouds, every custom attribute (intensity, labels...).
+
+    Examples
+    --------
+    >>> import numpy as np, open3d as o3d
+    >>> from manifold_sph import shapes
+    >>> pc = o3d.t.geometry.PointCloud(o3d.core.Tensor(shapes.sphere(30).points.copy()))
+    >>> pc.point.intensity = o3d.core.Tensor(np.arange(30.0)[:, None])
+    >>> cloud, fields = from_open3d(pc, return_fields=True)
+    >>> len(cloud), fields["intensity"][:3].tolist()
+    (30, [0.0, 1.0, 2.0])
+    """
     import open3d as o3d
 
+    fields = {}
     if isinstance(pc, o3d.geometry.TriangleMesh):
         pts = np.asarray(pc.vertices, dtype=np.float64)
         nrm = np.asarray(pc.vertex_normals, dtype=np.float64) if pc.has_vertex_normals() else None
-        return PointCloud(pts, _usable_normals(nrm))
-    if not isinstance(pc, o3d.geometry.PointCloud):
-        raise TypeError(f"pc must be an open3d PointCloud or TriangleMesh, got {type(pc).__name__}")
-    pts = np.asarray(pc.points, dtype=np.float64)
-    nrm = np.asarray(pc.normals, dtype=np.float64) if pc.has_normals() else None
-    return PointCloud(pts, _usable_normals(nrm))
+        if pc.has_vertex_colors():
+            fields = dict(zip(("red", "green", "blue"), np.asarray(pc.vertex_colors).T))
+    elif isinstance(pc, o3d.geometry.PointCloud):
+        pts = np.asarray(pc.points, dtype=np.float64)
+        nrm = np.asarray(pc.normals, dtype=np.float64) if pc.has_normals() else None
+        if pc.has_colors():
+            fields = dict(zip(("red", "green", "blue"), np.asarray(pc.colors).T))
+    elif isinstance(pc, o3d.t.geometry.PointCloud):
+        if "positions" not in pc.point:
+            raise ValueError("pc holds no points (no 'positions' attribute)")
+        pts = pc.point.positions.numpy().astype(np.float64)
+        nrm = pc.point.normals.numpy().astype(np.float64) if "normals" in pc.point else None
+        for key in pc.point:
+            if key in ("positions", "normals"):
+                continue
+            a = pc.point[key].numpy()
+            a = a.reshape(len(a), -1)
+            if key == "colors" and a.shape[1] in (3, 4):
+                fields.update(zip(("red", "green", "blue", "alpha"), a.T))
+            elif a.shape[1] == 1:
+                fields[key] = a[:, 0]
+            else:
+                fields[key] = a
+    else:
+        raise TypeError(f"pc must be an open3d PointCloud (legacy or tensor) or TriangleMesh, got {type(pc).__name__}")
+    cloud = PointCloud(pts, _usable_normals(nrm))
+    return (cloud, fields) if return_fields else cloud
