@@ -68,7 +68,7 @@ __all__ = [
 
 def _from_env() -> bool:
     """``MANIFOLD_SPH_JIT`` as a bool (default True). Another value than 0/1, true/false,
-    yes/no, on/off gives a ``RuntimeWarning`` and the default: importing never fails on it."""
+    yes/no, on/off gives a ``ManifoldSPHWarning`` and the default: importing never fails on it."""
     raw = os.environ.get("MANIFOLD_SPH_JIT", "1")
     text = raw.strip().lower()
     if text in ("", "1", "true", "yes", "on"):
@@ -77,10 +77,12 @@ def _from_env() -> bool:
         return False
     import warnings
 
+    from .exceptions import ManifoldSPHWarning
+
     warnings.warn(
         f"environment variable MANIFOLD_SPH_JIT must be 0 or 1 (or true/false, yes/no, on/off), got {raw!r}; "
         "using the default (1: compiled kernels on)",
-        RuntimeWarning,
+        ManifoldSPHWarning,
         stacklevel=2,
     )
     return True

@@ -31,6 +31,7 @@ from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 
 from ._validation import check_int
+from .exceptions import ManifoldSPHWarning
 
 __all__ = ["get_num_threads", "set_num_threads", "limit", "resolve_workers", "run_chunks"]
 
@@ -41,7 +42,7 @@ def _from_env() -> int | None:
     """The thread count set by ``MANIFOLD_SPH_NUM_THREADS``, or None (every core).
 
     A value that is not a positive integer (``0``, ``-3``, ``abc``, ``1.5``) gives a
-    ``RuntimeWarning`` naming it and the default; importing the package never fails
+    ``ManifoldSPHWarning`` naming it and the default; importing the package never fails
     because of it.
 
     Examples
@@ -66,7 +67,7 @@ def _from_env() -> int | None:
     warnings.warn(
         f"environment variable {ENV_VAR} must be a positive integer, got {raw!r}; "
         f"using the default (every core, {os.cpu_count() or 1})",
-        RuntimeWarning,
+        ManifoldSPHWarning,
         stacklevel=2,
     )
     return None
