@@ -1,6 +1,6 @@
 """SPEM: every case at full size, the layout comparison and the particles-per-wavelength table.
 
-Run: /work/venv/bin/python benchmarks/spem_cases.py  (about a minute; prints JSON lines)
+Run: .venv/bin/python benchmarks/spem_cases.py  (several minutes: the sbp set-up; prints JSON lines)
 """
 
 from __future__ import annotations
@@ -43,9 +43,15 @@ def main():
     for r in rows:
         print(json.dumps({"run": "dispersion", **r}))
     # measured in a PEC square (40 spacings), TM_mm modes: every layout, irregular ones with coupling="sbp"
-    for layout, coupling, hr in (("yee", "direct", 0.7), ("staggered", "direct", 0.7), ("jittered", "sbp", 0.8),
-                                 ("jittered", "sbp", 1.0), ("poisson", "sbp", 1.0), ("jittered", "direct", 0.7)):
-        pts = [measured_phase_velocity(layout, m, coupling=coupling, h_ratio=hr) for m in (2, 3, 4, 5, 6, 8)]
+    for layout, coupling, hr in (("yee", "direct", 0.7), ("yee", "sbp", 0.7), ("staggered", "direct", 0.7),
+                                 ("jittered", "sbp", 0.8), ("jittered", "sbp", 1.0), ("poisson", "sbp", 1.0),
+                                 ("jittered", "direct", 0.7)):
+        try:
+            pts = [measured_phase_velocity(layout, m, coupling=coupling, h_ratio=hr) for m in (2, 3, 4, 5, 6, 8)]
+        except ValueError as exc:  # the direct coupling is refused where a mode would grow
+            print(json.dumps({"run": "measured dispersion", "layout": layout, "coupling": coupling, "h_ratio": hr,
+                              "refused": str(exc)}))
+            continue
         ok = []  # ppw values (descending) down to the first one that misses 1 %
         for v, p in pts:
             if abs(v - 1) > 0.01:
