@@ -608,7 +608,15 @@ class TiledSurface:
         self.bounds = np.concatenate([[0], np.cumsum(self.chunks)]).astype(np.int64)
         self.boxes = boxes
         self.bbox = np.stack([glo, ghi])
-        self._chain = chain = 1 + (1 if opts["area"] == "shepard" else 0) + (2 if nrm is None else 0)
+        # support radii chained: the row, the neighbours' area elements, and with estimated normals the jet
+        # fit's k-nearest ball and its two refits (k-th neighbour distance ~ sqrt(k / neighbors) support radii,
+        # times 1.5 for the spread of irregular clouds); h="adaptive" varies the radius per particle (x 1.2)
+        chain = 1 + (1 if opts["area"] == "shepard" else 0)
+        if nrm is None:
+            chain += 3 * 1.5 * np.sqrt(self._normal_k() / opts["neighbors"])
+        if isinstance(h, str):
+            chain *= 1.2
+        self._chain = chain
         if halo is None:
             halo = 1.1 * chain * support * h_scale
         self.halo = check_positive("halo", halo)
@@ -808,6 +816,16 @@ class TiledSurface:
         self.close()
 
     # ------------------------------------------------------------------ build
+    def _normal_k(self) -> int:
+        """Nearest neighbours of the normal estimation (estimate_normals' default for the options)."""
+        from .normals import DEFAULT_JET_K
+
+        k = self.normal_options.get("k")
+        if k is None:
+            jet = self.normal_options.get("method", "jet") == "jet"
+            k = DEFAULT_JET_K[self.normal_options.get("degree") or 2] if jet else 16
+        return int(k)
+
     def _tile_path(self, t: int) -> str:
         return str(self.cache_dir / f"tile-{self._key}-{t:05d}.npz")
 
@@ -818,13 +836,7 @@ class TiledSurface:
         boxes = self.boxes
         kq = 0
         if self.normals_estimated or self.options["h"] == "adaptive":
-            from .normals import DEFAULT_JET_K
-
-            k_est = self.normal_options.get("k")
-            if k_est is None:
-                jet = self.normal_options.get("method", "jet") == "jet"
-                k_est = DEFAULT_JET_K[self.normal_options.get("degree") or 2] if jet else 16
-            kq = max(k_est, 10) if self.normals_estimated else 0
+            kq = max(self._normal_k(), 10) if self.normals_estimated else 0
             if self.options["h"] == "adaptive":
                 kq = max(kq, self.options["neighbors"] + 1)
         specs = []
