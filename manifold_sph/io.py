@@ -57,6 +57,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .exceptions import ManifoldSPHWarning
 from ._validation import as_points, check_in, check_output_path, check_real_array
 from .io_read import ReadError, from_pv_mesh, read_format, read_las_chunks
 from .io_write import atomic_target, write_format
@@ -251,7 +252,7 @@ def read(path, *, format: str | None = None, normals: str = "file", duplicates: 
         Repeated points are rejected by :class:`~manifold_sph.PointCloud`;
         "merge" merges exact repeats first (:func:`manifold_sph.cleaning.merge_duplicates`,
         the normals averaged), records the original indices in ``fields["index"]``
-        and reports how many were merged in a ``RuntimeWarning``.
+        and reports how many were merged in a :class:`~manifold_sph.ManifoldSPHWarning`.
     return_fields : bool
         Also return a dict of the other per-point arrays (colours, intensities...).
 
@@ -334,7 +335,7 @@ def read(path, *, format: str | None = None, normals: str = "file", duplicates: 
             warnings.warn(
                 f"read {str(path)!r}: merged {merged} exact duplicate point(s) into the first of each group "
                 f"({len(res.points)} points kept; fields['index'] holds their original indices)",
-                RuntimeWarning,
+                ManifoldSPHWarning,
                 stacklevel=2,
             )
         pts, nrm = res.points, res.normals

@@ -23,7 +23,7 @@ import scipy.sparse.linalg as spla
 
 from .exceptions import ManifoldSPHWarning
 from ._sparse import RowBlocks
-from ._validation import as_field, check_bool, check_int, check_positive
+from ._validation import as_field, as_positive_field, check_bool, check_int, check_positive
 from .area import AreaElements, area_elements, check_area_method
 from .assembly import Assembled, ColumnAreas, assemble
 from .frames import offsets_array
@@ -72,10 +72,7 @@ class OperatorSet:
             return adaptive_smoothing_length(points, self.neighbors, support, tree=tree)
         if np.ndim(h) == 0:
             return check_positive("h", h)
-        hv = np.asarray(h, dtype=np.float64)
-        if hv.shape != (n,) or not np.all(np.isfinite(hv) & (hv > 0)):
-            raise ValueError(f"h must be positive and finite with shape ({n},), got shape {hv.shape}")
-        return hv
+        return as_positive_field("h", h, n)  # names the actual problem: shape, NaN or non-positive values
 
     @staticmethod
     def _check_isolated(nb: Neighborhood, hint: str) -> None:

@@ -76,12 +76,12 @@ class PointCloud:
             if nrm.shape[0] != n:
                 raise ValueError(f"normals must have shape ({n}, 3) to match points, got shape {nrm.shape}")
             length = np.linalg.norm(nrm, axis=1)
-            tiny = length <= 1e-12 * max(1.0, float(length.max()))
+            tiny = length <= 1e-12 * float(length.max())  # relative: uniformly tiny normals are fine
             if tiny.any():
                 idx = np.flatnonzero(tiny)
                 raise ValueError(
-                    f"normals must be non-zero, but {idx.size} normal(s) have zero length "
-                    f"(first indices {idx[:5].tolist()})"
+                    f"normals must be non-zero, but {idx.size} normal(s) have zero length or are shorter than "
+                    f"1e-12 times the longest (first indices {idx[:5].tolist()})"
                 )
             self._normals = nrm / length[:, None]
             self._normals.flags.writeable = False

@@ -147,7 +147,13 @@ def test_models_lose_almost_nothing(name):
         pytest.skip(f"{path} not found (the models live outside the repository)")
     from manifold_sph.io import read
 
-    p = read(path, duplicates="merge").points
+    import warnings
+
+    from manifold_sph import ManifoldSPHWarning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ManifoldSPHWarning)  # the meshes repeat seam vertices: merged, said
+        p = read(path, duplicates="merge").points
     max_removed, min_caught = MODEL_LIMITS[name]
     r = clean(p)
     assert 100 * r.n_removed / len(p) <= max_removed + 1e-9, r.report  # target <= 0.1 %

@@ -308,7 +308,7 @@ def test_planar_normal_filter_equals_numpy(monkeypatch):
 def test_environment_variable_is_validated():
     env = dict(os.environ, MANIFOLD_SPH_JIT="maybe")
     out = subprocess.run([sys.executable, "-c", "import manifold_sph"], env=env, capture_output=True, text=True)
-    assert out.returncode != 0
+    assert out.returncode == 0, out.stderr  # a bad value warns and keeps the default; the import never fails
     assert "MANIFOLD_SPH_JIT must be 0 or 1" in out.stderr and "'maybe'" in out.stderr
 
 

@@ -64,3 +64,27 @@ def test_geometry_replaces_the_shape_name():
     with pytest.raises(TypeError, match="pass geometry= only"):
         PointCloud(c.points, geometry=c.geometry, shape=c.geometry)
     assert "geometry=sphere" in repr(c)
+
+
+def test_uniformly_short_normals_are_not_zero():
+    """Regression: normals of length 1e-13 everywhere were rejected as zero (the threshold was
+    absolute below 1); it is relative to the longest normal."""
+    p = np.random.default_rng(1).normal(size=(20, 3))
+    c = PointCloud(p, normals=1e-13 * p)
+    np.testing.assert_allclose(np.linalg.norm(c.normals, axis=1), 1.0)
+    n = p.copy()
+    n[3] *= 1e-14  # 1e-14 of the others: a zero in all but name
+    with pytest.raises(ValueError, match=r"1 normal\(s\) have zero length or are shorter than 1e-12 times the longest"):
+        PointCloud(p, normals=n)
+
+
+def test_negative_h_array_is_named_as_negative_not_as_a_shape():
+    from manifold_sph import Surface, shapes
+
+    c = shapes.sphere(200)
+    h = np.full(200, 0.2)
+    h[7] = -0.1
+    with pytest.raises(ValueError, match=r"h must be positive, but 1 of its 200 value\(s\) are <= 0 \(first at index 7"):
+        Surface(c, h=h)
+    with pytest.raises(ValueError, match=r"h must have shape \(200,\), got shape \(3,\)"):
+        Surface(c, h=np.ones(3))

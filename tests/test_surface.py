@@ -147,7 +147,7 @@ def test_missing_normals_are_estimated():
         (dict(neighbors=5), ValueError, "neighbors must be at least 6"),
         (dict(neighbors=5000), ValueError, "neighbors must be smaller than the number of points"),
         (dict(h=-0.1), ValueError, "h must be a finite positive number"),
-        (dict(h=np.ones(7)), ValueError, r"h must be positive and finite with shape \(500,\)"),
+        (dict(h=np.ones(7)), ValueError, r"h must have shape \(500,\), got shape \(7,\)"),
         (dict(area="volume"), ValueError, "area must be one of"),
         (dict(max_condition=0), ValueError, "max_condition must be a finite positive number"),
     ],
