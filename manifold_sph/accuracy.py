@@ -26,7 +26,7 @@ __all__ = [
 ]
 
 #: Built-in shapes: name -> sampler returning a PointCloud with its exact shape.
-SHAPES = {
+SHAPES: dict[str, Callable[..., PointCloud]] = {
     "sphere": shapes.sphere,
     "torus": shapes.torus,
     "double_torus": shapes.double_torus,

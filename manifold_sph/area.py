@@ -188,7 +188,7 @@ def area_elements(
     return AreaElements(dV=dV, method=method, n_negative=int((dV < 0).sum()), residual=residual)
 
 
-def _numerical(A: sp.csr_matrix, nb: Neighborhood, xy: np.ndarray, columns) -> AreaElements:
+def _numerical(A: sp.csr_matrix, nb: Neighborhood, xy: np.ndarray | PairOffsets, columns: np.ndarray | None) -> AreaElements:
     """Solve ``A dV = 1``, near-duplicates merged into one unknown; Shepard if the solve fails."""
     n = A.shape[0]
     cols = nb.indices if columns is None else np.asarray(columns)

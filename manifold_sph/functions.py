@@ -97,7 +97,7 @@ class ScalarFunction:
         self._gradient = gradient
         self._hessian = hessian
 
-    def _cols(self, x):
+    def _cols(self, x: ArrayLike) -> tuple[np.ndarray, list[np.ndarray]]:
         x = as_points("x", x, dim=self.dim)
         return x, [x[:, a] for a in range(self.dim)]
 
@@ -159,7 +159,7 @@ class VectorField:
         self._value = value
         self._jacobian = jacobian
 
-    def _cols(self, x):
+    def _cols(self, x: ArrayLike) -> tuple[np.ndarray, list[np.ndarray]]:
         x = as_points("x", x, dim=self.dim)
         return x, [x[:, a] for a in range(self.dim)]
 

@@ -205,7 +205,7 @@ class GeodesicSolver:
         self._K, self._m = K, m
         self._heat = spla.splu((sp.diags(m) + self.t * K).tocsc())
         self._ncomp, self._labels = connected_components(K, directed=False)
-        self._poisson_key = None
+        self._poisson_key: bytes | None = None
         W = K.tocoo()
         off = W.row != W.col
         self._pairs = (W.row[off], W.col[off], -W.data[off])  # flux weights w_ij of every pair

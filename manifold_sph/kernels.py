@@ -66,7 +66,7 @@ def _check_dim(d) -> int:
     return d
 
 
-def _check_h(h):
+def _check_h(h: ArrayLike) -> float | np.ndarray:
     """Return ``h`` as a float (scalar input) or a finite positive float64 array."""
     if np.ndim(h) == 0 and not isinstance(h, np.ndarray):
         if isinstance(h, np.generic):
@@ -344,7 +344,7 @@ class Kernel:
             raise ValueError(f"r must be non-negative distances, got minimum {float(r.min())!r}")
         return self.alpha(d, h) * self.w(r / h)
 
-    def _prepare_x(self, x, h):
+    def _prepare_x(self, x: ArrayLike, h: ArrayLike) -> tuple[np.ndarray, float | np.ndarray]:
         x = as_points("x", x, dim=(1, 2, 3))
         h = _check_h(h)
         if isinstance(h, np.ndarray) and h.shape != (x.shape[0],):

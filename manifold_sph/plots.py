@@ -27,11 +27,17 @@ from __future__ import annotations
 import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ._validation import check_in, check_int, check_positive
 from .errors import ConvergenceTable, boxplot_summary
+
+if TYPE_CHECKING:  # matplotlib loads only when a plot is made
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
 
 __all__ = ["convergence_plot", "error_boxplot", "area_histogram", "save_figure"]
 
@@ -63,7 +69,7 @@ def _axes(ax, figsize):
     return ax.figure, ax
 
 
-def save_figure(fig, filename, *, overwrite: bool = False, dpi: int = 100) -> Path:
+def save_figure(fig: Figure, filename: str | os.PathLike[str], *, overwrite: bool = False, dpi: int = 100) -> Path:
     """Write a figure to ``filename`` (format from the suffix: .png, .pdf, .svg).
 
     Parameters
@@ -112,18 +118,18 @@ def _pretty(name: str) -> str:
 
 
 def convergence_plot(
-    tables,
+    tables: ConvergenceTable | Mapping[str, ConvergenceTable],
     *,
     errors: Sequence[str] | None = None,
     x: str = "N",
     reference_order: float | None = None,
     title: str | None = None,
     ylabel: str = "error",
-    ax=None,
-    figsize=(6.0, 4.5),
-    filename=None,
+    ax: Axes | None = None,
+    figsize: tuple[float, float] = (6.0, 4.5),
+    filename: str | os.PathLike[str] | None = None,
     overwrite: bool = False,
-):
+) -> Figure:
     """Log-log convergence plot of one or several studies, fitted orders in the legend.
 
     Parameters
@@ -230,16 +236,16 @@ def _samples(name: str, data) -> dict[str, np.ndarray]:
 
 
 def error_boxplot(
-    errors,
+    errors: ArrayLike | Mapping[str, ArrayLike],
     *,
     log: bool = True,
     title: str | None = None,
     ylabel: str = "pointwise error",
-    ax=None,
-    figsize=(6.0, 4.5),
-    filename=None,
+    ax: Axes | None = None,
+    figsize: tuple[float, float] = (6.0, 4.5),
+    filename: str | os.PathLike[str] | None = None,
     overwrite: bool = False,
-):
+) -> Figure:
     """Tukey boxplots of pointwise errors, one box per scheme (or any label).
 
     Whiskers at the most extreme values within 1.5 IQR of the quartiles,
@@ -289,16 +295,16 @@ def error_boxplot(
 
 
 def area_histogram(
-    dV,
+    dV: ArrayLike | Mapping[str, ArrayLike],
     *,
     bins: int = 50,
     reference: float | None = None,
     title: str | None = None,
-    ax=None,
-    figsize=(6.0, 4.5),
-    filename=None,
+    ax: Axes | None = None,
+    figsize: tuple[float, float] = (6.0, 4.5),
+    filename: str | os.PathLike[str] | None = None,
     overwrite: bool = False,
-):
+) -> Figure:
     """Histogram of area elements (one or several sets, overlaid).
 
     Parameters

@@ -38,10 +38,17 @@ import numbers
 import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ._validation import as_field, as_points, check_bool, check_in, check_int, check_positive
+
+if TYPE_CHECKING:  # no run-time imports: pyvista and the operator stack load only when used
+    from .operators import OperatorSet
+    from .pde import Snapshots
+    from .pointcloud import PointCloud
 
 __all__ = [
     "CAMERAS",
@@ -112,7 +119,7 @@ def _check_target(filename, overwrite: bool, suffixes: tuple[str, ...]) -> Path:
     return path
 
 
-def save_png(image, filename, *, overwrite: bool = False) -> Path:
+def save_png(image: ArrayLike, filename: str | os.PathLike[str], *, overwrite: bool = False) -> Path:
     """Write an RGB or RGBA uint8 image array to a PNG file.
 
     Parameters
@@ -148,7 +155,9 @@ def save_png(image, filename, *, overwrite: bool = False) -> Path:
     return path
 
 
-def color_limits(values, clim=None, robust=None) -> tuple[float, float]:
+def color_limits(
+    values: ArrayLike, clim: tuple[float, float] | None = None, robust: float | bool | None = None
+) -> tuple[float, float]:
     """Colour limits of a field: explicit, full range, or robust (percentile clipping).
 
     Parameters
@@ -307,7 +316,7 @@ def _point_size(points: np.ndarray, spacing: float, window_size) -> float:
 _AXES = {"x": 0, "y": 1, "z": 2}
 
 
-def detect_up_axis(points) -> str:
+def detect_up_axis(points: ArrayLike | PointCloud | OperatorSet) -> str:
     """The up axis of a cloud, guessed from its extents: ``"y"`` or ``"z"``.
 
     The rule (chosen by looking at the models of ../shared/data and the
@@ -516,26 +525,26 @@ def _prepare(points, field, vectors, window_size, filename, overwrite):
 
 
 def render_field(
-    points,
-    field=None,
+    points: ArrayLike | PointCloud | OperatorSet,
+    field: ArrayLike | None = None,
     *,
-    vectors=None,
+    vectors: ArrayLike | None = None,
     title: str | None = None,
     bar_title: str | None = None,
     cmap: str = "viridis",
-    clim=None,
-    robust=None,
-    camera="iso",
+    clim: tuple[float, float] | None = None,
+    robust: float | bool | None = None,
+    camera: str | tuple[ArrayLike, ArrayLike] = "iso",
     up: str = "auto",
     zoom: float = 1.0,
-    window_size=(800, 600),
+    window_size: tuple[int, int] = (800, 600),
     point_size: float | None = None,
     vector_scale: float | None = None,
     vector_color: str = "black",
     show_scalar_bar: bool = True,
     background: str = "white",
     transparent: bool = False,
-    filename=None,
+    filename: str | os.PathLike[str] | None = None,
     overwrite: bool = False,
 ) -> np.ndarray:
     """Render a scalar field on a point cloud, points drawn as spheres, off-screen.
@@ -620,22 +629,22 @@ def render_field(
 
 
 def render_panels(
-    points,
-    fields,
+    points: ArrayLike | PointCloud | OperatorSet,
+    fields: Mapping[str, ArrayLike],
     *,
-    vectors=None,
+    vectors: Mapping[str, ArrayLike] | None = None,
     shared_clim: bool | Sequence[str] = False,
-    cmap="viridis",
-    clim=None,
-    robust=None,
-    camera="iso",
+    cmap: str | Mapping[str, str] = "viridis",
+    clim: tuple[float, float] | None = None,
+    robust: float | bool | None = None,
+    camera: str | tuple[ArrayLike, ArrayLike] = "iso",
     up: str = "auto",
     zoom: float = 1.0,
-    panel_size=(400, 400),
+    panel_size: tuple[int, int] = (400, 400),
     point_size: float | None = None,
     background: str = "white",
     transparent: bool = False,
-    filename=None,
+    filename: str | os.PathLike[str] | None = None,
     overwrite: bool = False,
 ) -> np.ndarray:
     """Side-by-side panels of several scalar fields on the same points.
@@ -711,7 +720,15 @@ def render_panels(
             p.close()
 
 
-def render_comparison(points, f, exact, approx, *, names=("f", "exact", "SPH", "error"), **kwargs) -> np.ndarray:
+def render_comparison(
+    points: ArrayLike | PointCloud | OperatorSet,
+    f: ArrayLike,
+    exact: ArrayLike,
+    approx: ArrayLike,
+    *,
+    names: Sequence[str] = ("f", "exact", "SPH", "error"),
+    **kwargs: Any,
+) -> np.ndarray:
     """Four panels: function | exact | approximation | pointwise absolute error.
 
     The exact and approximate panels share one colour range; the error panel
@@ -742,21 +759,21 @@ def render_comparison(points, f, exact, approx, *, names=("f", "exact", "SPH", "
 
 
 def animate(
-    points,
-    snapshots,
-    filename,
+    points: ArrayLike | PointCloud | OperatorSet,
+    snapshots: ArrayLike | Snapshots,
+    filename: str | os.PathLike[str],
     *,
-    times=None,
+    times: ArrayLike | None = None,
     fps: float = 10.0,
     title: str | None = None,
     bar_title: str | None = None,
     cmap: str = "viridis",
-    clim=None,
-    robust=None,
-    camera="iso",
+    clim: tuple[float, float] | None = None,
+    robust: float | bool | None = None,
+    camera: str | tuple[ArrayLike, ArrayLike] = "iso",
     up: str = "auto",
     zoom: float = 1.0,
-    window_size=(480, 400),
+    window_size: tuple[int, int] = (480, 400),
     point_size: float | None = None,
     background: str = "white",
     progress: bool = False,
