@@ -108,10 +108,10 @@ def test_cavity_matches_bessel_series_within_1_percent_and_resonance_within_half
     assert float(cavity_exact(np.array([0.0]), 0.0)[0]) == pytest.approx(1.0, abs=1e-4)
     assert cavity_frequency() == pytest.approx(362.8e6, rel=1e-3)
     r = run_cavity(n_radial=20, spectrum_periods=10.0)
-    assert r["error"] <= 0.01  # measured 2.4e-3
-    assert r["f1_error"] <= 0.005  # measured 5e-4
+    assert r["error"] <= 0.01  # measured 3.9e-3 (sbp; the refused direct coupling: 2.4e-3)
+    assert r["f1_error"] <= 0.005  # measured 1.5e-3
     full = run_cavity(n_radial=40)
-    assert full["error"] <= 0.002  # measured 6.5e-4: second order, 2.4e-3 -> 6.5e-4
+    assert full["error"] <= 0.002  # measured 1.26e-3: order 1.6 from 3.9e-3
     assert full["error"] < 0.5 * r["error"]
 
 

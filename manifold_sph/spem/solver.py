@@ -585,6 +585,8 @@ class Line1DSolver(_Leapfrog):
     >>> s = Line1DSolver(e, h, h=0.018)
     >>> s.n_e, len(s.h_points)
     (101, 100)
+    >>> round(Line1DSolver(e, h, h=0.018, eps_r=0.25).dt / s.dt, 12)  # the fastest speed sets dt
+    0.5
     """
 
     def __init__(self, e_points, h_points, *, h, kernel="cubic", form="fpm", eps_r=1.0, mu_r=1.0, dt=None,
@@ -602,10 +604,11 @@ class Line1DSolver(_Leapfrog):
                                   row_name="E particles", col_name="H particles")[0]
         self.D_h = cross_gradient(self.h_points, self.e_points, self.h, kernel=kernel, form=form,
                                   row_name="H particles", col_name="E particles")[0]
-        self.dt = _check_dt(dt, self.h, courant)
-        self.courant = cfl_number(self.dt, self.h)
         self.eps = EPS0 * _per_particle("eps_r", eps_r, self.e_points)
         self.mu = MU0 * _per_particle("mu_r", mu_r, self.h_points)
+        self.c_max = C0 / math.sqrt(float(self.eps.min() / EPS0) * float(self.mu.min() / MU0))
+        self.dt = _check_dt(dt, self.h, courant, self.c_max)
+        self.courant = cfl_number(self.dt, self.h, self.c_max)
         self.sources = list(sources)
         self.ex = np.zeros(self.n_e)
         self.hy = np.zeros(len(self.h_points))
