@@ -35,16 +35,16 @@ def main(argv=None) -> int:
     north = int(np.argmax(x[:, 2]))
 
     dt, k = 0.001, 1.5
-    limit = pde.explicit_dt_limit(s, k=k)
+    limit = pde.explicit_dt_limit(s, diffusivity=k)
     print(f"heat: N = {n}, explicit Euler dt = {dt} (stability limit {limit:.4g}), k = {k}, source at the north pole")
     every = int(round(t_heat[1] / dt))
-    heat = pde.heat(s, np.zeros(n), dt=dt, steps=int(round(t_heat[-1] / dt)), k=k, method="explicit",
+    heat = pde.heat(s, np.zeros(n), dt=dt, steps=int(round(t_heat[-1] / dt)), diffusivity=k, method="explicit",
                     fixed=[north], fixed_values=1.0, every=every)
     for t, u in zip(heat.times, heat.snapshots):
         print(f"   t = {t:5.2f}: mean temperature {np.dot(s.dV, u) / s.dV.sum():.4f}, south pole {u[np.argmin(x[:, 2])]:.4f}")
 
     c, dtw = 0.5, 0.005
-    wl = pde.explicit_dt_limit(s, k=c, equation="wave")
+    wl = pde.explicit_dt_limit(s, c=c, equation="wave")
     steps = int(round(t_wave / dtw))
     waves = {}
     for label, u0 in (

@@ -579,9 +579,9 @@ def _cmd_evolve(args) -> int:
         cb = lambda step, t, u: bar.update()  # noqa: E731
         if args.command == "heat":
             dt = 1e-3 if args.dt is None else args.dt
-            res = pde.heat(s, u0, dt=dt, steps=args.steps, k=args.k, method=args.method, every=every, callback=cb)
+            res = pde.heat(s, u0, dt=dt, steps=args.steps, diffusivity=args.k, method=args.method, every=every, callback=cb)
         else:
-            dt = 0.5 * pde.explicit_dt_limit(s, k=args.c, equation="wave") if args.dt is None else args.dt
+            dt = 0.5 * pde.explicit_dt_limit(s, c=args.c, equation="wave") if args.dt is None else args.dt
             res = pde.wave(s, u0, dt=dt, steps=args.steps, c=args.c, every=every, callback=cb)
     u = res.snapshots[-1]
     t = float(res.times[-1])

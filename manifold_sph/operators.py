@@ -23,7 +23,7 @@ import scipy.sparse.linalg as spla
 
 from .exceptions import ManifoldSPHWarning
 from ._sparse import RowBlocks
-from ._validation import as_field, as_positive_field, check_bool, check_int, check_positive
+from ._validation import as_field, as_positive_field, check_bool, check_in, check_int, check_positive
 from .area import AreaElements, area_elements, check_area_method
 from .assembly import Assembled, ColumnAreas, assemble
 from .frames import offsets_array
@@ -153,6 +153,48 @@ class OperatorSet:
         if key not in self._cache:
             self._cache[key] = compute()
         return self._cache[key]
+
+    def stabilized_laplacian(self, method: str = "taylor") -> sp.csr_matrix:
+        """A Laplace-Beltrami matrix whose spectrum lies in the closed left half-plane.
+
+        Parameters
+        ----------
+        method : {"taylor", "weak"}
+            ``"taylor"``: the standard SPH (Taylor) Laplacian with Shepard area elements.
+            Its off-diagonal weights are non-negative and its rows sum to zero, so every
+            Gershgorin disc lies in the left half-plane and ``I - dt L`` is an M-matrix
+            (maximum principle). Consistent only on near-uniform clouds.
+            ``"weak"``: ``-M^-1 G^T M G`` with ``G`` the surface's gradient matrix and
+            ``M = diag(dV)`` (positive area elements required): similar to a symmetric
+            negative semi-definite matrix, so its eigenvalues are real and <= 0.
+
+        Returns
+        -------
+        scipy.sparse.csr_matrix, shape (N, N)
+        """
+        check_in("method", method, ("taylor", "weak"))
+        key = ("stabilized", method)
+        if key in self._cache:
+            return self._cache[key]
+        if method == "taylor":
+            nb = self.neighborhood
+            shep = area_elements("shepard", nb, self._xy, self.kernel, columns=self._columns)
+            ops = assemble(nb, self._xy, ColumnAreas(shep.dV, self._columns), self.kernel, get_scheme("standard"),
+                           columns=self._columns, n_cols=nb.n_rows)
+            L = ops.lap
+        else:
+            dV = self.dV
+            if np.any(dV <= 0):
+                raise ValueError(
+                    f"stabilized_laplacian(method='weak') needs positive area elements, but {int((dV <= 0).sum())} "
+                    "are not; build the surface with area='shepard'"
+                )
+            D = self._dim
+            G = self.gradient_matrix()
+            M = sp.diags(np.repeat(dV, D))
+            L = (-sp.diags(1.0 / dV) @ (G.T @ M @ G)).tocsr()
+        self._cache[key] = L
+        return L
 
     def pair_offsets(self) -> np.ndarray:
         """(P, 2) offsets ``x_j - x_i`` of every neighbour pair in the row particle's frame (CSR order of

@@ -103,9 +103,10 @@ def strong_form_is_stable(surface, *, maxiter: int = AUTO_MAXITER) -> bool:
     """
     _check_surface(surface)
     maxiter = check_int("maxiter", maxiter, minimum=1)
-    key = ("strong_stable", maxiter)
-    if key in surface._cache:
-        return surface._cache[key][0]
+    return surface.cached(("strong_stable", maxiter), lambda: _strong_form_check(surface, maxiter))[0]
+
+
+def _strong_form_check(surface, maxiter: int) -> tuple[bool, str]:
     L = surface.laplacian_matrix()
     n = L.shape[0]
     reason = ""
@@ -134,8 +135,7 @@ def strong_form_is_stable(surface, *, maxiter: int = AUTO_MAXITER) -> bool:
             ok = True
         else:
             ok, reason = False, "its spectrum could not be shown free of growing modes"
-    surface._cache[key] = (ok, reason)
-    return ok
+    return ok, reason
 
 
 def choose_laplacian(surface, laplacian="auto") -> str:
@@ -154,9 +154,10 @@ def choose_laplacian(surface, laplacian="auto") -> str:
         return laplacian
     if strong_form_is_stable(surface):
         return "strong"
-    if "auto_warned" not in surface._cache:
-        surface._cache["auto_warned"] = True
-        reason = surface._cache[("strong_stable", AUTO_MAXITER)][1]
+    first = []
+    surface.cached("auto_warned", lambda: first.append(True) or True)  # one warning per surface
+    if first:
+        reason = surface.cached(("strong_stable", AUTO_MAXITER), lambda: _strong_form_check(surface, AUTO_MAXITER))[1]
         warnings.warn(
             f"laplacian='auto': the {surface.scheme.name!r} scheme's Laplacian is not used for this cloud "
             f"({reason}); using the stable Voronoi Laplacian (laplacian='stable'). Pass laplacian='strong' "
@@ -308,9 +309,12 @@ def spectrum_right_edge(L, k: int = 6, *, seed: int = 0) -> np.ndarray:
 def _rho(surface, op: _Operator) -> float:
     """Spectral radius of the operator's ``L`` (cached per surface for "strong" and "stable" only:
     a matrix passed in is measured every time, never keyed by its ``id``)."""
-    key = ("rho", op.kind)
-    if op.kind != "matrix" and key in surface._cache:
-        return surface._cache[key]
+    if op.kind != "matrix":
+        return surface.cached(("rho", op.kind), lambda: _rho_of(op))
+    return _rho_of(op)
+
+
+def _rho_of(op: _Operator) -> float:
     if op.kind == "stable":  # M^-1 K is similar to the symmetric M^-1/2 K M^-1/2: Lanczos
         d = 1.0 / np.sqrt(op.m)
         S = (sp.diags(d) @ op.K @ sp.diags(d)).tocsr()
@@ -325,22 +329,43 @@ def _rho(surface, op: _Operator) -> float:
                 rho = float(abs(S).sum(axis=1).max())  # Gershgorin: an upper bound
     else:
         rho = spectral_radius(op.L)
-    if op.kind != "matrix":
-        surface._cache[key] = rho
     return rho
 
 
-def explicit_dt_limit(surface, *, k: float = 1.0, equation: str = "heat", laplacian="auto") -> float:
+def explicit_dt_limit(surface, *, equation: str = "heat", diffusivity: float = 1.0, c: float = 1.0,
+                      laplacian="auto", k: float | None = None) -> float:
     """Largest stable time step of the explicit schemes, from the spectral radius ``rho`` of ``L``.
 
-    Heat (forward Euler): ``2 / (k rho)``. Wave (centred): ``2 / (c sqrt(rho))`` with ``c = k``.
+    Heat (forward Euler): ``2 / (diffusivity rho)``. Wave (centred): ``2 / (c sqrt(rho))``.
     Exact for eigenvalues on the negative real axis (always the case with
     ``laplacian="stable"``); complex eigenvalues near the imaginary axis are not
-    covered (use an implicit method). ``laplacian`` as in :func:`heat`.
+    covered (use an implicit method). ``laplacian`` as in :func:`heat`. ``k`` is the
+    deprecated name of ``diffusivity`` (heat) or ``c`` (wave).
+
+    Examples
+    --------
+    >>> from manifold_sph import Surface, shapes
+    >>> s = Surface(shapes.sphere(1000), area="shepard")
+    >>> heat_dt, wave_dt = explicit_dt_limit(s, diffusivity=2.0), explicit_dt_limit(s, equation="wave", c=2.0)
+    >>> bool(0 < heat_dt < wave_dt)
+    True
     """
     check_in("equation", equation, ("heat", "wave"))
-    k = check_positive("k" if equation == "heat" else "c", k)
-    return _dt_limit(surface, _operator(surface, laplacian), k, equation)
+    if equation == "heat":
+        speed = check_positive("diffusivity", _renamed("k", k, "diffusivity", diffusivity, 1.0))
+    else:
+        speed = check_positive("c", _renamed("k", k, "c", c, 1.0))
+    return _dt_limit(surface, _operator(surface, laplacian), speed, equation)
+
+
+def _renamed(old: str, old_value, new: str, new_value, default):
+    """``new_value``, or ``old_value`` passed under the deprecated name ``old`` (with a warning)."""
+    if old_value is None:
+        return new_value
+    if new_value != default:
+        raise TypeError(f"pass {new}= only: {old}= is its deprecated name")
+    warnings.warn(f"{old}= is deprecated: pass {new}=", DeprecationWarning, stacklevel=3)
+    return old_value
 
 
 def _dt_limit(surface, op: _Operator, k: float, equation: str) -> float:
@@ -351,53 +376,10 @@ def _dt_limit(surface, op: _Operator, k: float, equation: str) -> float:
 
 
 def stabilized_laplacian(surface, method: str = "taylor") -> sp.csr_matrix:
-    """A Laplace-Beltrami matrix whose spectrum lies in the closed left half-plane.
-
-    Parameters
-    ----------
-    surface : Surface or Domain2D
-    method : {"taylor", "weak"}
-        ``"taylor"``: the standard SPH (Taylor) Laplacian with Shepard area elements.
-        Its off-diagonal weights are non-negative and its rows sum to zero, so every
-        Gershgorin disc lies in the left half-plane and ``I - dt L`` is an M-matrix
-        (maximum principle). Consistent only on near-uniform clouds.
-        ``"weak"``: ``-M^-1 G^T M G`` with ``G`` the surface's gradient matrix and
-        ``M = diag(dV)`` (positive area elements required): similar to a symmetric
-        negative semi-definite matrix, so its eigenvalues are real and <= 0.
-
-    Returns
-    -------
-    scipy.sparse.csr_matrix, shape (N, N)
-    """
-    check_in("method", method, ("taylor", "weak"))
+    """``surface.stabilized_laplacian(method)``: see :meth:`manifold_sph.operators.OperatorSet.stabilized_laplacian`."""
     if not isinstance(surface, OperatorSet):
         raise TypeError(f"surface must be a Surface or Domain2D, got {type(surface).__name__}")
-    key = ("stabilized", method)
-    if key in surface._cache:
-        return surface._cache[key]
-    if method == "taylor":
-        from .area import area_elements
-        from .assembly import assemble
-        from .schemes import get_scheme
-
-        nb = surface.neighborhood
-        shep = area_elements("shepard", nb, surface._xy, surface.kernel, columns=surface._columns)
-        ops = assemble(nb, surface._xy, shep.dV[surface._columns], surface.kernel, get_scheme("standard"),
-                       columns=surface._columns, n_cols=nb.n_rows)
-        L = ops.lap
-    else:
-        dV = surface.dV
-        if np.any(dV <= 0):
-            raise ValueError(
-                f"stabilized_laplacian(method='weak') needs positive area elements, but {int((dV <= 0).sum())} "
-                "are not; build the surface with area='shepard'"
-            )
-        D = surface._dim
-        G = surface.gradient_matrix()
-        M = sp.diags(np.repeat(dV, D))
-        L = (-sp.diags(1.0 / dV) @ (G.T @ M @ G)).tocsr()
-    surface._cache[key] = L
-    return L
+    return surface.stabilized_laplacian(method)
 
 
 # ----------------------------------------------------------------------------- heat
@@ -406,7 +388,8 @@ def heat(
     u0,
     dt: float,
     steps: int,
-    k: float = 1.0,
+    diffusivity: float = 1.0,
+    *,
     method: str = "implicit",
     fixed=None,
     fixed_values=None,
@@ -414,8 +397,9 @@ def heat(
     callback: Callable | None = None,
     laplacian="auto",
     solver: str = "auto",
-):
-    """Heat equation ``u_t = k Lap_S u``.
+    k: float | None = None,
+) -> np.ndarray | Snapshots:
+    """Heat equation ``u_t = diffusivity Lap_S u``.
 
     Parameters
     ----------
@@ -426,8 +410,8 @@ def heat(
         Time step (> 0). The explicit method refuses a ``dt`` above its stability
         limit :func:`explicit_dt_limit`, quoting the limit.
     steps : int
-    k : float
-        Diffusivity.
+    diffusivity : float
+        The diffusivity ``k`` of ``u_t = k Lap_S u`` (> 0).
     method : {"implicit", "crank-nicolson", "explicit"}
         Backward Euler, Crank-Nicolson (one sparse LU reused for all steps) or the
         forward Euler of [1] (docs/method.md section 6).
@@ -445,6 +429,8 @@ def heat(
         particles ``sum(M u)`` is conserved to round-off, and implicit Euler keeps
         ``u`` within the range of the initial values (discrete maximum principle;
         Crank-Nicolson does so only for small ``dt``).
+    k : float, optional
+        Deprecated name of ``diffusivity`` (a DeprecationWarning says so).
     solver : {"auto", "direct", "iterative"}
         Implicit steps: one sparse LU reused for all steps ("direct"), or
         Jacobi-preconditioned BiCGSTAB on both cores, started from the current
@@ -472,7 +458,7 @@ def heat(
     n = surface.n_points
     u = as_field("u0", u0, n).copy()
     dt, steps, every = _check_steps(dt, steps, every)
-    k = check_positive("k", k)
+    k = check_positive("diffusivity", _renamed("k", k, "diffusivity", diffusivity, 1.0))
     check_in("method", method, HEAT_METHODS)
     check_in("solver", solver, ("auto", "direct", "iterative"))
     op = _operator(surface, laplacian)
@@ -486,7 +472,7 @@ def heat(
         if dt > limit:
             raise ValueError(
                 f"dt = {dt:g} is above the explicit heat stability limit {limit:.4g} "
-                f"(2 / (k * spectral radius)); use a smaller dt or method='implicit'"
+                f"(2 / (diffusivity * spectral radius)); use a smaller dt or method='implicit'"
             )
         theta = 0.0
     else:
@@ -579,6 +565,7 @@ def wave(
     dt: float,
     steps: int,
     c: float = 1.0,
+    *,
     v0=None,
     fixed=None,
     fixed_values=None,

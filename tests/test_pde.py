@@ -31,7 +31,7 @@ def rel(a, b):
 def test_heat_decays_spherical_harmonics(surf, sphere, method, tol):
     """u = exp(-k l(l+1) t) Y_l; at N = 2000 the Laplacian error (~1.5e-2) bounds the accuracy."""
     for l, Y in harmonics(sphere.points):
-        u = pde.heat(surf, Y, dt=2e-3, steps=50, k=1.0, method=method)
+        u = pde.heat(surf, Y, dt=2e-3, steps=50, diffusivity=1.0, method=method)
         assert rel(u, np.exp(-l * (l + 1) * 0.1) * Y) < tol, l
 
 
@@ -45,10 +45,10 @@ def test_heat_explicit_matches_implicit_below_limit(surf, sphere):
 
 
 def test_explicit_refuses_unstable_dt_with_limit(surf, sphere):
-    limit = pde.explicit_dt_limit(surf, k=2.0)
+    limit = pde.explicit_dt_limit(surf, diffusivity=2.0)
     with pytest.raises(ValueError, match=f"stability limit {limit:.4g}"):
-        pde.heat(surf, sphere.points[:, 2], dt=1.5 * limit, steps=3, k=2.0, method="explicit")
-    wl = pde.explicit_dt_limit(surf, k=1.0, equation="wave")
+        pde.heat(surf, sphere.points[:, 2], dt=1.5 * limit, steps=3, diffusivity=2.0, method="explicit")
+    wl = pde.explicit_dt_limit(surf, c=1.0, equation="wave")
     with pytest.raises(ValueError, match="centred wave scheme's stability limit"):
         pde.wave(surf, sphere.points[:, 2], dt=1.2 * wl, steps=3)
 
