@@ -110,6 +110,11 @@ def test_cavity_matches_bessel_series_within_1_percent_and_resonance_within_half
     r = run_cavity(n_radial=20, spectrum_periods=10.0)
     assert r["error"] <= 0.01  # measured 3.9e-3 (sbp; the refused direct coupling: 2.4e-3)
     assert r["f1_error"] <= 0.005  # measured 1.5e-3
+
+
+@pytest.mark.slow
+def test_cavity_converges_from_20_to_40_spacings_per_radius():
+    r = run_cavity(n_radial=20)
     full = run_cavity(n_radial=40)
     assert full["error"] <= 0.002  # measured 1.26e-3: order 1.6 from 3.9e-3
     assert full["error"] < 0.5 * r["error"]
