@@ -2,10 +2,13 @@
 
 Modules: :mod:`.layouts` (E / H particle sets: staggered, Yee-style, jittered,
 Poisson, disk, line), :mod:`.operators` (cross-set CSPM derivative matrices,
-the SBP correction), :mod:`.solver` (leap-frog TMz and 1D solvers, CFL check,
+the SBP correction with its PEC closure), :mod:`.solver` (leap-frog TMz and 1D
+solvers, energy-conserving "sbp" coupling by default, the CFL and spectral
+limits, the measured-spectrum check that refuses a growing "direct" coupling,
 PEC, materials, split-field PML), :mod:`.pml`, :mod:`.sources` (sinusoid,
 Gaussian pulse, hard/soft point and line sources), :mod:`.dirichlet` (the
-Kronecker-delta system), :mod:`.cases` / :mod:`.cases2d` (the
+Kronecker-delta system), :mod:`.cases` / :mod:`.cases2d` (helpers in
+:mod:`._casekit`; :mod:`.cases` imports :mod:`.cases2d`, not the reverse) (the
 validation cases of the thesis [2] with exact references), :mod:`.analysis` (null modes and
 dispersion), :mod:`.cli` (``manifold-sph spem CASE``).
 
@@ -26,9 +29,9 @@ from .constants import C0, EPS0, ETA0, MU0
 from .dirichlet import KroneckerSystem
 from .layouts import (LAYOUTS, Layout, disk_layout, jitter, line_layout, make_layout, poisson_layout,
                       staggered_layout, yee_layout)
-from .operators import FORMS, cross_gradient, cross_pairs
+from .operators import FORMS, cross_gradient, cross_pairs, sbp_pair
 from .pml import PML, sigma_max
-from .solver import DEFAULT_H_RATIO, Line1DSolver, TMzSolver, cfl_number
+from .solver import COUPLINGS, DEFAULT_COUPLING, DEFAULT_H_RATIO, Line1DSolver, TMzSolver, cfl_number, leapfrog_growth
 from .sources import GaussianPulse, Sinusoid, Source, line_source, point_source
 
 __all__ = [
@@ -36,8 +39,8 @@ __all__ = [
     "KroneckerSystem",
     "LAYOUTS", "Layout", "disk_layout", "jitter", "line_layout", "make_layout", "poisson_layout",
     "staggered_layout", "yee_layout",
-    "FORMS", "cross_gradient", "cross_pairs",
+    "FORMS", "cross_gradient", "cross_pairs", "sbp_pair",
     "PML", "sigma_max",
-    "DEFAULT_H_RATIO", "Line1DSolver", "TMzSolver", "cfl_number",
+    "COUPLINGS", "DEFAULT_COUPLING", "DEFAULT_H_RATIO", "Line1DSolver", "TMzSolver", "cfl_number", "leapfrog_growth",
     "GaussianPulse", "Sinusoid", "Source", "line_source", "point_source",
 ]
