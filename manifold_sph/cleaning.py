@@ -217,7 +217,7 @@ def remove_outliers(
       not surface-like: outliers far from the surface, which have only each
       other as neighbours and so pass the ratio test.
 
-    Measured (k = 16) on the noise-free models of ../shared/data/models and the
+    Measured (k = 16) on public noise-free test meshes (cow, homer, rocker-arm, ...) and the
     scans, used as bare points: at most 0.1 % removed (cow 0.07 %, rocker-arm
     0.01 %, homer, cheburashka, teapot, alligator, bunny, Igea 0 %), except
     the coarse beetle (0.7 %). Of 1 % injected outliers (uniform in the

