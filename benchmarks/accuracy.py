@@ -13,8 +13,8 @@ import warnings
 
 import numpy as np
 
-from manifold_sph import shapes
-from manifold_sph.accuracy import convergence, curvature_errors, format_rows, operator_errors, planar_errors
+from manifold_sph.reference import shapes
+from manifold_sph.reference.accuracy import convergence, curvature_errors, format_rows, operator_errors, planar_errors
 
 SPHERE = [1002, 2012, 4032, 8672, 15872, 32672, 65536, 131072]
 OTHERS = [2000, 4000, 8000, 16000, 32000, 64000]

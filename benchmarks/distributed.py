@@ -128,7 +128,8 @@ def local_client(n_workers, memory_limit=None):
 def warm(client):
     """Import the package and load the compiled kernels on every worker (not part of any timing)."""
     def job():
-        from manifold_sph import Surface, shapes
+        from manifold_sph import Surface
+        from manifold_sph.reference import shapes
 
         c = shapes.sphere(300)
         Surface(c.points, c.normals, area="shepard")
@@ -138,7 +139,7 @@ def warm(client):
 
 
 def throughput(n):
-    from manifold_sph import shapes
+    from manifold_sph.reference import shapes
     from manifold_sph.distributed import TiledSurface
 
     cloud = shapes.sphere(n)
@@ -260,7 +261,7 @@ def main():
     if args.throughput:
         throughput(args.throughput)
         return
-    from manifold_sph import shapes
+    from manifold_sph.reference import shapes
 
     n = 20_000 if args.quick else args.n
     cloud = shapes.sphere(n)
@@ -269,7 +270,7 @@ def main():
         ("sphere, estimated normals", cloud.points, None, {"area": "shepard"}, -(-n // 4)),
     ]
     if not args.quick and args.scan.exists():
-        from manifold_sph.io import read
+        from manifold_sph.scans.io import read
 
         from manifold_sph import estimate_normals
 

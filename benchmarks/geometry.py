@@ -27,8 +27,9 @@ from pathlib import Path
 
 import numpy as np
 
-from manifold_sph import Surface, shapes
-from manifold_sph.io import read_mesh
+from manifold_sph import Surface
+from manifold_sph.reference import shapes
+from manifold_sph.scans.io import read_mesh
 
 MODELS = Path(__file__).resolve().parents[2] / "shared" / "data" / "models"
 

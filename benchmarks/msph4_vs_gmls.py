@@ -7,7 +7,7 @@
 
 Unit sphere, Fibonacci points, exact normals, f = cos(xz - sin y); relative L2
 errors of the Laplace-Beltrami operator and of the surface gradient against the
-exact references of :mod:`manifold_sph.shapes`. Every number is measured in
+exact references of :mod:`manifold_sph.reference.shapes`. Every number is measured in
 this run, on the same points, one after the other.
 
 GMLS is pycompadre's manifold GMLS (``problem_type="MANIFOLD"``, QR, polynomial
@@ -43,9 +43,10 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 import numpy as np
 
-from manifold_sph import Surface, shapes
-from manifold_sph.accuracy import convergence, exact_operators, get_function
-from manifold_sph.errors import error_summary, fit_order
+from manifold_sph import Surface
+from manifold_sph.reference import shapes
+from manifold_sph.reference.accuracy import convergence, exact_operators, get_function
+from manifold_sph.reference.errors import error_summary, fit_order
 
 SIZES = [4032, 32672]
 FULL = [4032, 32672, 131072]

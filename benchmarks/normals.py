@@ -26,9 +26,9 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
-from manifold_sph import shapes
-from manifold_sph.io import read_mesh
-from manifold_sph.normals import estimate_normals
+from manifold_sph.reference import shapes
+from manifold_sph.scans.io import read_mesh
+from manifold_sph.scans.normals import estimate_normals
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 MODELS = [DATA / "models" / f for f in ("cow.obj", "homer.obj", "rocker-arm.obj", "cheburashka.obj", "teapot.obj", "beetle.obj", "alligator.obj")]

@@ -4,10 +4,10 @@
     python benchmarks/perf.py --sizes 10000,100000,1000000 --repeat 3 --json perf.json --peers
     python benchmarks/perf.py --ratios --sizes 10000,131072,1000000,4000000   # issue 22: ratios, RSS
 
-Unit sphere, Fibonacci points (``manifold_sph.shapes.sphere``), exact normals,
+Unit sphere, Fibonacci points (``manifold_sph.reference.shapes.sphere``), exact normals,
 f = cos(xz - sin y). Every speed figure stands next to the relative L2 error of
 the Laplace-Beltrami operator it belongs to, against the exact reference
-(``manifold_sph.accuracy.exact_operators``); rows that are only a part of the
+(``manifold_sph.reference.accuracy.exact_operators``); rows that are only a part of the
 cspm build (KD-tree, neighbours, frames) carry the cspm error.
 
 Steps, each timed separately (median of ``--repeat`` runs, ``time.perf_counter``):
@@ -92,13 +92,14 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 import numpy as np
 from scipy.spatial import cKDTree
 
-from manifold_sph import PointCloud, Surface, _jit, estimate_normals, read, shapes, threads
-from manifold_sph.accuracy import exact_operators
+from manifold_sph import PointCloud, Surface, _jit, estimate_normals, read, threads
+from manifold_sph.reference import shapes
+from manifold_sph.reference.accuracy import exact_operators
 from manifold_sph.area import area_elements
 from manifold_sph.assembly import assemble
-from manifold_sph.errors import error_summary
+from manifold_sph.reference.errors import error_summary
 from manifold_sph.frames import check_frames, project_neighborhood, tangent_frames
-from manifold_sph.functions import cos_xz_sin_y
+from manifold_sph.reference.functions import cos_xz_sin_y
 from manifold_sph.kernels import get_kernel
 from manifold_sph.neighbors import H_SAMPLE, find_neighbors, smoothing_length_for_count
 from manifold_sph.pde import heat

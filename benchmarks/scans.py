@@ -34,12 +34,13 @@ from pathlib import Path
 import numpy as np
 from scipy.sparse import csgraph
 
-from manifold_sph import Surface, functions, shapes
-from manifold_sph.accuracy import operator_errors
-from manifold_sph.boundary import detect_boundary
-from manifold_sph.cleaning import clean
-from manifold_sph.io import read
-from manifold_sph.normals import estimate_normals
+from manifold_sph import Surface
+from manifold_sph.reference import functions, shapes
+from manifold_sph.reference.accuracy import operator_errors
+from manifold_sph.scans.boundary import detect_boundary
+from manifold_sph.scans.cleaning import clean
+from manifold_sph.scans.io import read
+from manifold_sph.scans.normals import estimate_normals
 from manifold_sph.pde import heat
 
 SCHEMES = ["standard", "cspm", "msph", "ncsph"]
@@ -53,7 +54,7 @@ def models_table(scans: Path):
     from normals import MODELS, mesh_reference  # benchmarks/normals.py
     from spectra import cotan, sym_eigs  # benchmarks/spectra.py
 
-    from manifold_sph.io import read_mesh
+    from manifold_sph.scans.io import read_mesh
 
     try:
         import robust_laplacian
@@ -172,7 +173,7 @@ def scan_pipeline(path: Path, *, mesh_reference: bool, dt: float, steps: int, pi
     print(f"   pipeline (read .. heat) total {time.perf_counter() - t_all:.1f} s")
     if picture is not None:
         try:
-            from manifold_sph.render import render_field
+            from manifold_sph.viz.render import render_field
 
             render_field(pts, u_std, title=f"heat from a point source, {path.name}", filename=picture, overwrite=True, camera="iso")
             print(f"   picture written to {picture}")

@@ -33,7 +33,8 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from manifold_sph import Surface, estimate_normals, shapes
+from manifold_sph import Surface, estimate_normals
+from manifold_sph.reference import shapes
 
 EXACT = np.concatenate([[l * (l + 1)] * (2 * l + 1) for l in range(1, 7)])  # 48 eigenvalues
 MODELS = Path(__file__).resolve().parents[2] / "shared" / "data" / "models"

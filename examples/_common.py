@@ -22,7 +22,7 @@ def parse(argv, description: str, **extra) -> argparse.Namespace:
 
 def can_render() -> bool:
     """True when off-screen 3D rendering works; otherwise says why on stderr (plots are still made)."""
-    from manifold_sph.render import rendering_available
+    from manifold_sph.viz.render import rendering_available
 
     ok, why = rendering_available()
     if not ok:

@@ -9,8 +9,9 @@ Writes ``area_elements_sphere.png`` (dV on the points, two panels) and
 import numpy as np
 
 from _common import can_render, parse, report
-from manifold_sph import Surface, shapes
-from manifold_sph.plots import area_histogram
+from manifold_sph import Surface
+from manifold_sph.reference import shapes
+from manifold_sph.viz.plots import area_histogram
 
 
 def main(argv=None) -> int:
@@ -25,7 +26,7 @@ def main(argv=None) -> int:
     area_histogram(dv, reference=4 * np.pi / n, title=f"Area elements, Poisson-disk sphere, N = {n}",
                    filename=out[0], overwrite=args.overwrite)
     if can_render():
-        from manifold_sph.render import render_panels
+        from manifold_sph.viz.render import render_panels
 
         out.append(args.out / "area_elements_sphere.png")
         render_panels(cloud, {f"dV {a}": v for a, v in dv.items()}, shared_clim=True, robust=1,

@@ -10,7 +10,8 @@ total heat, which diffusion conserves up to the scheme's error.
 import numpy as np
 
 from _common import can_render, parse, report
-from manifold_sph import Surface, pde, shapes
+from manifold_sph import Surface, pde
+from manifold_sph.reference import shapes
 
 
 def main(argv=None) -> int:
@@ -26,7 +27,7 @@ def main(argv=None) -> int:
     print(f"N = {n}, {steps} steps of 0.005: total heat {total0:.5f} -> {total1:.5f}; max {u0.max():.3f} -> {res.snapshots[-1].max():.3f}")
     out = []
     if can_render():
-        from manifold_sph.render import animate, render_field
+        from manifold_sph.viz.render import animate, render_field
 
         out.append(animate(s, res, args.out / "heat_sphere.gif", title="heat equation (CSPM)", bar_title="u",
                            camera="equator", window_size=(360, 320), clim=(0, 1), overwrite=args.overwrite))

@@ -12,11 +12,12 @@ Writes boxplots of the Laplacian errors and the error fields in the plane.
 import numpy as np
 
 from _common import can_render, parse, report
-from manifold_sph import Domain2D, functions
-from manifold_sph.accuracy import planar_errors
-from manifold_sph.errors import absolute_error
-from manifold_sph.plots import error_boxplot
-from manifold_sph.sampling import square
+from manifold_sph import Domain2D
+from manifold_sph.reference import functions
+from manifold_sph.reference.accuracy import planar_errors
+from manifold_sph.reference.errors import absolute_error
+from manifold_sph.viz.plots import error_boxplot
+from manifold_sph.reference.sampling import square
 
 SCHEMES = ("standard", "cspm", "msph", "ncsph")
 
@@ -37,7 +38,7 @@ def main(argv=None) -> int:
     error_boxplot(errs, title=f"Laplacian of sin(pi x) cos(pi y), square, N = {n}", filename=out[0],
                   overwrite=args.overwrite)
     if can_render():
-        from manifold_sph.render import render_panels
+        from manifold_sph.viz.render import render_panels
 
         out.append(args.out / "planar_laplacian_errors.png")
         render_panels(p, {s: errs[s] for s in SCHEMES}, cmap="magma", robust=1, camera="top", panel_size=(260, 280),

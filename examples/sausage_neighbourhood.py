@@ -10,7 +10,8 @@ at one tip also finds particles of the other tip; the normal filter
 import numpy as np
 
 from _common import can_render, parse, report
-from manifold_sph import Surface, shapes
+from manifold_sph import Surface
+from manifold_sph.reference import shapes
 from manifold_sph.neighbors import find_neighbors
 
 
@@ -38,7 +39,7 @@ def main(argv=None) -> int:
     label[i] = 3.0
     out = []
     if can_render():
-        from manifold_sph.render import render_field
+        from manifold_sph.viz.render import render_field
 
         out.append(args.out / "sausage_neighbourhood.png")
         # zoom on the gap: this end near the particle, and of the other end only the dropped neighbours

@@ -12,9 +12,10 @@ pictures, the boxplot per scheme, and prints where the Tukey outliers are.
 import numpy as np
 
 from _common import can_render, parse, report
-from manifold_sph import Surface, functions, shapes
-from manifold_sph.errors import absolute_error, boxplot_summary
-from manifold_sph.plots import error_boxplot
+from manifold_sph import Surface
+from manifold_sph.reference import functions, shapes
+from manifold_sph.reference.errors import absolute_error, boxplot_summary
+from manifold_sph.viz.plots import error_boxplot
 
 SCHEMES = ("standard", "cspm", "msph", "ncsph")
 
@@ -37,14 +38,14 @@ def main(argv=None) -> int:
     out = [args.out / "sausage_laplacian_boxplot.png"]
     error_boxplot(errs, title=f"Laplace-Beltrami on the sausage, N = {len(x)}", filename=out[0], overwrite=args.overwrite)
     if can_render():
-        from manifold_sph.render import render_panels
+        from manifold_sph.viz.render import render_panels
 
         out.append(args.out / "sausage_error_full_vs_robust.png")
         e = errs["msph"]
         full = render_panels(cloud, {"error, full range": e}, cmap="magma", camera="north_pole", panel_size=(360, 360))
         robust = render_panels(cloud, {"error, 1 % clipped": e}, cmap="magma", robust=1, camera="north_pole",
                                panel_size=(360, 360))
-        from manifold_sph.render import save_png
+        from manifold_sph.viz.render import save_png
 
         save_png(np.concatenate([full, robust], axis=1), out[-1], overwrite=args.overwrite)
     report(out)

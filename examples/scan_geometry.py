@@ -12,7 +12,7 @@ The mean curvature ``H = (k1 + k2) / 2`` comes from the Laplacian of the
 coordinates, ``Lap_S x = -2 H n``, which keeps its accuracy with estimated
 normals (:meth:`manifold_sph.Surface.mean_curvature`, ``method="auto"``); the
 geodesic distance from one particle (the highest one of a scan, up as guessed by
-:func:`manifold_sph.render.detect_up_axis`: the tip of the bunny's ear; a point on the
+:func:`manifold_sph.viz.render.detect_up_axis`: the tip of the bunny's ear; a point on the
 torus' outer equator) by the heat method (:meth:`manifold_sph.Surface.geodesic_distance`).
 Writes ``scan_geometry_mean_curvature.png`` and ``scan_geometry_geodesic.png``
 when off-screen rendering works (curvature coloured over its 2nd-98th percentiles:
@@ -28,9 +28,10 @@ from pathlib import Path
 import numpy as np
 from _common import can_render, parse, report
 
-from manifold_sph import Surface, read, shapes
-from manifold_sph.plots import save_figure
-from manifold_sph.render import detect_up_axis
+from manifold_sph import Surface, read
+from manifold_sph.reference import shapes
+from manifold_sph.viz.plots import save_figure
+from manifold_sph.viz.render import detect_up_axis
 
 BUNNY = Path(__file__).resolve().parents[2] / "shared" / "data" / "scans" / "stanford-bunny.obj"
 
@@ -82,7 +83,7 @@ def main(argv=None) -> int:
     ax2.set(title=f"geodesic distance from particle {source}", xlabel="distance", ylabel="particles")
     out.append(save_figure(fig, fig_path, overwrite=args.overwrite))
     if can_render():
-        from manifold_sph.render import render_field
+        from manifold_sph.viz.render import render_field
 
         size = (360, 300) if args.quick else (700, 600)
         out.append(args.out / "scan_geometry_mean_curvature.png")

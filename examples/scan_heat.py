@@ -20,9 +20,10 @@ from pathlib import Path
 import numpy as np
 from _common import can_render, parse, report
 
-from manifold_sph import Surface, estimate_normals, pde, read, shapes
-from manifold_sph.boundary import detect_boundary
-from manifold_sph.cleaning import clean
+from manifold_sph import Surface, estimate_normals, pde, read
+from manifold_sph.reference import shapes
+from manifold_sph.scans.boundary import detect_boundary
+from manifold_sph.scans.cleaning import clean
 
 BUNNY = Path(__file__).resolve().parents[2] / "shared" / "data" / "scans" / "stanford-bunny.obj"
 
@@ -64,7 +65,7 @@ def main(argv=None) -> int:
 
     out = []
     if can_render():
-        from manifold_sph.render import animate, render_panels
+        from manifold_sph.viz.render import animate, render_panels
 
         fields = {f"t = {t:.3g}": u for t, u in list(zip(res.times, res.snapshots))[1::2]}
         png = args.out / "scan_heat.png"

@@ -15,7 +15,8 @@ from __future__ import annotations
 import numpy as np
 from _common import can_render, parse, report
 
-from manifold_sph import Surface, pde, shapes
+from manifold_sph import Surface, pde
+from manifold_sph.reference import shapes
 
 
 def bump(x, centre, width=0.15):
@@ -65,7 +66,7 @@ def main(argv=None) -> int:
                         wave_times=waves["one source"].times)
     out.append(npz)
     if can_render():
-        from manifold_sph.render import render_panels
+        from manifold_sph.viz.render import render_panels
 
         size = (260, 240) if args.quick else (360, 330)
         panels = {"source_heat.png": ("equator", {f"heat t = {t:g}": u for t, u in zip(heat.times, heat.snapshots)})}

@@ -9,9 +9,10 @@ operator and, for CSPM, the panels f | exact | SPH | error and the gradient arro
 
 
 from _common import can_render, parse, report
-from manifold_sph import Surface, functions, shapes
-from manifold_sph.errors import absolute_error, error_summary
-from manifold_sph.plots import error_boxplot
+from manifold_sph import Surface
+from manifold_sph.reference import functions, shapes
+from manifold_sph.reference.errors import absolute_error, error_summary
+from manifold_sph.viz.plots import error_boxplot
 
 SCHEMES = ("standard", "cspm", "msph", "ncsph")
 
@@ -46,7 +47,7 @@ def main(argv=None) -> int:
         error_boxplot(errs[op], title=f"{op} on the sphere, N = {n} (cf. de Jesus 2017, Fig. {fig_no})",
                       ylabel="pointwise absolute error", filename=out[-1], overwrite=args.overwrite)
     if can_render():
-        from manifold_sph.render import render_comparison, render_field
+        from manifold_sph.viz.render import render_comparison, render_field
 
         s = surfaces["cspm"]
         out.append(args.out / "sphere_laplacian_cspm.png")

@@ -8,9 +8,10 @@ the pointwise errors of the four schemes.
 """
 
 from _common import can_render, parse, report
-from manifold_sph import Surface, functions, shapes
-from manifold_sph.errors import absolute_error, error_summary
-from manifold_sph.plots import error_boxplot
+from manifold_sph import Surface
+from manifold_sph.reference import functions, shapes
+from manifold_sph.reference.errors import absolute_error, error_summary
+from manifold_sph.viz.plots import error_boxplot
 
 SCHEMES = ("standard", "cspm", "msph", "ncsph")
 
@@ -37,7 +38,7 @@ def main(argv=None) -> int:
         error_boxplot(errs, title=f"Laplace-Beltrami on the {shape.replace('_', ' ')}, N = {len(x)}",
                       filename=out[-1], overwrite=args.overwrite)
         if render:
-            from manifold_sph.render import render_comparison
+            from manifold_sph.viz.render import render_comparison
 
             out.append(args.out / f"{shape}_laplacian_msph.png")
             render_comparison(cloud, f, exact, lap["msph"], names=("f", "exact", "MSPH", "error"), robust=0.5,

@@ -10,8 +10,9 @@ Laplacian, centred scheme at half the stability limit). Writes ``wave_sphere.gif
 import numpy as np
 
 from _common import can_render, parse, report
-from manifold_sph import Surface, pde, shapes
-from manifold_sph.plots import save_figure
+from manifold_sph import Surface, pde
+from manifold_sph.reference import shapes
+from manifold_sph.viz.plots import save_figure
 
 
 def main(argv=None) -> int:
@@ -40,7 +41,7 @@ def main(argv=None) -> int:
     ax.set_title(f"wave on the sphere, CSPM, N = {n}")
     out = [save_figure(fig, args.out / "wave_sphere_energy.png", overwrite=args.overwrite)]
     if can_render():
-        from manifold_sph.render import animate
+        from manifold_sph.viz.render import animate
 
         lim = float(np.abs(res.snapshots).max())
         kw = dict(title="wave equation (CSPM)", bar_title="u", camera="equator", cmap="coolwarm", clim=(-lim, lim),

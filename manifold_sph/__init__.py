@@ -9,7 +9,9 @@ as an attribute on first use (PEP 562), as in scipy:
 >>> import manifold_sph as ms
 >>> ms.pde.heat.__module__
 'manifold_sph.pde'
->>> "render" in dir(ms)
+>>> ms.reference.shapes.sphere(100).geometry.name
+'sphere'
+>>> "viz" in dir(ms)
 True
 """
 
@@ -20,21 +22,30 @@ import importlib as _importlib
 from .pointcloud import PointCloud
 from .surface import Surface
 from .domain import Domain2D
-from .io import read, write
-from .normals import estimate_normals
+from .scans.io import read, write
+from .scans.normals import estimate_normals
 from .threads import get_num_threads, set_num_threads
 from .exceptions import ManifoldSPHWarning
 
 __version__ = "0.1.0"
 
-# Public submodules loaded on attribute access (heavy ones such as render and spem
-# are not imported until asked for).
+# Public submodules loaded on attribute access (heavy ones such as viz and spem are not
+# imported until asked for). The flat core follows the pipeline; scans, reference and viz
+# group the periphery.
 _SUBMODULES = (
-    "accuracy", "area", "assembly", "boundary", "cleaning", "cli", "distributed", "domain", "errors",
-    "exceptions", "frames", "functions", "geometry", "io", "kernels", "neighbors", "normals",
-    "operators", "pde", "plots", "pointcloud", "render", "sampling", "schemes", "shapes", "spem",
-    "surface", "threads", "voronoi",
+    "area", "assembly", "cli", "distributed", "domain", "exceptions", "frames", "geometry", "kernels",
+    "neighbors", "operators", "pde", "pointcloud", "schemes", "spem", "surface", "threads", "voronoi",
+    "scans", "reference", "viz",
 )
+
+#: Modules that moved into the subpackages in 0.2: the old names still resolve (with a
+#: DeprecationWarning) until 0.3.
+_MOVED = {
+    "io": "scans.io", "io_read": "scans.io_read", "io_write": "scans.io_write", "normals": "scans.normals",
+    "cleaning": "scans.cleaning", "boundary": "scans.boundary", "shapes": "reference.shapes",
+    "sampling": "reference.sampling", "functions": "reference.functions", "errors": "reference.errors",
+    "accuracy": "reference.accuracy", "render": "viz.render", "plots": "viz.plots",
+}
 
 __all__ = ["PointCloud", "Surface", "Domain2D", "read", "write", "estimate_normals", "get_num_threads",
            "set_num_threads", "ManifoldSPHWarning", "__version__"]
@@ -43,6 +54,12 @@ __all__ = ["PointCloud", "Surface", "Domain2D", "read", "write", "estimate_norma
 def __getattr__(name: str):
     if name in _SUBMODULES:
         return _importlib.import_module(f"{__name__}.{name}")
+    if name in _MOVED:
+        import warnings
+
+        warnings.warn(f"manifold_sph.{name} moved to manifold_sph.{_MOVED[name]}: import it from there",
+                      DeprecationWarning, stacklevel=2)
+        return _importlib.import_module(f"{__name__}.{_MOVED[name]}")
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 

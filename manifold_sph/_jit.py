@@ -16,7 +16,7 @@ bound by memory traffic. Each function here does one step for the rows
   recomputes it (with the fallback chain) through the numpy schemes;
 - :func:`voronoi_rows`: the tangent-plane Voronoi cells of :mod:`manifold_sph.voronoi`;
 - :func:`winding_rows`: the generalised winding numbers (near cells exact, far cells as
-  dipoles) of the normal orientation check in :mod:`manifold_sph.normals`;
+  dipoles) of the normal orientation check in :mod:`manifold_sph.scans.normals`;
 - :func:`csr_matvec_dot`, :func:`csr_matvec_dots2`, :func:`bicgstab_direction`,
   :func:`bicgstab_half`, :func:`bicgstab_step`: the passes of
   :func:`manifold_sph._sparse.bicgstab_csr` (the area elements' solve and the implicit

@@ -144,9 +144,9 @@ def _percent(text: str) -> float:
 
 
 def _parser() -> argparse.ArgumentParser:
-    from .accuracy import SCALAR_FUNCTIONS, SHAPES
+    from .reference.accuracy import SCALAR_FUNCTIONS, SHAPES
     from .geometry import CURVATURE_METHODS
-    from .render import CAMERAS
+    from .viz.render import CAMERAS
     from .schemes import SCHEMES
 
     p = _Parser(
@@ -281,10 +281,10 @@ def _surface_kwargs(args) -> dict:
 
 def _cloud_from_args(args):
     """A PointCloud from --file (with normals estimated if missing) or from --shape/--n."""
-    from .accuracy import make_cloud
+    from .reference.accuracy import make_cloud
 
     if getattr(args, "file", None):
-        from .io import read
+        from .scans.io import read
 
         return read(args.file)
     _check_size("--n", args.n)
@@ -294,7 +294,7 @@ def _cloud_from_args(args):
 def _attach_shape(cloud, shape_name: str, path: str):
     """The cloud with the exact shape ``shape_name`` attached, if its points lie on it."""
     from .pointcloud import PointCloud
-    from .shapes import SHAPES
+    from .reference.shapes import SHAPES
 
     shape = SHAPES[shape_name]()
     x = cloud.points
@@ -309,7 +309,7 @@ def _attach_shape(cloud, shape_name: str, path: str):
 
 
 def _initial_state(name: str, points: np.ndarray) -> np.ndarray:
-    from .accuracy import SCALAR_FUNCTIONS, get_function
+    from .reference.accuracy import SCALAR_FUNCTIONS, get_function
 
     x = points
     if name == "hotspot":
@@ -353,7 +353,7 @@ def _render_ok(need: bool) -> bool:
     """Whether 3D pictures can be drawn; a one-line note on stderr when they cannot."""
     if not need:
         return False
-    from .render import rendering_available
+    from .viz.render import rendering_available
 
     ok, why = rendering_available()
     if not ok:
@@ -369,7 +369,7 @@ def run_demo(out, *, n: int = 4032, render: bool = True, overwrite: bool = False
 
     On the unit sphere (``n`` Fibonacci points), with ``f = cos(xz - sin y)``:
     relative errors of the Laplace-Beltrami and gradient of standard SPH, CSPM,
-    MSPH and NCSPH (:func:`manifold_sph.accuracy.operator_errors`); a
+    MSPH and NCSPH (:func:`manifold_sph.reference.accuracy.operator_errors`); a
     Crank-Nicolson heat run and a centred wave run (CSPM) from
     ``u0 = z + xy``, compared with the exact solutions
     ``z exp(-2t) + xy exp(-6t)`` and ``z cos(sqrt(2) t) + xy cos(sqrt(6) t)``.
@@ -386,10 +386,12 @@ def run_demo(out, *, n: int = 4032, render: bool = True, overwrite: bool = False
     """
     from tqdm import tqdm
 
-    from . import functions, pde, plots
-    from .accuracy import exact_operators, format_rows, operator_errors
-    from .errors import absolute_error, l2_error
-    from .shapes import sphere
+    from . import pde
+    from .reference import functions
+    from .viz import plots
+    from .reference.accuracy import exact_operators, format_rows, operator_errors
+    from .reference.errors import absolute_error, l2_error
+    from .reference.shapes import sphere
     from .surface import Surface
 
     out = _out_dir(out)
@@ -459,7 +461,7 @@ def run_demo(out, *, n: int = 4032, render: bool = True, overwrite: bool = False
         },
     }
     if _render_ok(render):
-        from .render import animate, render_comparison, render_field
+        from .viz.render import animate, render_comparison, render_field
 
         render_comparison(
             s, f, lap_ex, lap["cspm"], names=("f", "exact Lap_S f", "CSPM", "error"), panel_size=(300, 300),
@@ -510,7 +512,7 @@ def _cmd_demo(args) -> int:
 
 
 def _cmd_operators(args) -> int:
-    from .accuracy import format_rows, operator_errors
+    from .reference.accuracy import format_rows, operator_errors
 
     if args.file:
         cloud = _attach_shape(_cloud_from_args(args), args.shape, args.file)
@@ -529,7 +531,7 @@ def _cmd_operators(args) -> int:
 def _cmd_convergence(args) -> int:
     from tqdm import tqdm
 
-    from .accuracy import convergence
+    from .reference.accuracy import convergence
 
     for n in args.sizes:
         _check_size("--sizes", n)
@@ -541,7 +543,7 @@ def _cmd_convergence(args) -> int:
             sampling=args.sampling, seed=args.seed, progress=bar.update, **_surface_kwargs(args),
         )
     if args.plot:
-        from .plots import convergence_plot
+        from .viz.plots import convergence_plot
 
         convergence_plot(
             {args.scheme: table}, reference_order=2,
@@ -562,7 +564,7 @@ def _cmd_evolve(args) -> int:
     from tqdm import tqdm
 
     from . import pde
-    from .errors import l2_error
+    from .reference.errors import l2_error
     from .surface import Surface
 
     cloud = _cloud_from_args(args)
@@ -599,7 +601,7 @@ def _cmd_evolve(args) -> int:
             ex = z * np.cos(np.sqrt(2.0) * args.c * t) + xy * np.cos(np.sqrt(6.0) * args.c * t)
         summary["l2_rel_error"] = l2_error(u, ex)
     if args.out and _render_ok(True):
-        from .render import animate, render_field
+        from .viz.render import animate, render_field
 
         size = args.size or (480, 400)
         lim = (float(res.snapshots.min()), float(res.snapshots.max()))
@@ -624,8 +626,8 @@ def _cmd_evolve(args) -> int:
 
 def _cmd_poisson(args) -> int:
     from . import pde
-    from .accuracy import exact_operators, get_function
-    from .errors import l2_error, linf_error
+    from .reference.accuracy import exact_operators, get_function
+    from .reference.errors import l2_error, linf_error
     from .surface import Surface
 
     cloud = _cloud_from_args(args)
@@ -644,7 +646,7 @@ def _cmd_poisson(args) -> int:
         target = out / f"poisson_{args.shape}_{args.scheme}.png"
         _check_free([target], args.overwrite)
         if _render_ok(True):
-            from .render import render_comparison
+            from .viz.render import render_comparison
 
             w, h = args.size or (300, 300)
             render_comparison(s, rhs, ref, u, names=("rhs", "exact u", "SPH u", "error"), camera=args.camera,
@@ -663,8 +665,8 @@ def _cmd_poisson(args) -> int:
 
 
 def _cmd_render(args) -> int:
-    from .accuracy import SCALAR_FUNCTIONS, get_function
-    from .io import read
+    from .reference.accuracy import SCALAR_FUNCTIONS, get_function
+    from .scans.io import read
 
     cloud, fields = read(args.file, return_fields=True)
     x = cloud.points
@@ -683,7 +685,7 @@ def _cmd_render(args) -> int:
         )
     out = Path(args.out) if args.out else Path(args.file).with_name(f"{Path(args.file).stem}_{name}_{args.operator}.png")
     _check_free([out], args.overwrite)
-    from .render import render_field, rendering_available
+    from .viz.render import render_field, rendering_available
 
     ok, why = rendering_available()
     if not ok:
@@ -721,7 +723,7 @@ def _png_target(args):
     if not out.parent.is_dir():
         raise UserError(f"--png {args.png!r}: the folder {str(out.parent)!r} does not exist")
     _check_free([out], args.overwrite)
-    from .render import rendering_available
+    from .viz.render import rendering_available
 
     ok, why = rendering_available()
     if not ok:
@@ -744,7 +746,7 @@ def _stats(values) -> dict:
 
 
 def _render_geometry(args, out, points, values, title, bar_title, cmap):
-    from .render import render_field
+    from .viz.render import render_field
 
     render_field(
         points, values, title=title, bar_title=bar_title, camera=args.camera, window_size=args.size or (800, 600),
@@ -756,7 +758,7 @@ def _cmd_curvature(args) -> int:
     from tqdm import tqdm
 
     from .geometry import curvature_method
-    from .io import read
+    from .scans.io import read
 
     if args.method is not None and args.quantity != "mean":
         raise UserError(f"--method applies to --quantity mean only (Gaussian and principal curvatures always come "
@@ -807,7 +809,7 @@ def _cmd_curvature(args) -> int:
 def _cmd_geodesic(args) -> int:
     from tqdm import tqdm
 
-    from .io import read
+    from .scans.io import read
 
     out = _png_target(args)
     t0 = time.perf_counter()

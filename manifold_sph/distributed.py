@@ -22,7 +22,7 @@ What is not local is refused or handled globally:
 - Estimated normals: each tile fits and orients its normals consistently; the tiles'
   signs are made to agree through the particles their halos share, and each
   connected group of tiles is then turned outward by the winding-number check of
-  :func:`manifold_sph.normals.orient_normals` on a subsample.
+  :func:`manifold_sph.scans.normals.orient_normals` on a subsample.
 
 Results are Dask arrays in *tile order* (one chunk per tile; :attr:`TiledSurface.order`
 maps them to the input order), written out with :meth:`TiledSurface.to_npy` (input
@@ -198,7 +198,7 @@ def _load_tile(path: str) -> _Tile:
 
 def _tile_surface(spts, snrm, opts, normal_options, estimate):
     """``(Surface, normals used)`` on tile + halo; normals estimated with a consistent orientation if asked."""
-    from .normals import estimate_normals
+    from .scans.normals import estimate_normals
     from .surface import Surface
 
     if estimate:
@@ -215,7 +215,7 @@ def _complete_rows(s, spts, n_own, margin, opts, normal_options, estimate, kq):
     normals (jet fit, two refits) -> smoothing length -> neighbourhood (the
     normal filter looks at every point in the support) -> area element -> row.
     """
-    from .normals import DEFAULT_JET_K
+    from .scans.normals import DEFAULT_JET_K
 
     ns = spts.shape[0]
     nb = s.neighborhood
@@ -454,7 +454,7 @@ class TiledSurface:
     ----------
     source : array_like (N, 3), PointCloud, or str / Path
         Points in memory, a ``.npy`` file (read through a memory map), a LAS/LAZ file
-        (read in chunks with laspy) or any file :func:`manifold_sph.io.read` reads
+        (read in chunks with laspy) or any file :func:`manifold_sph.scans.io.read` reads
         (with its normals, if it stores some).
     normals : array_like (N, 3), str or None
         Normals (or a ``.npy`` file of them). ``None``: taken from ``source`` when it
@@ -513,7 +513,8 @@ class TiledSurface:
     Examples
     --------
     >>> import numpy as np
-    >>> from manifold_sph import Surface, shapes
+    >>> from manifold_sph import Surface
+    >>> from manifold_sph.reference import shapes
     >>> from manifold_sph.distributed import TiledSurface
     >>> cloud = shapes.sphere(1500)
     >>> ts = TiledSurface(cloud.points, cloud.normals, tile_points=400, scheduler="synchronous")
@@ -705,7 +706,7 @@ class TiledSurface:
             elif suffix in (".las", ".laz"):
                 pts = self._read_las(path)
             else:
-                from .io import read
+                from .scans.io import read
 
                 cloud = read(path)
                 pts, nrm = cloud.points, cloud.normals
@@ -818,7 +819,7 @@ class TiledSurface:
     # ------------------------------------------------------------------ build
     def _normal_k(self) -> int:
         """Nearest neighbours of the normal estimation (estimate_normals' default for the options)."""
-        from .normals import DEFAULT_JET_K
+        from .scans.normals import DEFAULT_JET_K
 
         k = self.normal_options.get("k")
         if k is None:
@@ -911,7 +912,7 @@ class TiledSurface:
                 p = pred[node]
                 sign[node] = sign[p] * (1.0 if A[node, p] > 0 else -1.0)
         # outward: the winding-number check on a subsample, per connected group of tiles
-        from .normals import orient_normals
+        from .scans.normals import orient_normals
 
         pts = np.load(self._points_file, mmap_mode="r")
         take = np.unique(np.linspace(0, self.n_points - 1, min(_ORIENT_SAMPLE, self.n_points)).round().astype(np.int64))

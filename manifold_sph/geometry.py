@@ -110,7 +110,8 @@ def mean_curvature(surface: Surface, method: str = "auto") -> np.ndarray:
     Examples
     --------
     >>> import numpy as np
-    >>> from manifold_sph import Surface, shapes
+    >>> from manifold_sph import Surface
+    >>> from manifold_sph.reference import shapes
     >>> s = Surface(shapes.sphere(4000, radius=2.0), scheme="msph")
     >>> bool(np.allclose(mean_curvature(s), 0.5, rtol=1e-3))
     True
@@ -270,7 +271,8 @@ def geodesic_distance(surface: Surface, sources: ArrayLike, **options: Any) -> n
     Examples
     --------
     >>> import numpy as np
-    >>> from manifold_sph import Surface, shapes
+    >>> from manifold_sph import Surface
+    >>> from manifold_sph.reference import shapes
     >>> c = shapes.sphere(4000)
     >>> d = geodesic_distance(Surface(c, scheme="msph4"), 0)
     >>> exact = np.arccos(np.clip(c.points @ c.points[0], -1, 1))

@@ -142,7 +142,8 @@ class OperatorSet:
 
         Examples
         --------
-        >>> from manifold_sph import Surface, shapes
+        >>> from manifold_sph import Surface
+        >>> from manifold_sph.reference import shapes
         >>> s = Surface(shapes.sphere(500))
         >>> calls = []
         >>> first = s.cached("two", lambda: calls.append(1) or 2)
@@ -408,7 +409,8 @@ class OperatorSet:
         Examples
         --------
         >>> import numpy as np
-        >>> from manifold_sph import Surface, shapes
+        >>> from manifold_sph import Surface
+        >>> from manifold_sph.reference import shapes
         >>> s = Surface(shapes.sphere(1000))
         >>> K = s.stiffness_matrix()
         >>> bool(abs(K - K.T).max() == 0), bool(np.abs(K @ np.ones(1000)).max() < 1e-10)
@@ -459,7 +461,8 @@ class OperatorSet:
         Examples
         --------
         >>> import numpy as np
-        >>> from manifold_sph import Surface, shapes
+        >>> from manifold_sph import Surface
+        >>> from manifold_sph.reference import shapes
         >>> lam, V = Surface(shapes.sphere(2000)).eigs(4)     # 0, then l(l+1) = 2 three times
         >>> np.round(lam, 1).tolist()
         [0.0, 2.0, 2.0, 2.0]

@@ -97,7 +97,8 @@ def strong_form_is_stable(surface, *, maxiter: int = AUTO_MAXITER) -> bool:
 
     Examples
     --------
-    >>> from manifold_sph import Surface, shapes
+    >>> from manifold_sph import Surface
+    >>> from manifold_sph.reference import shapes
     >>> strong_form_is_stable(Surface(shapes.sphere(2000)))     # Fibonacci points
     True
     """
@@ -344,7 +345,8 @@ def explicit_dt_limit(surface, *, equation: str = "heat", diffusivity: float = 1
 
     Examples
     --------
-    >>> from manifold_sph import Surface, shapes
+    >>> from manifold_sph import Surface
+    >>> from manifold_sph.reference import shapes
     >>> s = Surface(shapes.sphere(1000), area="shepard")
     >>> heat_dt, wave_dt = explicit_dt_limit(s, diffusivity=2.0), explicit_dt_limit(s, equation="wave", c=2.0)
     >>> bool(0 < heat_dt < wave_dt)
@@ -447,7 +449,8 @@ def heat(
     Examples
     --------
     >>> import numpy as np
-    >>> from manifold_sph import Surface, shapes
+    >>> from manifold_sph import Surface
+    >>> from manifold_sph.reference import shapes
     >>> cloud = shapes.sphere(2000)
     >>> z = cloud.points[:, 2]                      # a degree-1 harmonic: decays as exp(-2 k t)
     >>> u = heat(Surface(cloud), z, dt=0.01, steps=10, method="crank-nicolson")
@@ -590,7 +593,8 @@ def wave(
     Examples
     --------
     >>> import numpy as np
-    >>> from manifold_sph import Surface, shapes
+    >>> from manifold_sph import Surface
+    >>> from manifold_sph.reference import shapes
     >>> cloud = shapes.sphere(2000)
     >>> z = cloud.points[:, 2]                      # Y_1: u = cos(sqrt(2) t) z
     >>> u = wave(Surface(cloud), z, dt=0.01, steps=100)
@@ -695,7 +699,8 @@ def poisson(surface, rhs, *, dirichlet=None, tol: float = 1e-3, laplacian="auto"
     Examples
     --------
     >>> import numpy as np
-    >>> from manifold_sph import Surface, shapes
+    >>> from manifold_sph import Surface
+    >>> from manifold_sph.reference import shapes
     >>> cloud = shapes.sphere(2000)
     >>> x = cloud.points
     >>> u = poisson(Surface(cloud), -12 * x.prod(axis=1))     # Lap_S(xyz) = -12 xyz
@@ -786,7 +791,8 @@ def screened_poisson(surface, rhs, alpha: float, *, laplacian="auto") -> np.ndar
     Examples
     --------
     >>> import numpy as np
-    >>> from manifold_sph import Surface, shapes
+    >>> from manifold_sph import Surface
+    >>> from manifold_sph.reference import shapes
     >>> cloud = shapes.sphere(2000)
     >>> z = cloud.points[:, 2]                      # (1 + 2 alpha) u = rhs for Y_1
     >>> u = screened_poisson(Surface(cloud), 3 * z, alpha=1.0)

@@ -11,7 +11,7 @@ from numpy.typing import ArrayLike
 from ._validation import as_points
 
 if TYPE_CHECKING:
-    from .shapes import ImplicitShape
+    from .reference.shapes import ImplicitShape
 
 __all__ = ["PointCloud", "MIN_POINTS"]
 
@@ -30,7 +30,7 @@ class PointCloud:
         Normals, normalised to unit length on input. Zero normals are rejected.
     geometry : object, optional
         The exact geometry the cloud samples (an implicit shape from
-        :mod:`manifold_sph.shapes`), giving exact references. ``None`` for scans.
+        :mod:`manifold_sph.reference.shapes`), giving exact references. ``None`` for scans.
     shape : object, optional
         Deprecated name of ``geometry`` (a DeprecationWarning says so).
 
@@ -85,7 +85,7 @@ class PointCloud:
                 )
             self._normals = nrm / length[:, None]
             self._normals.flags.writeable = False
-        #: The exact geometry the cloud samples (a :mod:`manifold_sph.shapes` shape), or None.
+        #: The exact geometry the cloud samples (a :mod:`manifold_sph.reference.shapes` shape), or None.
         self.geometry: ImplicitShape | None = geometry
 
     @property

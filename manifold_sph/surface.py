@@ -18,7 +18,7 @@ __all__ = ["Surface"]
 
 def _estimate_normals(points: np.ndarray) -> np.ndarray:
     try:
-        from .normals import estimate_normals
+        from .scans.normals import estimate_normals
     except ImportError:  # pragma: no cover - until the scan module lands
         raise ValueError(
             "normals are required: pass normals= (N, 3) or a PointCloud with normals "
@@ -40,7 +40,7 @@ class Surface(OperatorSet):
     normals : array_like, shape (N, 3), optional
         Unit (or unnormalised, non-zero) normals. When neither ``normals`` nor the
         PointCloud has them, they are estimated with
-        :func:`manifold_sph.normals.estimate_normals` (PCA, consistently oriented).
+        :func:`manifold_sph.scans.normals.estimate_normals` (PCA, consistently oriented).
     scheme : {"msph", "cspm", "ncsph", "standard", "msph3", "msph4", "msph5"} or Scheme
         ``"msph"`` by default: on uniformly random points cspm's Laplacian has
         O(1) errors (relative error 410 at N = 100,000, 3.0 at 2,000,000, measured
@@ -81,7 +81,8 @@ class Surface(OperatorSet):
     Examples
     --------
     >>> import numpy as np
-    >>> from manifold_sph import Surface, shapes
+    >>> from manifold_sph import Surface
+    >>> from manifold_sph.reference import shapes
     >>> cloud = shapes.sphere(2000)
     >>> s = Surface(cloud)
     >>> x = cloud.points

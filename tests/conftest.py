@@ -19,7 +19,7 @@ import pytest
 def gl_probe() -> tuple[bool, str]:
     """``(available, reason)`` of off-screen rendering here, probed once in a child process."""
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
-    code = "from manifold_sph.render import rendering_available as r; ok, why = r(); print(ok, why)"
+    code = "from manifold_sph.viz.render import rendering_available as r; ok, why = r(); print(ok, why)"
     try:
         res = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
     except subprocess.TimeoutExpired:

@@ -18,11 +18,11 @@ from pathlib import Path
 import pytest
 
 MODULES = [
-    "manifold_sph.shapes",
-    "manifold_sph.sampling",
-    "manifold_sph.functions",
-    "manifold_sph.errors",
-    "manifold_sph.accuracy",
+    "manifold_sph.reference.shapes",
+    "manifold_sph.reference.sampling",
+    "manifold_sph.reference.functions",
+    "manifold_sph.reference.errors",
+    "manifold_sph.reference.accuracy",
     "manifold_sph.kernels",
     "manifold_sph.schemes",
     "manifold_sph.schemes.base",
@@ -31,8 +31,8 @@ MODULES = [
     "manifold_sph.schemes.msph4",
     "manifold_sph.schemes.ncsph",
     "manifold_sph.schemes.standard",
-    "manifold_sph.render",
-    "manifold_sph.plots",
+    "manifold_sph.viz.render",
+    "manifold_sph.viz.plots",
     "manifold_sph.voronoi",
     "manifold_sph.frames",
     "manifold_sph.neighbors",

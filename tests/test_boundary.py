@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 from scipy.sparse import csgraph
 
-from manifold_sph import Surface, shapes
-from manifold_sph.boundary import angular_gaps, detect_boundary
+from manifold_sph import Surface
+from manifold_sph.reference import shapes
+from manifold_sph.scans.boundary import angular_gaps, detect_boundary
 from manifold_sph.pde import heat
 
 
@@ -134,7 +135,7 @@ def _mesh_reference(name):
     path = MODELS / f"{name}.obj"
     if not path.is_file():
         pytest.skip(f"{path} not found (the models live outside the repository)")
-    from manifold_sph.io import mesh_vertex_normals, read_mesh
+    from manifold_sph.scans.io import mesh_vertex_normals, read_mesh
 
     v, f = read_mesh(path)
     u, inv = np.unique(v, axis=0, return_inverse=True)

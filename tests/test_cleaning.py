@@ -5,8 +5,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from manifold_sph import PointCloud, shapes
-from manifold_sph.cleaning import clean, merge_duplicates, remove_outliers, voxel_downsample
+from manifold_sph import PointCloud
+from manifold_sph.reference import shapes
+from manifold_sph.scans.cleaning import clean, merge_duplicates, remove_outliers, voxel_downsample
 
 
 @pytest.fixture(scope="module")
@@ -145,7 +146,7 @@ def test_models_lose_almost_nothing(name):
     path = DATA / "models" / f"{name}.obj"
     if not path.is_file():
         pytest.skip(f"{path} not found (the models live outside the repository)")
-    from manifold_sph.io import read
+    from manifold_sph.scans.io import read
 
     import warnings
 
@@ -167,7 +168,7 @@ def test_far_outliers_of_a_dense_cloud_are_caught():
     """50,000 Fibonacci points and 1 % outliers uniform in the bounding box: far from the surface the
     outliers have only each other as neighbours (a volumetric clump), and are caught; points within
     two spacings of the sphere look like samples and may stay."""
-    from manifold_sph import shapes
+    from manifold_sph.reference import shapes
 
     p = shapes.sphere(50000).points
     rng = np.random.default_rng(5)

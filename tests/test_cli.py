@@ -54,7 +54,7 @@ import pytest  # noqa: E402
 
 def _gl() -> bool:
     env = {k: v for k, v in os.environ.items() if k != "DISPLAY"}
-    code = "from manifold_sph.render import rendering_available as r; print(r()[0])"
+    code = "from manifold_sph.viz.render import rendering_available as r; print(r()[0])"
     try:
         res = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
     except subprocess.TimeoutExpired:
@@ -120,8 +120,8 @@ def test_poisson(capsys):
 
 @pytest.mark.skipif(not _GL, reason="off-screen rendering is not available here")
 def test_render_file(tmp_path, capsys):
-    from manifold_sph import shapes
-    from manifold_sph.io import write
+    from manifold_sph.reference import shapes
+    from manifold_sph.scans.io import write
 
     cloud = shapes.torus(800)
     src = tmp_path / "t.ply"
@@ -153,8 +153,8 @@ def test_convergence_plot_file(tmp_path, capsys):
 
 
 def test_operators_from_file(tmp_path, capsys):
-    from manifold_sph import shapes
-    from manifold_sph.io import write
+    from manifold_sph.reference import shapes
+    from manifold_sph.scans.io import write
 
     src = tmp_path / "s.ply"
     write(src, shapes.sphere(1002))
@@ -181,8 +181,8 @@ def test_spem_subcommand_through_the_main_cli(capsys):
 @pytest.fixture
 def unit_sphere_file(tmp_path):
     """800 Fibonacci points of the unit sphere with their exact normals, as a PLY file."""
-    from manifold_sph import shapes
-    from manifold_sph.io import write
+    from manifold_sph.reference import shapes
+    from manifold_sph.scans.io import write
 
     path = tmp_path / "sphere.ply"
     write(path, shapes.sphere(800))
@@ -209,8 +209,8 @@ def test_curvature_on_the_unit_sphere(unit_sphere_file, tmp_path, capsys):
 
 
 def test_curvature_with_estimated_normals(tmp_path, capsys):
-    from manifold_sph import shapes
-    from manifold_sph.io import write
+    from manifold_sph.reference import shapes
+    from manifold_sph.scans.io import write
 
     path = tmp_path / "bare.xyz"
     write(path, shapes.sphere(800).points)  # no normals in the file: Surface estimates them

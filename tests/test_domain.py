@@ -176,7 +176,7 @@ def test_field_shape_errors(domains):
 def test_poisson_square_exactness(n):
     """Issue targets on Poisson-disk points of [-1, 1]^2 without mirroring: msph exact on
     quadratics (gradient and Laplacian), ncsph's Laplacian too, cspm's gradient on linear ones."""
-    from manifold_sph import shapes
+    from manifold_sph.reference import shapes
 
     p = shapes.square(n, sampling="poisson", seed=0)
     f, g, lap = quadratic(p)

@@ -1,4 +1,4 @@
-"""Tests of manifold_sph.errors: pointwise/global measures, boxplot, convergence orders."""
+"""Tests of manifold_sph.reference.errors: pointwise/global measures, boxplot, convergence orders."""
 
 import json
 import math
@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from manifold_sph.errors import (
+from manifold_sph.reference.errors import (
     BoxplotSummary,
     ConvergenceTable,
     absolute_error,

@@ -30,7 +30,7 @@ def test_examples_exist():
 
 @pytest.mark.parametrize("name", NAMES)
 def test_example_quick(name, tmp_path, capsys):
-    from manifold_sph.render import rendering_available
+    from manifold_sph.viz.render import rendering_available
 
     mod = _load(name)
     assert mod.main(["--out", str(tmp_path), "--quick"]) == 0

@@ -1,12 +1,12 @@
-"""Tests of manifold_sph.functions: exact derivatives and the sphere fields of [1] (docs/method.md)."""
+"""Tests of manifold_sph.reference.functions: exact derivatives and the sphere fields of [1] (docs/method.md)."""
 
 import math
 
 import numpy as np
 import pytest
 
-from manifold_sph import functions as fn
-from manifold_sph.shapes import Sphere
+from manifold_sph.reference import functions as fn
+from manifold_sph.reference.shapes import Sphere
 
 F3 = list(fn.SCALAR_FUNCTIONS.values())
 F2 = list(fn.PLANAR_FUNCTIONS.values())

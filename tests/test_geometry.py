@@ -7,7 +7,8 @@ import warnings
 import numpy as np
 import pytest
 
-from manifold_sph import Domain2D, Surface, geometry, sampling, shapes
+from manifold_sph import Domain2D, Surface, geometry
+from manifold_sph.reference import sampling, shapes
 
 
 def rel(a, b):

@@ -12,9 +12,9 @@ import warnings
 import numpy as np
 import pytest
 
-from manifold_sph import shapes
+from manifold_sph.reference import shapes
 from manifold_sph._validation import as_field, as_points
-from manifold_sph.io import ReadError, read, read_las_chunks, read_mesh, write
+from manifold_sph.scans.io import ReadError, read, read_las_chunks, read_mesh, write
 
 
 @pytest.fixture(scope="module")
@@ -43,7 +43,7 @@ def test_write_npy_never_appends_suffix(tmp_path, cloud):
 
 
 def test_write_is_atomic_no_partial_file_on_failure(tmp_path, cloud, monkeypatch):
-    import manifold_sph.io_write as iow
+    import manifold_sph.scans.io_write as iow
 
     def boom(fh, *args):
         fh.write(b"ply\nhalf a file")
@@ -59,7 +59,7 @@ def test_write_atomic_overwrite_keeps_old_file_until_complete(tmp_path, cloud, m
     path = tmp_path / "c.ply"
     write(path, cloud)
     before = path.read_bytes()
-    import manifold_sph.io_write as iow
+    import manifold_sph.scans.io_write as iow
 
     def boom(fh, *args):
         raise RuntimeError("disk full")

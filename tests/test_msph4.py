@@ -10,8 +10,9 @@ import warnings
 import numpy as np
 import pytest
 
-from manifold_sph import Domain2D, Surface, shapes
-from manifold_sph.accuracy import convergence, exact_operators, get_function, operator_errors
+from manifold_sph import Domain2D, Surface
+from manifold_sph.reference import shapes
+from manifold_sph.reference.accuracy import convergence, exact_operators, get_function, operator_errors
 from manifold_sph.schemes import SCHEMES, get_scheme
 from manifold_sph.schemes.base import LocalPairs
 from manifold_sph.schemes.msph4 import taylor_exponents

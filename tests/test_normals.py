@@ -5,8 +5,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from manifold_sph import shapes
-from manifold_sph.normals import estimate_normals, orient_normals, pca_normals
+from manifold_sph.reference import shapes
+from manifold_sph.scans.normals import estimate_normals, orient_normals, pca_normals
 
 
 def dots(a, b):
@@ -206,7 +206,7 @@ MODELS = Path(__file__).resolve().parents[2] / "shared" / "data" / "models"
 
 
 def _mesh_reference(name):
-    from manifold_sph.io import read_mesh
+    from manifold_sph.scans.io import read_mesh
 
     path = MODELS / name
     if not path.exists():
@@ -286,7 +286,7 @@ def test_default_k_needs_enough_points():
 
 
 def test_winding_number_numpy_and_compiled_agree(monkeypatch):
-    from manifold_sph import normals as mod
+    from manifold_sph.scans import normals as mod
 
     c = shapes.sphere(400)
     area = np.full(400, 4 * np.pi / 400)

@@ -4,8 +4,9 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from manifold_sph import Domain2D, Surface, functions, pde, shapes
-from manifold_sph.accuracy import exact_operators
+from manifold_sph import Domain2D, Surface, pde
+from manifold_sph.reference import functions, shapes
+from manifold_sph.reference.accuracy import exact_operators
 
 
 @pytest.fixture(scope="module")

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from manifold_sph.errors import boxplot_summary, convergence_study
-from manifold_sph.plots import area_histogram, convergence_plot, error_boxplot, save_figure
+from manifold_sph.reference.errors import boxplot_summary, convergence_study
+from manifold_sph.viz.plots import area_histogram, convergence_plot, error_boxplot, save_figure
 
 
 @pytest.fixture()

@@ -52,7 +52,7 @@ def test_non_numeric_is_a_type_error():
 def test_geometry_replaces_the_shape_name():
     """``PointCloud.shape`` read like numpy's array shape but held the sampled geometry: it is now
     ``geometry``; the old name still works for one release, with a DeprecationWarning."""
-    from manifold_sph import shapes
+    from manifold_sph.reference import shapes
 
     c = shapes.sphere(50)
     assert c.geometry is not None and c.geometry.name == "sphere"
@@ -79,7 +79,8 @@ def test_uniformly_short_normals_are_not_zero():
 
 
 def test_negative_h_array_is_named_as_negative_not_as_a_shape():
-    from manifold_sph import Surface, shapes
+    from manifold_sph import Surface
+    from manifold_sph.reference import shapes
 
     c = shapes.sphere(200)
     h = np.full(200, 0.2)

@@ -1,4 +1,4 @@
-"""Tests of manifold_sph.sampling and of the samplings of the shapes."""
+"""Tests of manifold_sph.reference.sampling and of the samplings of the shapes."""
 
 import math
 import time
@@ -6,8 +6,8 @@ import time
 import numpy as np
 import pytest
 
-from manifold_sph import sampling as S
-from manifold_sph.sampling import (
+from manifold_sph.reference import sampling as S
+from manifold_sph.reference.sampling import (
     fibonacci_sphere,
     local_density,
     nearest_neighbor_cv,
@@ -15,7 +15,7 @@ from manifold_sph.sampling import (
     sample_surface,
     square,
 )
-from manifold_sph.shapes import DoubleTorus, Sausage, Sphere, Torus
+from manifold_sph.reference.shapes import DoubleTorus, Sausage, Sphere, Torus
 
 SHAPES = {"sphere": Sphere(), "torus": Torus(), "double_torus": DoubleTorus(), "sausage": Sausage()}
 CASES = [(name, smp) for name, sh in SHAPES.items() for smp in sh.samplings]
@@ -209,7 +209,7 @@ def test_poisson_timing_large(name):
 def test_old_spelling_still_works_with_a_warning():
     """The public API spells "neighbor" (as find_neighbors, Neighborhood, neighbors=); the British
     names of the sampling helpers remain for one release."""
-    import manifold_sph.sampling as smp
+    import manifold_sph.reference.sampling as smp
 
     with pytest.warns(DeprecationWarning, match="use nearest_neighbor_cv"):
         assert smp.nearest_neighbour_cv is nearest_neighbor_cv

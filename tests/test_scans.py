@@ -14,12 +14,13 @@ import numpy as np
 import pytest
 from scipy.sparse import csgraph
 
-from manifold_sph import Surface, functions, shapes
-from manifold_sph.accuracy import operator_errors
-from manifold_sph.boundary import detect_boundary
-from manifold_sph.cleaning import clean
-from manifold_sph.io import read
-from manifold_sph.normals import estimate_normals
+from manifold_sph import Surface
+from manifold_sph.reference import functions, shapes
+from manifold_sph.reference.accuracy import operator_errors
+from manifold_sph.scans.boundary import detect_boundary
+from manifold_sph.scans.cleaning import clean
+from manifold_sph.scans.io import read
+from manifold_sph.scans.normals import estimate_normals
 from manifold_sph.pde import heat
 
 SCANS = Path(os.environ.get("MANIFOLD_SPH_SCANS", Path(__file__).resolve().parents[2] / "shared" / "data" / "scans"))
@@ -87,7 +88,8 @@ def test_synthetic_scan_pipeline(tmp_path):
     dirty = np.vstack([p, p[:25], rng.uniform(-3, 3, size=(5, 3)) + [4.0, 0, 0]])
     path = tmp_path / "scan.xyz"
     np.savetxt(path, dirty)
-    cloud, fields = read(path, duplicates="merge", return_fields=True)
+    with pytest.warns(RuntimeWarning, match="merged 25 exact duplicate"):
+        cloud, fields = read(path, duplicates="merge", return_fields=True)
     assert len(cloud) == len(p) + 5 and cloud.normals is None
     cleaned = clean(cloud)
     assert len(cleaned.points) == len(p)

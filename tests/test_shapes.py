@@ -1,4 +1,4 @@
-"""Tests of manifold_sph.shapes: implicit geometry and its exact references.
+"""Tests of manifold_sph.reference.shapes: implicit geometry and its exact references.
 
 Independent checks:
 * sphere: spherical harmonics (Lap_S Y_l = -l(l+1)/r^2 Y_l);
@@ -16,10 +16,10 @@ import math
 import numpy as np
 import pytest
 
-from manifold_sph import functions as fn
-from manifold_sph.functions import VectorField
+from manifold_sph.reference import functions as fn
+from manifold_sph.reference.functions import VectorField
 from manifold_sph.pointcloud import PointCloud
-from manifold_sph.shapes import (
+from manifold_sph.reference.shapes import (
     DoubleTorus,
     ImplicitShape,
     Sausage,

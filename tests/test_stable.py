@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from manifold_sph import Domain2D, Surface, pde, shapes
+from manifold_sph import Domain2D, Surface, pde
+from manifold_sph.reference import shapes
 from manifold_sph.voronoi import voronoi_cells
 
 EXACT = np.concatenate([[l * (l + 1)] * (2 * l + 1) for l in range(1, 4)])  # 15 eigenvalues of -Lap on S^2

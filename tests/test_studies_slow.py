@@ -2,8 +2,8 @@
 
 import pytest
 
-from manifold_sph import shapes
-from manifold_sph.accuracy import convergence, operator_errors
+from manifold_sph.reference import shapes
+from manifold_sph.reference.accuracy import convergence, operator_errors
 
 pytestmark = pytest.mark.slow
 

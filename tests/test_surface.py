@@ -3,8 +3,9 @@
 import numpy as np
 import pytest
 
-from manifold_sph import Surface, functions, shapes
-from manifold_sph.accuracy import operator_errors
+from manifold_sph import Surface
+from manifold_sph.reference import functions, shapes
+from manifold_sph.reference.accuracy import operator_errors
 
 SCHEMES = ["standard", "cspm", "msph", "ncsph"]
 
@@ -212,7 +213,7 @@ def test_seed_sphere_field_divergence_order_away_from_poles(name):
 def test_numerical_area_without_convergence_falls_back_for_large_clouds(monkeypatch):
     # above LU_MAX_ROWS a failed BiCGSTAB is not retried with a (minutes-long) sparse LU: Shepard, warned
     import manifold_sph.area as area_mod
-    from manifold_sph import shapes as _shapes
+    from manifold_sph.reference import shapes as _shapes
 
     monkeypatch.setattr(area_mod, "LU_MAX_ROWS", 100)
     monkeypatch.setattr(area_mod, "bicgstab_csr", lambda A, b, *a, **k: (np.zeros(b.shape), 5))

@@ -206,7 +206,8 @@ class MSPH4(HighOrderCorrected):
     Examples
     --------
     >>> import numpy as np
-    >>> from manifold_sph import Surface, shapes
+    >>> from manifold_sph import Surface
+    >>> from manifold_sph.reference import shapes
     >>> cloud = shapes.sphere(2012)
     >>> s = Surface(cloud, scheme="msph4")
     >>> x = cloud.points

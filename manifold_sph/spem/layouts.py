@@ -176,10 +176,10 @@ def jitter(layout: Layout, amplitude: float = 0.2, seed=0) -> Layout:
 def poisson_layout(bounds, dr, seed=0) -> Layout:
     """Independent near-uniform random E and H sets with mean spacing ``dr`` and E on the walls.
 
-    The free particles come from :func:`manifold_sph.sampling.square` (a
+    The free particles come from :func:`manifold_sph.reference.sampling.square` (a
     relaxed, Poisson-disk-like sampling); Hx and Hy share the H set.
     """
-    from ..sampling import square
+    from ..reference.sampling import square
 
     b, dr = _check_bounds(bounds, dr)
     x0, x1, y0, y1 = b

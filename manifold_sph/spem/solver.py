@@ -37,7 +37,7 @@ import scipy.sparse as sp
 from .._validation import check_in, check_int, check_positive
 from .constants import C0, EPS0, MU0
 from .layouts import Layout
-from .operators import cross_gradient, sbp_pair
+from .operators import SBP_LAYERS, cross_gradient, sbp_pair
 from .pml import PML
 from .sources import Source
 
@@ -228,6 +228,10 @@ class TMzSolver(_Leapfrog):
     workers : int
         2 runs the two independent sparse products of each half step on two
         threads (scipy releases the GIL in them).
+    sbp_layers : int or None
+        "sbp": rings of pairs around the unmet conditions that the correction
+        may change (default 2; None: the whole operator, better next to curved
+        walls at fine resolution but a slower set-up; :data:`.operators.SBP_LAYERS`).
 
     Attributes
     ----------
@@ -239,7 +243,7 @@ class TMzSolver(_Leapfrog):
 
     def __init__(self, layout: Layout, *, h=None, h_ratio: float = DEFAULT_H_RATIO, kernel="cubic", form="fpm",
                  eps_r=1.0, mu_r=1.0, sigma=0.0, pml: PML | None = None, dt=None, courant: float = 0.9, sources=(),
-                 coupling: str = DEFAULT_COUPLING, workers: int = 1):
+                 coupling: str = DEFAULT_COUPLING, workers: int = 1, sbp_layers=SBP_LAYERS):
         if not isinstance(layout, Layout):
             raise TypeError(f"layout must be a Layout, got {type(layout).__name__}")
         if pml is not None and not isinstance(pml, PML):
@@ -249,6 +253,7 @@ class TMzSolver(_Leapfrog):
         self.kernel, self.form = kernel, form
         self.coupling = check_in("coupling", coupling, COUPLINGS)
         self.workers = check_int("workers", workers, minimum=1)
+        self.sbp_layers = None if sbp_layers is None else check_int("sbp_layers", sbp_layers, minimum=0)
         self.n_e = len(layout.e)
         self._set_materials(eps_r, mu_r, sigma)
         self._set_sources(sources)
@@ -338,7 +343,7 @@ class TMzSolver(_Leapfrog):
         for D, (axis, cols, name) in zip(Ds, ((0, hy, ny), (1, hx, nx))):
             B = self._gradient(cols, e, axis, name, "E particles")[:, wall] if len(wall) else None
             D, B = sbp_pair(D, er, cols, axis, ones_r, np.ones(len(cols)), B, ew if len(wall) else None,
-                            scale=lay.dr, degree=degree)
+                            scale=lay.dr, degree=degree, layers=self.sbp_layers)
             G = self._expand(-D.T, rows)
             if B is not None:
                 G = G + self._expand(B, wall)

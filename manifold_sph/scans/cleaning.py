@@ -1,0 +1,420 @@
+"""Cleaning raw scans: duplicates, outliers, voxel downsampling.
+
+Outliers are judged against each point's own neighbourhood (density-adaptive),
+not a global statistic: see :func:`remove_outliers`.
+
+Each function takes points (N, 3) (or a :class:`~manifold_sph.PointCloud`) and
+optional normals, and returns a :class:`CleanResult` saying what it removed.
+:func:`clean` chains them. All are deterministic and vectorised.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse import csgraph
+from scipy.spatial import cKDTree
+
+from .._validation import as_points, check_int, check_positive
+from ..pointcloud import PointCloud
+from ..threads import get_num_threads
+
+__all__ = ["CleanResult", "merge_duplicates", "remove_outliers", "voxel_downsample", "clean"]
+
+
+@dataclass(frozen=True)
+class CleanResult:
+    """The cleaned points and what was removed.
+
+    Attributes
+    ----------
+    points : ndarray, shape (M, 3)
+    normals : ndarray, shape (M, 3), or None
+    keep_mask : ndarray of bool, shape (N,)
+        Input points kept (for merges: the representative of each group).
+    groups : ndarray of int, shape (N,)
+        Output row each input point went into, -1 for removed points.
+    report : str
+        One line per step: what was removed and why.
+    """
+
+    points: np.ndarray
+    normals: np.ndarray | None
+    keep_mask: np.ndarray
+    groups: np.ndarray
+    report: str
+
+    @property
+    def n_removed(self) -> int:
+        """Number of input points that are not in the output as themselves."""
+        return int(self.keep_mask.size - self.keep_mask.sum())
+
+    @property
+    def removed(self) -> np.ndarray:
+        """Indices of the input points not kept."""
+        return np.flatnonzero(~self.keep_mask)
+
+    def to_cloud(self) -> PointCloud:
+        """The result as a :class:`~manifold_sph.PointCloud`."""
+        return PointCloud(self.points, self.normals)
+
+    def __str__(self) -> str:
+        return self.report
+
+
+def _inputs(points, normals):
+    if isinstance(points, PointCloud):
+        if normals is None:
+            normals = points.normals
+        points = points.points
+    pts = as_points("points", points)
+    nrm = None
+    if normals is not None:
+        nrm = as_points("normals", normals)
+        if nrm.shape != pts.shape:
+            raise ValueError(f"normals must have shape {pts.shape} to match points, got shape {nrm.shape}")
+    return pts, nrm
+
+
+def _group_mean(labels, n_groups, values):
+    counts = np.bincount(labels, minlength=n_groups).astype(np.float64)
+    return np.stack([np.bincount(labels, weights=values[:, a], minlength=n_groups) for a in range(values.shape[1])], axis=1) / counts[:, None]
+
+
+def _average_normals(labels, n_groups, nrm, rep):
+    """Mean normal per group, each member's sign aligned with the representative's."""
+    s = np.sign(np.einsum("ij,ij->i", nrm, nrm[rep[labels]]))
+    s[s == 0] = 1.0
+    m = _group_mean(labels, n_groups, nrm * s[:, None])
+    norm = np.linalg.norm(m, axis=1, keepdims=True)
+    return np.where(norm > 0, m / np.where(norm > 0, norm, 1.0), nrm[rep])
+
+
+def merge_duplicates(points, normals=None, *, tolerance: float = 0.0) -> CleanResult:
+    """Merge points closer than ``tolerance`` (exact repeats with ``tolerance=0``).
+
+    Points joined by chains of pairs closer than ``tolerance`` form one group,
+    replaced by its mean position (exact repeats: the point itself) and its
+    mean normal (signs aligned). The representative is the group's first index.
+
+    Parameters
+    ----------
+    points : array_like, shape (N, 3), or PointCloud
+    normals : array_like, shape (N, 3), optional
+    tolerance : float
+        Merge distance (>= 0).
+
+    Returns
+    -------
+    CleanResult
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> p = np.array([[0.0, 0, 0], [1, 0, 0], [0, 0, 0], [1, 0, 1e-9]])
+    >>> r = merge_duplicates(p, tolerance=1e-6)
+    >>> r.points.shape, r.removed.tolist(), r.groups.tolist()
+    ((2, 3), [2, 3], [0, 1, 0, 1])
+    >>> r.report
+    'merge_duplicates: merged 2 of 4 points into 2 groups (tolerance 1e-06)'
+    """
+    pts, nrm = _inputs(points, normals)
+    tol = check_positive("tolerance", tolerance, allow_zero=True)
+    n = pts.shape[0]
+    if tol == 0.0:
+        _, first, labels = np.unique(pts, axis=0, return_index=True, return_inverse=True)
+        labels = labels.ravel()
+    else:
+        pairs = cKDTree(pts).query_pairs(tol, output_type="ndarray")
+        G = sp.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)) if len(pairs) else sp.coo_matrix((n, n))
+        _, labels = csgraph.connected_components(G, directed=False)
+        first = np.full(labels.max() + 1, n)
+        np.minimum.at(first, labels, np.arange(n))
+    # number groups in order of their first member so the output keeps the input order
+    order = np.argsort(first)
+    rank = np.empty_like(order)
+    rank[order] = np.arange(order.size)
+    labels = rank[labels]
+    rep = first[order]
+    n_groups = rep.size
+    out_pts = pts[rep] if tol == 0.0 else _group_mean(labels, n_groups, pts)
+    out_nrm = None if nrm is None else _average_normals(labels, n_groups, nrm, rep)
+    keep = np.zeros(n, dtype=bool)
+    keep[rep] = True
+    n_merged = n - n_groups
+    multi = int((np.bincount(labels) > 1).sum())
+    report = f"merge_duplicates: merged {n_merged} of {n} points into {multi} groups (tolerance {tol:g})"
+    return CleanResult(out_pts, out_nrm, keep, labels.astype(np.int64), report)
+
+
+def _local_outlier_scores(pts, k):
+    """Density-adaptive outlier measures from the ``k`` nearest neighbours (vectorised).
+
+    Returns ``(ratio, offset, small_volumetric)``: the mean neighbour distance
+    over the median of the neighbours' own (a local-outlier-factor style
+    ratio); the distance to the nearest of the three closest neighbours'
+    local planes over that neighbour's tangential spread; and membership of a
+    piece of the mutual-k-NN graph that is small (at most k points, or under
+    5 % of the cloud) and whose median neighbourhood is volumetric (smallest PCA
+    eigenvalue > 10 % of the sum), which is how clumps of outliers look: far
+    from the surface, outliers have only each other as neighbours.
+    """
+    n = pts.shape[0]
+    dist, idx = cKDTree(pts).query(pts, k=k + 1, workers=get_num_threads())
+    nb = idx[:, 1:]
+    r = dist[:, 1:].mean(axis=1)
+    ref = np.median(r[nb], axis=1)
+    ratio = np.where(ref > 0, r / np.where(ref > 0, ref, 1.0), np.where(r > 0, np.inf, 1.0))
+    q = pts[idx]
+    c = q.mean(axis=1)
+    X = q - c[:, None, :]
+    w, V = np.linalg.eigh(np.einsum("nki,nkj->nij", X, X) / (k + 1))
+    w = np.maximum(w, 0.0)
+    spread = np.sqrt(w[:, 1] + w[:, 2])
+    j = nb[:, : min(3, k)]
+    h = np.abs(np.einsum("nmd,nmd->nm", pts[:, None, :] - c[j], V[j, :, 0]))
+    sj = spread[j]
+    offset = np.where(sj > 0, h / np.where(sj > 0, sj, 1.0), np.where(h > 0, np.inf, 0.0)).min(axis=1)
+    planarity = w[:, 0] / np.maximum(w.sum(axis=1), np.finfo(float).tiny)
+    rows = np.repeat(np.arange(n), k)
+    A = sp.csr_matrix((np.ones(rows.size), (rows, nb.ravel())), shape=(n, n))
+    _, lab = csgraph.connected_components(A.multiply(A.T), directed=False)
+    size = np.bincount(lab)
+    order = np.lexsort((planarity, lab))
+    first = np.concatenate([[0], np.cumsum(size)[:-1]])
+    median_pl = planarity[order][first + size // 2]
+    small_volumetric = (median_pl[lab] > 0.1) & ((size[lab] <= k) | (size[lab] < 0.05 * n))
+    return ratio, offset, small_volumetric
+
+
+def remove_outliers(
+    points,
+    normals=None,
+    *,
+    k: int = 16,
+    std_ratio: float = 3.0,
+    method: str = "local",
+    ratio: float = 3.0,
+    max_offset: float = 1.5,
+) -> CleanResult:
+    """Outlier removal, density-adaptive by default.
+
+    ``method="local"`` (default) compares every point with its own
+    neighbourhood, never with a global statistic, so that a cloud whose
+    density varies (fine detail next to coarse parts) is left alone. A point
+    is removed when any of these holds:
+
+    - its mean distance to its ``k`` nearest neighbours exceeds ``ratio``
+      times the median of the same quantity over those neighbours (a
+      local-outlier-factor style ratio: stray points in empty space);
+    - its distance to the local planes of its three nearest neighbours
+      (PCA over each one's ``k`` neighbours) exceeds ``max_offset`` times that
+      neighbour's tangential spread (points hovering off the surface);
+    - it belongs to a clump (a piece of the mutual-k-NN graph with at most ``k``
+      points or under 5 % of the cloud) whose neighbourhoods are volumetric,
+      not surface-like: outliers far from the surface, which have only each
+      other as neighbours and so pass the ratio test.
+
+    Measured (k = 16) on public noise-free test meshes (cow, homer, rocker-arm, ...) and the
+    scans, used as bare points: at most 0.1 % removed (cow 0.07 %, rocker-arm
+    0.01 %, homer, cheburashka, teapot, alligator, bunny, Igea 0 %), except
+    the coarse beetle (0.7 %). Of 1 % injected outliers (uniform in the
+    bounding box) 93 % are caught on Igea and 86 % on the bunny; the misses
+    lie within about 2 spacings of the surface (median 1.0 on Igea), where
+    they are indistinguishable from samples. On the coarse models (a few
+    thousand vertices, so only 11-100 outliers) 27-76 % are caught: there a
+    uniform outlier often lands within a few (large) spacings of the surface
+    or inside a thin part.
+
+    ``method="statistical"`` is the former rule (PCL, open3d): removed when
+    the mean distance to the ``k`` neighbours exceeds the cloud's mean of that
+    quantity by ``std_ratio`` standard deviations; it removes 1-2 % of a
+    noise-free model of varying density.
+
+    Parameters
+    ----------
+    points : array_like, shape (N, 3), or PointCloud
+    normals : array_like, shape (N, 3), optional
+    k : int
+        Neighbours (not counting the point itself), at least 1 and below N
+        (at least 3 for ``method="local"``).
+    std_ratio : float
+        Threshold in standard deviations (> 0), for ``method="statistical"``.
+    method : {"local", "statistical"}
+    ratio : float
+        Local distance ratio threshold (> 1), for ``method="local"``.
+    max_offset : float
+        Off-plane threshold in units of the local spacing (> 0), for ``method="local"``.
+
+    Returns
+    -------
+    CleanResult
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from manifold_sph.reference import shapes
+    >>> p = np.vstack([shapes.sphere(500).points, [[3.0, 0, 0], [0, -4.0, 1]]])
+    >>> r = remove_outliers(p)
+    >>> r.removed.tolist()
+    [500, 501]
+    """
+    pts, nrm = _inputs(points, normals)
+    n = pts.shape[0]
+    k = check_int("k", k, minimum=1)
+    if k >= n:
+        raise ValueError(f"k must be smaller than the number of points {n}, got {k}")
+    std = check_positive("std_ratio", std_ratio)
+    if not isinstance(method, str) or method not in ("local", "statistical"):
+        raise ValueError(f"method must be one of ['local', 'statistical'], got {method!r}")
+    lim_ratio = check_positive("ratio", ratio)
+    if lim_ratio <= 1.0:
+        raise ValueError(f"ratio must be greater than 1, got {ratio!r}")
+    lim_off = check_positive("max_offset", max_offset)
+    if method == "statistical":
+        dist, _ = cKDTree(pts).query(pts, k=k + 1, workers=get_num_threads())
+        md = dist[:, 1:].mean(axis=1)
+        centre = md.mean()
+        spread = md.std()
+        limit = centre + std * spread
+        keep = md <= limit
+        why = (
+            f"whose mean distance to {k} neighbours exceeds {limit:.4g} (mean {centre:.4g} + {std:g} x std {spread:.3g})"
+        )
+    else:
+        if k < 3:
+            raise ValueError(f"k must be at least 3 for method='local', got {k}")
+        rat, off, clump = _local_outlier_scores(pts, k)
+        far, hover = rat > lim_ratio, off > lim_off
+        keep = ~(far | hover | clump)
+        why = (
+            f"(local, {k} neighbours): {int(far.sum())} with distance ratio > {lim_ratio:g}, "
+            f"{int(hover.sum())} more than {lim_off:g} spacings off the local planes, "
+            f"{int(clump.sum())} in volumetric clumps"
+        )
+    groups = np.full(n, -1, dtype=np.int64)
+    groups[keep] = np.arange(int(keep.sum()))
+    report = f"remove_outliers: removed {n - int(keep.sum())} of {n} points {why}"
+    return CleanResult(pts[keep], None if nrm is None else nrm[keep], keep, groups, report)
+
+
+def voxel_downsample(points, normals=None, *, voxel_size: float, mode: str = "nearest") -> CleanResult:
+    """Keep one point per occupied voxel of a cubic grid.
+
+    Parameters
+    ----------
+    points : array_like, shape (N, 3), or PointCloud
+    normals : array_like, shape (N, 3), optional
+    voxel_size : float
+        Edge of the voxels (> 0).
+    mode : {"nearest", "centroid"}
+        "nearest": the input point nearest to its voxel's centroid (an original
+        sample, normal kept); "centroid": the centroid itself (averages noise),
+        with the mean normal.
+
+    Returns
+    -------
+    CleanResult
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from manifold_sph.reference import shapes
+    >>> r = voxel_downsample(shapes.sphere(4000), voxel_size=0.1)
+    >>> bool(1000 < len(r.points) < 4000), r.normals.shape[1]
+    (True, 3)
+    """
+    pts, nrm = _inputs(points, normals)
+    size = check_positive("voxel_size", voxel_size)
+    if mode not in ("nearest", "centroid"):
+        raise ValueError(f"mode must be one of ['centroid', 'nearest'], got {mode!r}")
+    n = pts.shape[0]
+    cell = np.floor((pts - pts.min(axis=0)) / size).astype(np.int64)
+    _, first, labels = np.unique(cell, axis=0, return_index=True, return_inverse=True)
+    labels = labels.ravel()
+    order = np.argsort(first)
+    rank = np.empty_like(order)
+    rank[order] = np.arange(order.size)
+    labels = rank[labels]
+    n_groups = order.size
+    cent = _group_mean(labels, n_groups, pts)
+    d2 = np.einsum("ij,ij->i", pts - cent[labels], pts - cent[labels])
+    srt = np.lexsort((d2, labels))
+    rep = srt[np.searchsorted(labels[srt], np.arange(n_groups))]
+    keep = np.zeros(n, dtype=bool)
+    keep[rep] = True
+    if mode == "nearest":
+        out_pts = pts[rep]
+        out_nrm = None if nrm is None else nrm[rep]
+    else:
+        out_pts = cent
+        out_nrm = None if nrm is None else _average_normals(labels, n_groups, nrm, rep)
+    report = f"voxel_downsample: kept {n_groups} of {n} points ({n - n_groups} removed), voxel size {size:g}, mode {mode!r}"
+    return CleanResult(out_pts, out_nrm, keep, labels.astype(np.int64), report)
+
+
+def clean(
+    points,
+    normals=None,
+    *,
+    duplicate_tolerance: float = 0.0,
+    outliers: bool = True,
+    k: int = 16,
+    std_ratio: float = 3.0,
+    voxel_size: float | None = None,
+    outlier_method: str = "local",
+) -> CleanResult:
+    """Merge duplicates, remove outliers, then (optionally) voxel-downsample.
+
+    Parameters
+    ----------
+    points : array_like, shape (N, 3), or PointCloud
+    normals : array_like, shape (N, 3), optional
+    duplicate_tolerance : float
+        See :func:`merge_duplicates`.
+    outliers : bool
+        Run :func:`remove_outliers`.
+    k, std_ratio : int, float
+        See :func:`remove_outliers`.
+    voxel_size : float, optional
+        See :func:`voxel_downsample`.
+    outlier_method : {"local", "statistical"}
+        The ``method`` of :func:`remove_outliers` (default: density-adaptive).
+
+    Returns
+    -------
+    CleanResult
+        ``keep_mask`` and ``groups`` refer to the original input; ``report``
+        has one line per step.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from manifold_sph.reference import shapes
+    >>> p = shapes.sphere(300).points
+    >>> r = clean(np.vstack([p, p[:5], [[5.0, 5, 5]]]))
+    >>> len(r.points), r.n_removed
+    (300, 6)
+    >>> print(r.report)  # doctest: +ELLIPSIS
+    merge_duplicates: merged 5 of 306 points into 5 groups (tolerance 0)
+    remove_outliers: removed 1 of 301 points ...
+    """
+    pts, nrm = _inputs(points, normals)
+    n = pts.shape[0]
+    steps = [merge_duplicates(pts, nrm, tolerance=duplicate_tolerance)]
+    if outliers:
+        steps.append(remove_outliers(steps[-1].points, steps[-1].normals, k=k, std_ratio=std_ratio, method=outlier_method))
+    if voxel_size is not None:
+        steps.append(voxel_downsample(steps[-1].points, steps[-1].normals, voxel_size=voxel_size))
+    groups = np.arange(n)
+    for st in steps:
+        groups = np.where(groups >= 0, st.groups[np.maximum(groups, 0)], -1)
+    keep = np.zeros(n, dtype=bool)
+    idx = np.arange(n)
+    for st in steps:  # kept: survived every step as a representative
+        idx = idx[st.keep_mask]
+    keep[idx] = True
+    last = steps[-1]
+    return CleanResult(last.points, last.normals, keep, groups.astype(np.int64), "\n".join(s.report for s in steps))

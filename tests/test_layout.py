@@ -1,0 +1,46 @@
+"""The package layout: a flat core in pipeline order, and scans / reference / viz subpackages;
+the old flat paths of the moved modules still work for one release, with a DeprecationWarning."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+import manifold_sph
+
+MOVED = sorted(manifold_sph._MOVED.items())
+
+
+@pytest.mark.parametrize("old, new", MOVED)
+def test_old_paths_resolve_to_the_moved_module_with_a_warning(old, new):
+    # a fresh interpreter: the warning is given once, on the first import of the old path
+    code = (
+        "import warnings, importlib\n"
+        "warnings.simplefilter('always')\n"
+        "with warnings.catch_warnings(record=True) as w:\n"
+        f"    old = importlib.import_module('manifold_sph.{old}')\n"
+        f"new = importlib.import_module('manifold_sph.{new}')\n"
+        "assert old is new, (old, new)\n"
+        f"assert any('manifold_sph.{old} moved to manifold_sph.{new}' in str(x.message) and x.category is DeprecationWarning for x in w), [str(x.message) for x in w]\n"
+        "print('ok')\n"
+    )
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0 and res.stdout.strip() == "ok", res.stderr[-1500:]
+
+
+def test_attribute_access_to_old_names_warns():
+    with pytest.warns(DeprecationWarning, match="manifold_sph.shapes moved to manifold_sph.reference.shapes"):
+        shapes = manifold_sph.shapes
+    from manifold_sph.reference import shapes as new
+
+    assert shapes is new
+
+
+def test_every_submodule_is_an_attribute_and_the_core_does_not_import_viz():
+    for name in manifold_sph._SUBMODULES:
+        assert getattr(manifold_sph, name).__name__ == f"manifold_sph.{name}"
+    code = "import sys, manifold_sph; manifold_sph.Surface; print(any(m.startswith(('pyvista', 'manifold_sph.viz')) for m in sys.modules))"
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert res.stdout.strip() == "False", res.stdout + res.stderr[-800:]
