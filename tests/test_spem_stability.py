@@ -196,3 +196,13 @@ def test_sources_outside_the_domain_are_refused_not_snapped():
         point_source(lay.e, (1.0, 1.0), Sinusoid(1e9))
     with pytest.raises(ValueError, match=r"max_distance must be a finite positive number"):
         point_source(lay.e, (0.05, 0.05), Sinusoid(1e9), max_distance=0.0)
+
+
+def test_cli_offers_every_coupling_and_refuses_a_growing_one(capsys):
+    from manifold_sph.spem.cli import main
+
+    assert main(["cavity", "--coupling", "direct", "--n-radial", "10", "--json"]) == 2
+    assert "direct coupling is unstable" in capsys.readouterr().err
+    assert main(["cavity", "--coupling", "adjoint", "--n-radial", "6", "--json"]) == 0
+    assert main(["line1d", "--coupling", "adjoint"]) == 2  # the 1D line has no coupling choice
+    assert "--coupling does not apply to case 'line1d'" in capsys.readouterr().err
