@@ -799,12 +799,15 @@ class TiledSurface:
         out[self.order] = v
         return out
 
-    def close(self) -> None:
-        """Shut the LocalCluster down (if this object started it) and remove a temporary cache directory."""
+    def _shutdown(self) -> None:
         if self._own_cluster is not None:
             self._client.close()
             self._own_cluster.close()
             self._client = self._own_cluster = None
+
+    def close(self) -> None:
+        """Shut the LocalCluster down (if this object started it) and remove a temporary cache directory."""
+        self._shutdown()
         _TILE_CACHE.clear()
         _CACHE_SIZE.clear()
         if self._tmp and self.cache_dir.exists():
@@ -851,10 +854,28 @@ class TiledSurface:
                 "threads": 1 if self.scheduler != "synchronous" else None, "_fail": t in fail_tiles,
             })
         tasks = [delayed(_build_tile, pure=False)(s, dask_key_name=f"msph-tile-{self._key[:8]}-{s['tile']}") for s in specs]
-        results = self._compute(*tasks)
+        try:
+            results = self._compute(*tasks)
+        except Exception as exc:  # a worker died (out of memory?) or the cluster failed: name the tile if the key says
+            import re
+
+            self._shutdown()
+            found = re.search(r"msph-tile-[0-9a-f]+-(\d+)", str(exc))
+            where = ""
+            if found:
+                t = int(found.group(1))
+                where = (f" while building tile {t} (bounding box {np.round(boxes[t, 0], 6).tolist()} - "
+                         f"{np.round(boxes[t, 1], 6).tolist()}, {self.chunks[t]} points)")
+            raise TileBuildError(
+                f"the tile builds failed on the cluster{where}: {type(exc).__name__}: {exc}. A worker killed for "
+                "memory needs smaller tiles (tile_points) or a larger memory_limit; the finished tiles are kept in "
+                f"{str(self.cache_dir)!r} (pass it as cache_dir= to reuse them)",
+                [] if not found else [(t, boxes[t].tolist(), f"{type(exc).__name__}: {exc}")],
+            ) from exc
         failures = [(r["tile"], boxes[r["tile"]].tolist(), r["error"]) for r in results if "error" in r]
         self.report = results
         if failures:
+            self._shutdown()
             lines = [f"tile {t} (bounding box {np.round(b[0], 6).tolist()} - {np.round(b[1], 6).tolist()}, "
                      f"{self.chunks[t]} points): {msg}" for t, b, msg in failures]
             raise TileBuildError(
