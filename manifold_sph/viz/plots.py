@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .._validation import check_in, check_int, check_positive
+from .._validation import check_bool, check_in, check_int, check_output_path, check_positive
 from ..reference.errors import ConvergenceTable, boxplot_summary
 
 if TYPE_CHECKING:  # matplotlib loads only when a plot is made
@@ -95,18 +95,14 @@ def save_figure(fig: Figure, filename: str | os.PathLike[str], *, overwrite: boo
     >>> save_figure(fig, d / "a.png")
     Traceback (most recent call last):
     ...
-    FileExistsError: '...a.png' exists; pass overwrite=True to replace it
+    FileExistsError: filename '...a.png' exists; pass overwrite=True to replace it
     """
-    if not isinstance(overwrite, (bool, np.bool_)):
-        raise TypeError(f"overwrite must be True or False, got {type(overwrite).__name__} {overwrite!r}")
+    overwrite = check_bool("overwrite", overwrite)
     if not isinstance(filename, (str, os.PathLike)):
         raise TypeError(f"filename must be a str or path, got {type(filename).__name__}")
     path = Path(filename)
     check_in("the suffix of filename", path.suffix.lower(), (".png", ".pdf", ".svg"))
-    if path.exists() and not overwrite:
-        raise FileExistsError(f"{str(path)!r} exists; pass overwrite=True to replace it")
-    if not path.parent.exists():
-        raise ValueError(f"the folder of filename {str(path)!r} does not exist")
+    path = check_output_path("filename", path, overwrite)  # the package's one overwrite guard
     fig.savefig(path, dpi=check_int("dpi", dpi, minimum=10))
     return path
 

@@ -43,7 +43,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .._validation import as_field, as_points, check_bool, check_in, check_int, check_positive
+from .._validation import as_field, as_points, check_bool, check_in, check_int, check_output_path, check_positive
 
 if TYPE_CHECKING:  # no run-time imports: pyvista and the operator stack load only when used
     from ..operators import OperatorSet
@@ -112,11 +112,7 @@ def _check_target(filename, overwrite: bool, suffixes: tuple[str, ...]) -> Path:
     path = Path(filename)
     if path.suffix.lower() not in suffixes:
         raise ValueError(f"filename must end in {' or '.join(suffixes)}, got {str(path)!r}")
-    if path.exists() and not overwrite:
-        raise FileExistsError(f"{str(path)!r} exists; pass overwrite=True to replace it")
-    if not path.parent.exists():
-        raise ValueError(f"the folder of filename {str(path)!r} does not exist")
-    return path
+    return check_output_path("filename", path, overwrite)  # the package's one overwrite guard
 
 
 def save_png(image: ArrayLike, filename: str | os.PathLike[str], *, overwrite: bool = False) -> Path:
@@ -143,7 +139,7 @@ def save_png(image: ArrayLike, filename: str | os.PathLike[str], *, overwrite: b
     >>> save_png(np.zeros((4, 6, 3), np.uint8), d / "black.png")
     Traceback (most recent call last):
     ...
-    FileExistsError: '...black.png' exists; pass overwrite=True to replace it
+    FileExistsError: filename '...black.png' exists; pass overwrite=True to replace it
     """
     from PIL import Image
 
