@@ -215,7 +215,7 @@ def _numerical(A: sp.csr_matrix, nb: Neighborhood, xy: np.ndarray | PairOffsets,
             stacklevel=4,
         )
     else:
-        dV, _ = _solve_partition_of_unity(A)
+        dV, residual = _solve_partition_of_unity(A)  # its residual is that of A itself: not measured again
     fell_back = dV is None or not np.all(np.isfinite(dV))
     if fell_back:
         warnings.warn(
@@ -226,7 +226,8 @@ def _numerical(A: sp.csr_matrix, nb: Neighborhood, xy: np.ndarray | PairOffsets,
             stacklevel=4,
         )
         dV = 1.0 / np.asarray(A.sum(axis=1)).ravel()
-    residual = float(np.abs(A @ dV - 1.0).max())
+    if fell_back or close.size:  # merged groups: the residual of the full system
+        residual = float(np.abs(A @ dV - 1.0).max())
     return AreaElements(dV=dV, method="numerical", n_negative=int((dV < 0).sum()), residual=residual,
                         n_merged=n_merged, fell_back=fell_back)
 
