@@ -7,16 +7,7 @@
 - :mod:`.accuracy` (the operators' errors against the exact references).
 """
 
-import importlib as _importlib
+from .._lazy import lazy_submodules as _lazy
 
 _SUBMODULES = ('shapes', 'sampling', 'functions', 'errors', 'accuracy')
-
-
-def __getattr__(name: str):
-    if name in _SUBMODULES:
-        return _importlib.import_module(f"{__name__}.{name}")
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_SUBMODULES))
+__getattr__, __dir__ = _lazy(__name__, globals(), _SUBMODULES)

@@ -7,16 +7,7 @@
 - :mod:`.boundary` (``detect_boundary``: rims and holes).
 """
 
-import importlib as _importlib
+from .._lazy import lazy_submodules as _lazy
 
 _SUBMODULES = ('io', 'io_read', 'io_write', 'normals', 'cleaning', 'boundary')
-
-
-def __getattr__(name: str):
-    if name in _SUBMODULES:
-        return _importlib.import_module(f"{__name__}.{name}")
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_SUBMODULES))
+__getattr__, __dir__ = _lazy(__name__, globals(), _SUBMODULES)

@@ -1,15 +1,6 @@
 """Pictures: off-screen rendering with PyVista (:mod:`.render`) and matplotlib plots (:mod:`.plots`)."""
 
-import importlib as _importlib
+from .._lazy import lazy_submodules as _lazy
 
 _SUBMODULES = ('render', 'plots')
-
-
-def __getattr__(name: str):
-    if name in _SUBMODULES:
-        return _importlib.import_module(f"{__name__}.{name}")
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_SUBMODULES))
+__getattr__, __dir__ = _lazy(__name__, globals(), _SUBMODULES)
