@@ -104,6 +104,9 @@ def test_direct_coupling_is_refused_where_it_grows_and_the_message_says_why():
     # a wide kernel in a PEC square (h_ratio 1.5 grew 1e15 in 5000 steps)
     with pytest.raises(ValueError, match=r"direct coupling is unstable"):
         TMzSolver(yee_layout((0.0, A, 0.0, A), A / 12), coupling="direct", h_ratio=1.5)
+    # a Poisson layout: a mode grows so fast that its 10^4-step factor overflows a float; the message gives the exponent
+    with pytest.raises(ValueError, match=r"grows by [0-9.]+ per step \(10\^[0-9.e+]+ in 10\^4 steps\)"):
+        TMzSolver(make_layout("poisson", (0.0, A, 0.0, A), A / 19, seed=3), coupling="direct", h_ratio=1.0)
     s = TMzSolver(yee_layout((0.0, A, 0.0, A), A / 12), coupling="direct")  # stable here: accepted
     assert s.growth == pytest.approx(1.0, abs=1e-12)
 
