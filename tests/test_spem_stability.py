@@ -209,3 +209,12 @@ def test_cli_offers_every_coupling_and_refuses_a_growing_one(capsys):
     assert main(["cavity", "--coupling", "adjoint", "--n-radial", "6", "--json"]) == 0
     assert main(["line1d", "--coupling", "adjoint"]) == 2  # the 1D line has no coupling choice
     assert "--coupling does not apply to case 'line1d'" in capsys.readouterr().err
+
+
+def test_direct_coupling_on_a_large_layout_says_its_check_is_partial():
+    from manifold_sph.exceptions import ManifoldSPHWarning
+
+    lay = yee_layout((0.0, A, 0.0, A), A / 32)  # 961 free E particles: above the dense limit
+    with pytest.warns(ManifoldSPHWarning, match=r"only the extreme eigenvalues were checked \(partial stability check\)"):
+        s = TMzSolver(lay, coupling="direct")
+    assert s.growth == pytest.approx(1.0, abs=1e-12)

@@ -425,11 +425,13 @@ class TMzSolver(_Leapfrog):
         Every eigenvalue (dense) up to :data:`DENSE_SPECTRUM` free particles.
         Above, ARPACK gives only the eigenvalues of largest modulus, largest
         imaginary part and those nearest 0 (shift-invert): a partial check,
-        said in a RuntimeWarning (the "sbp" coupling has a proven bound).
+        said in a ManifoldSPHWarning (the "sbp" coupling has a proven bound).
         """
         import warnings
 
         from scipy.sparse.linalg import ArpackError, ArpackNoConvergence, eigs
+
+        from ..exceptions import ManifoldSPHWarning
 
         if getattr(self, "_spectrum", None) is not None:
             self._refuse_growth(self._spectrum)
@@ -452,7 +454,7 @@ class TMzSolver(_Leapfrog):
             warnings.warn(
                 f"direct coupling on {n} free E particles: only the extreme eigenvalues were checked (partial "
                 f"stability check); coupling='sbp' has a proven energy bound",
-                RuntimeWarning, stacklevel=4,
+                ManifoldSPHWarning, stacklevel=4,
             )
         rho = float(np.abs(lam).max())
         self._spectrum = np.where(np.abs(lam.imag) <= SPECTRUM_TOL * rho, lam.real, lam)  # round-off
