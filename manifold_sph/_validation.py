@@ -8,9 +8,12 @@ from __future__ import annotations
 
 import numbers
 import os
+from collections.abc import Collection
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 __all__ = [
     "as_points",
@@ -44,7 +47,7 @@ def check_finite(name: str, a: np.ndarray) -> np.ndarray:
     return a
 
 
-def check_real_array(name: str, a):
+def check_real_array(name: str, a: ArrayLike) -> ArrayLike:
     """Raise TypeError for complex data or a masked array with masked entries; return ``a``.
 
     numpy would otherwise drop the imaginary part (with only a ``ComplexWarning``)
@@ -85,7 +88,7 @@ def _has_complex(seq) -> bool:
         return False
 
 
-def check_output_path(name: str, path, overwrite: bool, *, hint: str = "overwrite=True") -> Path:
+def check_output_path(name: str, path: str | os.PathLike[str], overwrite: bool, *, hint: str = "overwrite=True") -> Path:
     """Check, before any work, that ``path`` can be written: the one overwrite guard.
 
     Raises ``IsADirectoryError`` if ``path`` is an existing folder (no overwrite can
@@ -116,7 +119,7 @@ def check_output_path(name: str, path, overwrite: bool, *, hint: str = "overwrit
     return p
 
 
-def as_points(name: str, a, dim: int | tuple[int, ...] = 3) -> np.ndarray:
+def as_points(name: str, a: ArrayLike, dim: int | tuple[int, ...] = 3) -> np.ndarray:
     """Return ``a`` as a finite float64 array of shape (N, dim).
 
     ``dim`` may be a tuple of allowed widths.
@@ -134,7 +137,7 @@ def as_points(name: str, a, dim: int | tuple[int, ...] = 3) -> np.ndarray:
     return arr
 
 
-def as_field(name: str, a, n: int, width: int | None = None) -> np.ndarray:
+def as_field(name: str, a: ArrayLike, n: int, width: int | None = None) -> np.ndarray:
     """Return ``a`` as a finite float64 field of shape (n,) or (n, width).
 
     Complex data and masked arrays with masked entries raise ``TypeError``
@@ -152,7 +155,7 @@ def as_field(name: str, a, n: int, width: int | None = None) -> np.ndarray:
     return arr
 
 
-def as_positive_field(name: str, a, n: int) -> np.ndarray:
+def as_positive_field(name: str, a: ArrayLike, n: int) -> np.ndarray:
     """Return ``a`` as a float64 array of shape (n,) of finite positive values.
 
     The message names the actual problem: the shape, or how many values are not
@@ -180,7 +183,7 @@ def as_positive_field(name: str, a, n: int) -> np.ndarray:
     return arr
 
 
-def check_positive(name: str, value, *, allow_zero: bool = False) -> float:
+def check_positive(name: str, value: object, *, allow_zero: bool = False) -> float:
     """Return ``value`` as float, raising if it is not a finite positive number."""
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise TypeError(f"{name} must be a real number, got {type(value).__name__}")
@@ -192,7 +195,7 @@ def check_positive(name: str, value, *, allow_zero: bool = False) -> float:
     return v
 
 
-def check_int(name: str, value, *, minimum: int | None = None) -> int:
+def check_int(name: str, value: object, *, minimum: int | None = None) -> int:
     """Return ``value`` as int, raising if it is not an integer >= ``minimum``."""
     if isinstance(value, bool) or not isinstance(value, numbers.Integral):
         raise TypeError(f"{name} must be an integer, got {type(value).__name__} {value!r}")
@@ -202,14 +205,14 @@ def check_int(name: str, value, *, minimum: int | None = None) -> int:
     return v
 
 
-def check_bool(name: str, value) -> bool:
+def check_bool(name: str, value: object) -> bool:
     """Return ``value`` as bool, raising TypeError unless it is True or False."""
     if not isinstance(value, (bool, np.bool_)):
         raise TypeError(f"{name} must be True or False, got {type(value).__name__} {value!r}")
     return bool(value)
 
 
-def check_in(name: str, value, allowed) -> str:
+def check_in(name: str, value: Any, allowed: Collection[Any]) -> str:
     """Raise ValueError unless ``value`` is one of ``allowed``."""
     if value not in allowed:
         raise ValueError(f"{name} must be one of {sorted(allowed)!r}, got {value!r}")

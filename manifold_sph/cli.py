@@ -21,6 +21,7 @@ import os
 import re
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -364,7 +365,7 @@ def _render_ok(need: bool) -> bool:
 # --- demo ----------------------------------------------------------------------------
 
 
-def run_demo(out, *, n: int = 4032, render: bool = True, overwrite: bool = False, progress: bool = False) -> dict:
+def run_demo(out: str | os.PathLike[str], *, n: int = 4032, render: bool = True, overwrite: bool = False, progress: bool = False) -> dict:
     """The main job: the four schemes against the exact operators on a sphere, heat, wave, pictures.
 
     On the unit sphere (``n`` Fibonacci points), with ``f = cos(xz - sin y)``:
@@ -935,7 +936,7 @@ _USER_ERRORS = (ValueError, TypeError, FileNotFoundError, FileExistsError, IsADi
                 PermissionError)
 
 
-def main(argv=None) -> int:
+def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``manifold-sph`` console script.
 
     Examples

@@ -15,11 +15,14 @@ elements), one assembly gives the tangent-plane matrices ``dx``, ``dy`` and
 from __future__ import annotations
 
 import warnings
+from collections.abc import Callable, Hashable
+from typing import TypeVar
 
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from numpy.typing import ArrayLike
 
 from .exceptions import ManifoldSPHWarning
 from ._sparse import RowBlocks
@@ -33,6 +36,8 @@ from .schemes import get_scheme
 from .voronoi import BOUNDARY, DEGENERATE, INCOMPLETE, NEAR_DUPLICATE, stiffness_matrix, voronoi_cells
 
 __all__ = ["OperatorSet"]
+
+_T = TypeVar("_T")
 
 
 class OperatorSet:
@@ -134,7 +139,7 @@ class OperatorSet:
         """Dimension of the ambient space: 3 for a :class:`Surface`, 2 for a :class:`Domain2D`."""
         return self._dim
 
-    def cached(self, key, compute):
+    def cached(self, key: Hashable, compute: Callable[[], _T]) -> _T:
         """The value stored on this operator set under ``key``, computed by ``compute()`` on first use.
 
         For quantities derived from the operators (curvatures, spectra, solver
@@ -292,7 +297,7 @@ class OperatorSet:
     def _tangential(self, F: np.ndarray) -> np.ndarray:
         return F
 
-    def gradient(self, f) -> np.ndarray:
+    def gradient(self, f: ArrayLike) -> np.ndarray:
         """Tangential gradient of a scalar field.
 
         Parameters
@@ -307,7 +312,7 @@ class OperatorSet:
         e = self._frames
         return (self._blocks("dx") @ f)[:, None] * e[:, 0] + (self._blocks("dy") @ f)[:, None] * e[:, 1]
 
-    def divergence(self, F) -> np.ndarray:
+    def divergence(self, F: ArrayLike) -> np.ndarray:
         """Divergence of (the tangential part of) a vector field.
 
         Parameters
@@ -503,7 +508,7 @@ class OperatorSet:
             V = np.linalg.solve(Lc, Y.T).T
         return lam, V
 
-    def laplacian(self, f) -> np.ndarray:
+    def laplacian(self, f: ArrayLike) -> np.ndarray:
         """Laplace-Beltrami operator (Laplacian in the plane) of a scalar field.
 
         Parameters

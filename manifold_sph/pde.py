@@ -28,16 +28,20 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
-from typing import Callable, NamedTuple
+from typing import TYPE_CHECKING, Callable, NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from numpy.typing import ArrayLike
 
 from .exceptions import ManifoldSPHWarning
 from ._sparse import RowBlocks, _dot, bicgstab_csr
 from ._validation import as_field, check_in, check_int, check_positive
 from .operators import OperatorSet
+
+if TYPE_CHECKING:
+    from .surface import Surface
 
 __all__ = [
     "Snapshots",
@@ -81,7 +85,7 @@ def _check_surface(surface) -> None:
         raise TypeError(f"surface must be a Surface or Domain2D, got {type(surface).__name__}")
 
 
-def strong_form_is_stable(surface, *, maxiter: int = AUTO_MAXITER) -> bool:
+def strong_form_is_stable(surface: OperatorSet, *, maxiter: int = AUTO_MAXITER) -> bool:
     """Whether the scheme's (strong-form) Laplacian has no growing mode (no eigenvalue with Re > 0).
 
     A matrix whose Gershgorin discs all lie in ``Re <= 0`` (non-negative
@@ -139,7 +143,7 @@ def _strong_form_check(surface, maxiter: int) -> tuple[bool, str]:
     return ok, reason
 
 
-def choose_laplacian(surface, laplacian="auto") -> str:
+def choose_laplacian(surface: OperatorSet, laplacian: str | sp.spmatrix | sp.sparray | np.ndarray | None = "auto") -> str:
     """The Laplacian the solvers use for ``laplacian``: ``"strong"``, ``"stable"`` or ``"matrix"``.
 
     ``"auto"`` gives ``"strong"`` when :func:`strong_form_is_stable`, otherwise
@@ -261,7 +265,7 @@ def _check_steps(dt, steps, every):
     return dt, steps, every
 
 
-def spectral_radius(L, *, tol: float = 1e-6, seed: int = 0) -> float:
+def spectral_radius(L: sp.spmatrix | sp.sparray | ArrayLike, *, tol: float = 1e-6, seed: int = 0) -> float:
     """Largest eigenvalue modulus of ``L`` (ARPACK; power iteration if it does not converge).
 
     Examples
@@ -293,7 +297,7 @@ def spectral_radius(L, *, tol: float = 1e-6, seed: int = 0) -> float:
     return new
 
 
-def spectrum_right_edge(L, k: int = 6, *, seed: int = 0) -> np.ndarray:
+def spectrum_right_edge(L: sp.spmatrix | sp.sparray | ArrayLike, k: int = 6, *, seed: int = 0) -> np.ndarray:
     """The ``k`` eigenvalues of ``L`` with the largest real parts (growing modes have Re > 0).
 
     Uses ARPACK; returns them sorted by decreasing real part.
@@ -333,8 +337,8 @@ def _rho_of(op: _Operator) -> float:
     return rho
 
 
-def explicit_dt_limit(surface, *, equation: str = "heat", diffusivity: float = 1.0, c: float = 1.0,
-                      laplacian="auto", k: float | None = None) -> float:
+def explicit_dt_limit(surface: OperatorSet, *, equation: str = "heat", diffusivity: float = 1.0, c: float = 1.0,
+                      laplacian: str | sp.spmatrix | sp.sparray | np.ndarray | None = "auto", k: float | None = None) -> float:
     """Largest stable time step of the explicit schemes, from the spectral radius ``rho`` of ``L``.
 
     Heat (forward Euler): ``2 / (diffusivity rho)``. Wave (centred): ``2 / (c sqrt(rho))``.
@@ -377,7 +381,7 @@ def _dt_limit(surface, op: _Operator, k: float, equation: str) -> float:
     return 2.0 / (k * rho) if equation == "heat" else 2.0 / (k * np.sqrt(rho))
 
 
-def stabilized_laplacian(surface, method: str = "taylor") -> sp.csr_matrix:
+def stabilized_laplacian(surface: OperatorSet, method: str = "taylor") -> sp.csr_matrix:
     """``surface.stabilized_laplacian(method)``: see :meth:`manifold_sph.operators.OperatorSet.stabilized_laplacian`."""
     if not isinstance(surface, OperatorSet):
         raise TypeError(f"surface must be a Surface or Domain2D, got {type(surface).__name__}")
@@ -386,18 +390,18 @@ def stabilized_laplacian(surface, method: str = "taylor") -> sp.csr_matrix:
 
 # ----------------------------------------------------------------------------- heat
 def heat(
-    surface,
-    u0,
+    surface: OperatorSet,
+    u0: ArrayLike,
     dt: float,
     steps: int,
     diffusivity: float = 1.0,
     *,
     method: str = "implicit",
-    fixed=None,
-    fixed_values=None,
+    fixed: ArrayLike | None = None,
+    fixed_values: float | ArrayLike | None = None,
     every: int | None = None,
     callback: Callable | None = None,
-    laplacian="auto",
+    laplacian: str | sp.spmatrix | sp.sparray | np.ndarray | None = "auto",
     solver: str = "auto",
     k: float | None = None,
 ) -> np.ndarray | Snapshots:
@@ -563,19 +567,19 @@ def _implicit_solver(A: sp.csr_matrix, solver: str) -> Callable:
 
 # ----------------------------------------------------------------------------- wave
 def wave(
-    surface,
-    u0,
+    surface: OperatorSet,
+    u0: ArrayLike,
     dt: float,
     steps: int,
     c: float = 1.0,
     *,
-    v0=None,
-    fixed=None,
-    fixed_values=None,
+    v0: ArrayLike | None = None,
+    fixed: ArrayLike | None = None,
+    fixed_values: float | ArrayLike | None = None,
     every: int | None = None,
     callback: Callable | None = None,
-    laplacian="auto",
-):
+    laplacian: str | sp.spmatrix | sp.sparray | np.ndarray | None = "auto",
+) -> np.ndarray | Snapshots:
     """Wave equation ``u_tt = c^2 Lap_S u`` with the centred scheme.
 
     ``u^{n+1} = 2 u^n - u^{n-1} + c^2 dt^2 L u^n`` (docs/method.md section 6; eq. 3.20
@@ -631,7 +635,8 @@ def wave(
     return record.result(u)
 
 
-def wave_energy(surface, u_prev, u_next, dt: float, c: float = 1.0, laplacian="auto") -> float:
+def wave_energy(surface: OperatorSet, u_prev: ArrayLike, u_next: ArrayLike, dt: float, c: float = 1.0,
+                laplacian: str | sp.spmatrix | sp.sparray | np.ndarray | None = "auto") -> float:
     """Discrete energy of the centred scheme between two successive states.
 
     ``E = 1/2 |(u^{n+1} - u^n)/dt|_M^2 - c^2/2 (u^{n+1})^T M L u^n``, with ``M`` the
@@ -667,7 +672,9 @@ def _components(A: sp.csr_matrix) -> tuple[int, np.ndarray]:
     return connected_components(A, directed=True, connection="weak")
 
 
-def poisson(surface, rhs, *, dirichlet=None, tol: float = 1e-3, laplacian="auto") -> np.ndarray:
+def poisson(surface: OperatorSet, rhs: ArrayLike, *, dirichlet: tuple[ArrayLike, ArrayLike] | None = None,
+            tol: float = 1e-3,
+            laplacian: str | sp.spmatrix | sp.sparray | np.ndarray | None = "auto") -> np.ndarray:
     """Solve ``Lap_S u = rhs``.
 
     Without ``dirichlet`` the solution is defined up to a constant on each connected
@@ -783,7 +790,8 @@ def poisson(surface, rhs, *, dirichlet=None, tol: float = 1e-3, laplacian="auto"
     return u
 
 
-def screened_poisson(surface, rhs, alpha: float, *, laplacian="auto") -> np.ndarray:
+def screened_poisson(surface: OperatorSet, rhs: ArrayLike, alpha: float, *,
+                     laplacian: str | sp.spmatrix | sp.sparray | np.ndarray | None = "auto") -> np.ndarray:
     """Solve ``u - alpha Lap_S u = rhs`` (alpha > 0), a well-posed smoothing problem.
 
     With the stable Laplacian: ``(M + alpha K) u = M rhs`` (symmetric positive definite).
@@ -822,7 +830,7 @@ class HodgeDecomposition:
     psi: np.ndarray
 
 
-def helmholtz_hodge(surface, F) -> HodgeDecomposition:
+def helmholtz_hodge(surface: Surface, F: ArrayLike) -> HodgeDecomposition:
     """Helmholtz-Hodge decomposition of a tangent field on a closed surface.
 
     ``Lap phi = div F`` and ``Lap psi = -div(n x F)`` are solved with :func:`poisson`;

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import warnings
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .exceptions import ManifoldSPHWarning
 from . import geometry
@@ -12,6 +14,10 @@ from .frames import PairOffsets, check_frames, project_pairs, tangent_frames
 from .neighbors import build_tree, find_neighbors
 from .operators import OperatorSet
 from .pointcloud import PointCloud
+
+if TYPE_CHECKING:
+    from .kernels import Kernel
+    from .schemes import Scheme
 
 __all__ = ["Surface"]
 
@@ -96,18 +102,18 @@ class Surface(OperatorSet):
 
     def __init__(
         self,
-        points,
-        normals=None,
+        points: ArrayLike | PointCloud,
+        normals: ArrayLike | None = None,
         *,
-        scheme="msph",
-        kernel="quintic",
+        scheme: str | Scheme = "msph",
+        kernel: str | Kernel | type[Kernel] = "quintic",
         neighbors: int | None = None,
-        h=None,
+        h: float | str | ArrayLike | None = None,
         area: str = "numerical",
         normal_threshold: float = 0.0,
         total_area: float | None = None,
         max_condition: float = 1e8,
-    ):
+    ) -> None:
         if isinstance(points, PointCloud):
             cloud = points if normals is None else PointCloud(points.points, normals, geometry=points.geometry)
         else:
@@ -161,11 +167,11 @@ class Surface(OperatorSet):
         """(N,) Gaussian curvature ``k1 k2``; see :func:`manifold_sph.geometry.gaussian_curvature`."""
         return geometry.gaussian_curvature(self)
 
-    def principal_curvatures(self):
+    def principal_curvatures(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``(k1, k2, d1, d2)``; see :func:`manifold_sph.geometry.principal_curvatures`."""
         return geometry.principal_curvatures(self)
 
-    def geodesic_distance(self, sources, **options) -> np.ndarray:
+    def geodesic_distance(self, sources: ArrayLike, **options: Any) -> np.ndarray:
         """(N,) geodesic distance from ``sources``; see :func:`manifold_sph.geometry.geodesic_distance`."""
         return geometry.geodesic_distance(self, sources, **options)
 

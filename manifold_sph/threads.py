@@ -27,6 +27,7 @@ import itertools
 import os
 import threading
 import warnings
+from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 
@@ -106,7 +107,7 @@ def set_num_threads(n: int | None) -> None:
 
 
 @contextmanager
-def limit(n: int | None):
+def limit(n: int | None) -> Iterator[None]:
     """``with limit(n):`` use ``n`` threads inside the block, then restore the setting.
 
     The setting is process-wide: a block entered in one thread applies to every
@@ -157,7 +158,7 @@ def in_chunk() -> bool:
     return getattr(_LOCAL, "inside", False)
 
 
-def run_chunks(job, n_chunks: int, workers: int = -1) -> None:
+def run_chunks(job: Callable[[int], object], n_chunks: int, workers: int = -1) -> None:
     """Run ``job(c)`` for ``c`` in ``range(n_chunks)``, on threads when there are several.
 
     ``job`` must write disjoint outputs (numpy and the compiled kernels release the
