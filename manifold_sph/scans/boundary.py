@@ -38,9 +38,11 @@ particles: ``heat(surface, u0, dt, steps, fixed=mask, fixed_values=...)``.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
+from numpy.typing import ArrayLike
 from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
@@ -48,6 +50,9 @@ from .._validation import as_points, check_int, check_positive
 from ..frames import project_pairs, tangent_frames
 from ..pointcloud import PointCloud
 from ..threads import get_num_threads
+
+if TYPE_CHECKING:
+    from ..operators import OperatorSet
 
 __all__ = ["BoundaryReport", "detect_boundary", "angular_gaps"]
 
@@ -144,8 +149,8 @@ def angular_gaps(xy: np.ndarray, indptr: np.ndarray) -> np.ndarray:
 
 
 def detect_boundary(
-    surface,
-    normals=None,
+    surface: OperatorSet | PointCloud | ArrayLike,
+    normals: ArrayLike | None = None,
     *,
     k: int = 20,
     max_gap: float = 110.0,

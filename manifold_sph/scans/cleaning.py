@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+from numpy.typing import ArrayLike
 from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
@@ -92,7 +93,7 @@ def _average_normals(labels, n_groups, nrm, rep):
     return np.where(norm > 0, m / np.where(norm > 0, norm, 1.0), nrm[rep])
 
 
-def merge_duplicates(points, normals=None, *, tolerance: float = 0.0) -> CleanResult:
+def merge_duplicates(points: ArrayLike | PointCloud, normals: ArrayLike | None = None, *, tolerance: float = 0.0) -> CleanResult:
     """Merge points closer than ``tolerance`` (exact repeats with ``tolerance=0``).
 
     Points joined by chains of pairs closer than ``tolerance`` form one group,
@@ -190,8 +191,8 @@ def _local_outlier_scores(pts, k):
 
 
 def remove_outliers(
-    points,
-    normals=None,
+    points: ArrayLike | PointCloud,
+    normals: ArrayLike | None = None,
     *,
     k: int = 16,
     std_ratio: float = 3.0,
@@ -300,7 +301,8 @@ def remove_outliers(
     return CleanResult(pts[keep], None if nrm is None else nrm[keep], keep, groups, report)
 
 
-def voxel_downsample(points, normals=None, *, voxel_size: float, mode: str = "nearest") -> CleanResult:
+def voxel_downsample(points: ArrayLike | PointCloud, normals: ArrayLike | None = None, *, voxel_size: float,
+                     mode: str = "nearest") -> CleanResult:
     """Keep one point per occupied voxel of a cubic grid.
 
     Parameters
@@ -356,8 +358,8 @@ def voxel_downsample(points, normals=None, *, voxel_size: float, mode: str = "ne
 
 
 def clean(
-    points,
-    normals=None,
+    points: ArrayLike | PointCloud,
+    normals: ArrayLike | None = None,
     *,
     duplicate_tolerance: float = 0.0,
     outliers: bool = True,

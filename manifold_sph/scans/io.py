@@ -51,17 +51,26 @@ libraries are imported only inside these functions.
 
 from __future__ import annotations
 
+import os
 import re
 import warnings
+from collections.abc import Mapping
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..exceptions import ManifoldSPHWarning
 from .._validation import as_points, check_in, check_output_path, check_real_array
 from .io_read import ReadError, from_pv_mesh, read_format, read_las_chunks
 from .io_write import atomic_target, write_format
 from ..pointcloud import PointCloud
+
+if TYPE_CHECKING:  # the interchange libraries load only inside the functions that use them
+    import open3d as o3d
+    import pyvista as pv
+    import trimesh
 
 __all__ = [
     "ReadError",
@@ -156,7 +165,7 @@ def _usable_normals(normals):
     return normals
 
 
-def mesh_vertex_normals(vertices, faces) -> np.ndarray:
+def mesh_vertex_normals(vertices: ArrayLike, faces: ArrayLike) -> np.ndarray:
     """Area-weighted vertex normals of a triangle mesh (zero for vertices in no face).
 
     Parameters
@@ -192,7 +201,7 @@ def mesh_vertex_normals(vertices, faces) -> np.ndarray:
 # ----------------------------------------------------------------------------
 # public API
 # ----------------------------------------------------------------------------
-def read_mesh(path, *, format: str | None = None):
+def read_mesh(path: str | os.PathLike[str], *, format: str | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Vertices and triangles of a mesh file (PLY faces or triangle strips, OBJ faces, VTK polygons).
 
     Returns
@@ -234,7 +243,8 @@ def read_mesh(path, *, format: str | None = None):
     return pts, faces
 
 
-def read(path, *, format: str | None = None, normals: str = "file", duplicates: str = "error", return_fields: bool = False):
+def read(path: str | os.PathLike[str], *, format: str | None = None, normals: str = "file", duplicates: str = "error",
+         return_fields: bool = False) -> PointCloud | tuple[PointCloud, dict[str, np.ndarray]]:
     """Read a point cloud file.
 
     Parameters
@@ -389,7 +399,8 @@ def _check_fields(fields, n: int, flatten: bool) -> dict:
     return out
 
 
-def write(path, cloud, fields=None, *, format: str | None = None, binary: bool = True, overwrite: bool = False) -> None:
+def write(path: str | os.PathLike[str], cloud: PointCloud | ArrayLike, fields: Mapping[str, ArrayLike] | None = None, *,
+          format: str | None = None, binary: bool = True, overwrite: bool = False) -> None:
     """Write a point cloud (points, normals if any, and per-point fields).
 
     The file is written under a temporary name in the same folder and renamed to
@@ -452,7 +463,7 @@ def write(path, cloud, fields=None, *, format: str | None = None, binary: bool =
 # ----------------------------------------------------------------------------
 # conversions
 # ----------------------------------------------------------------------------
-def to_pyvista(cloud, fields=None):
+def to_pyvista(cloud: PointCloud | ArrayLike, fields: Mapping[str, ArrayLike] | None = None) -> pv.PolyData:
     """A ``pyvista.PolyData`` of the points (vertex cells), normals as point data ``Normals``.
 
     Examples
@@ -476,7 +487,7 @@ def to_pyvista(cloud, fields=None):
     return mesh
 
 
-def from_pyvista(mesh, *, return_fields: bool = False):
+def from_pyvista(mesh: pv.DataSet, *, return_fields: bool = False) -> PointCloud | tuple[PointCloud, dict[str, np.ndarray]]:
     """A PointCloud from any ``pyvista.DataSet`` (points; point data ``Normals`` if present)."""
     if not hasattr(mesh, "points") or not hasattr(mesh, "point_data"):
         raise TypeError(f"mesh must be a pyvista DataSet, got {type(mesh).__name__}")
@@ -485,7 +496,7 @@ def from_pyvista(mesh, *, return_fields: bool = False):
     return (cloud, fields) if return_fields else cloud
 
 
-def to_trimesh(cloud):
+def to_trimesh(cloud: PointCloud | ArrayLike) -> trimesh.PointCloud:
     """A ``trimesh.PointCloud``; normals (if any) in ``metadata["normals"]``."""
     import trimesh
 
@@ -496,7 +507,7 @@ def to_trimesh(cloud):
     return pc
 
 
-def from_trimesh(obj, *, normals: bool = True):
+def from_trimesh(obj: trimesh.Trimesh | trimesh.PointCloud, *, normals: bool = True) -> PointCloud:
     """A PointCloud from a ``trimesh.Trimesh`` (vertices, vertex normals) or ``trimesh.PointCloud``.
 
     ``normals=False`` drops them; a Trimesh's vertices in no face are dropped when
@@ -518,7 +529,7 @@ def from_trimesh(obj, *, normals: bool = True):
     raise TypeError(f"obj must be a trimesh.Trimesh or trimesh.PointCloud, got {type(obj).__name__}")
 
 
-def to_open3d(cloud):
+def to_open3d(cloud: PointCloud | ArrayLike) -> o3d.geometry.PointCloud:
     """An ``open3d.geometry.PointCloud`` with normals if the cloud has them."""
     import open3d as o3d
 
@@ -529,7 +540,8 @@ def to_open3d(cloud):
     return pc
 
 
-def from_open3d(pc, *, return_fields: bool = False):
+def from_open3d(pc: o3d.geometry.PointCloud | o3d.t.geometry.PointCloud | o3d.geometry.TriangleMesh, *,
+                return_fields: bool = False) -> PointCloud | tuple[PointCloud, dict[str, np.ndarray]]:
     """A PointCloud from an open3d point cloud (legacy ``open3d.geometry.PointCloud`` or tensor
     ``open3d.t.geometry.PointCloud``) or the vertices of a ``TriangleMesh``.
 

@@ -25,10 +25,22 @@ checks), pyvista the VTK files, laspy LAS/LAZ and pye57 E57.
 from __future__ import annotations
 
 import io as _stdio
+import os
 import re
+from collections.abc import Iterable, Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
+
+if TYPE_CHECKING:
+    from typing import TypeAlias
+
+    import pyvista as pv
+
+    #: What every reader returns: points (N, 3), normals (N, 3) or None, other fields, faces (F, 3) or None.
+    _Read: TypeAlias = "tuple[np.ndarray, np.ndarray | None, dict[str, np.ndarray], np.ndarray | None]"
 
 __all__ = ["ReadError", "read_format", "read_las_chunks", "NORMAL_NAMES"]
 
@@ -42,7 +54,7 @@ _BLOCK = 1 << 24
 class ReadError(ValueError):
     """A point-cloud file could not be read; the message names the file and the problem."""
 
-    def __init__(self, path, problem: str):
+    def __init__(self, path: str | os.PathLike[str], problem: str) -> None:
         self.path = str(path)
         self.problem = problem
         super().__init__(f"cannot read {str(path)!r}: {problem}")
@@ -51,7 +63,8 @@ class ReadError(ValueError):
 # ----------------------------------------------------------------------------
 # shared helpers
 # ----------------------------------------------------------------------------
-def split_columns(path, names: list[str], data: np.ndarray):
+def split_columns(path: str | os.PathLike[str], names: list[str],
+                  data: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, dict[str, np.ndarray]]:
     """Points, normals and fields from named columns (a partial normal trio stays fields)."""
     lower = [n.lower() for n in names]
     if len(set(lower)) != len(lower):
@@ -157,7 +170,7 @@ def fan(sizes: np.ndarray, flat: np.ndarray) -> np.ndarray:
     return np.concatenate(tris)[keep].astype(np.int64)
 
 
-def strips_to_triangles(strips) -> np.ndarray:
+def strips_to_triangles(strips: Iterable[ArrayLike]) -> np.ndarray:
     """Triangle strips (lists possibly separated by -1) to consistently oriented triangles."""
     tris = []
     for strip in strips:
@@ -310,7 +323,7 @@ def _polys_to_faces(path, name: str, polys, n: int) -> np.ndarray:
     return fan(sizes, flat)
 
 
-def read_ply(path, want_faces: bool):
+def read_ply(path: str | os.PathLike[str], want_faces: bool) -> _Read:
     raw = Path(path).read_bytes()
     fmt, elements, start = _ply_header(path, raw)
     vertex, faces = None, None
@@ -477,7 +490,7 @@ def _unpack_rgb(raw_rgb: dict):
     return fields
 
 
-def read_pcd(path):
+def read_pcd(path: str | os.PathLike[str]) -> _Read:
     raw = Path(path).read_bytes()
     names, sizes, types, counts, n, mode, pos = _pcd_header(path, raw)
     if mode == "binary_compressed":
@@ -560,7 +573,7 @@ def _is_number(t: str) -> bool:
         return False
 
 
-def read_text(path, fmt: str):
+def read_text(path: str | os.PathLike[str], fmt: str) -> _Read:
     # utf-8-sig: a byte-order mark (spreadsheet exports) is not part of the first column's name
     text = Path(path).read_text(encoding="utf-8-sig", errors="replace").splitlines()
     lines = [ln for ln in text if ln.strip() and not ln.lstrip().startswith(("#", "//"))]
@@ -628,7 +641,7 @@ _OBJ_V, _OBJ_VN, _OBJ_F = _obj_lines(b"v"), _obj_lines(b"vn"), _obj_lines(b"f")
 _OBJ_V_OR_F = re.compile(rb"^[ \t]*(v|f)[ \t]", re.M)
 
 
-def read_obj(path, want_faces: bool):
+def read_obj(path: str | os.PathLike[str], want_faces: bool) -> _Read:
     """``v`` lines (x y z, optionally w or r g b colours), ``vn`` lines, ``f`` lines (1-based,
     negative indices relative to the vertices above the face); tabs separate like spaces."""
     raw = Path(path).read_bytes()
@@ -738,7 +751,7 @@ def _check_npy_sizes(path, fmt: str) -> None:
         return  # np.load reports it
 
 
-def read_numpy(path, fmt: str):
+def read_numpy(path: str | os.PathLike[str], fmt: str) -> _Read:
     _check_npy_sizes(path, fmt)
     try:
         obj = np.load(path, allow_pickle=False)
@@ -766,7 +779,7 @@ def read_numpy(path, fmt: str):
     return points, normals, fields, None
 
 
-def read_vtk(path):
+def read_vtk(path: str | os.PathLike[str]) -> _Read:
     import pyvista as pv
 
     try:
@@ -778,7 +791,7 @@ def read_vtk(path):
     return from_pv_mesh(mesh) + (None,)
 
 
-def from_pv_mesh(mesh):
+def from_pv_mesh(mesh: pv.DataSet) -> tuple[np.ndarray, np.ndarray | None, dict[str, np.ndarray]]:
     points = np.asarray(mesh.points, dtype=np.float64)
     normals, fields = None, {}
     for name in mesh.point_data.keys():
@@ -807,7 +820,8 @@ def _las_split(path, points, dims: dict):
     return points, normals, dims
 
 
-def read_las_chunks(path, chunk_size: int = 1_000_000):
+def read_las_chunks(path: str | os.PathLike[str],
+                    chunk_size: int = 1_000_000) -> Iterator[tuple[np.ndarray, dict[str, np.ndarray]]]:
     """Iterate over a LAS/LAZ file in chunks of at most ``chunk_size`` points.
 
     Yields ``(points, fields)``: (n, 3) float64 scaled coordinates and a dict of
@@ -845,7 +859,7 @@ def read_las_chunks(path, chunk_size: int = 1_000_000):
             raise ReadError(path, f"laspy could not read it ({type(exc).__name__}: {exc})") from None
 
 
-def read_las(path):
+def read_las(path: str | os.PathLike[str]) -> _Read:
     import laspy
 
     try:
@@ -884,7 +898,7 @@ def read_las(path):
 # ----------------------------------------------------------------------------
 # E57 (pye57, optional)
 # ----------------------------------------------------------------------------
-def read_e57(path):
+def read_e57(path: str | os.PathLike[str]) -> _Read:
     """Every scan of an E57 file in world coordinates (each scan's pose applied, spherical scans
     converted, invalid points dropped); intensity and colours as fields, ``scan`` the scan index
     when there are several. Needs the optional package pye57."""
@@ -920,7 +934,7 @@ def read_e57(path):
     return points.astype(np.float64), None, fields, None
 
 
-def read_format(path, fmt: str, want_faces: bool):
+def read_format(path: str | os.PathLike[str], fmt: str, want_faces: bool) -> _Read:
     """Dispatch to the reader of ``fmt``: (points, normals, fields, faces)."""
     if fmt == "ply":
         return read_ply(path, want_faces)

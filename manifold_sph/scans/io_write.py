@@ -11,16 +11,21 @@ from __future__ import annotations
 
 import os
 import secrets
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from ..pointcloud import PointCloud
 
 __all__ = ["atomic_target", "write_format"]
 
 
 @contextmanager
-def atomic_target(path, overwrite: bool, suffix: str = ""):
+def atomic_target(path: str | os.PathLike[str], overwrite: bool, suffix: str = "") -> Iterator[Path]:
     """``with atomic_target(path, overwrite) as tmp:`` write ``tmp``; on success it becomes ``path``.
 
     The temporary file sits in the same folder (so the final rename is atomic)
@@ -177,7 +182,8 @@ def _write_las(tmp, points, normals, fields, compress: bool):
         las.write(fh, do_compress=compress)
 
 
-def write_format(tmp: Path, fmt: str, points, normals, flat, raw_fields, binary: bool, cloud_for_vtk) -> None:
+def write_format(tmp: Path, fmt: str, points: np.ndarray, normals: np.ndarray | None, flat: dict[str, np.ndarray],
+                 raw_fields: dict[str, np.ndarray], binary: bool, cloud_for_vtk: PointCloud | np.ndarray) -> None:
     """Write the data in format ``fmt`` to the temporary file ``tmp``."""
     if fmt == "vtk":
         from .io import to_pyvista

@@ -57,6 +57,7 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
+from numpy.typing import ArrayLike
 from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
@@ -127,7 +128,7 @@ def _shape_confidence(w: np.ndarray) -> np.ndarray:
     return np.clip(1.0 - ratio, 0.0, 1.0)
 
 
-def pca_normals(points, k: int = DEFAULT_K, *, neighbors=None):
+def pca_normals(points: ArrayLike, k: int = DEFAULT_K, *, neighbors: ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Unoriented PCA normals and their confidence.
 
     Parameters
@@ -237,7 +238,7 @@ def _refit(pts, neighbors, normals, degree, iterations=None, threshold=None):
     return n
 
 
-def jet_normals(points, k: int | None = None, *, degree: int = 2, neighbors=None):
+def jet_normals(points: ArrayLike, k: int | None = None, *, degree: int = 2, neighbors: ArrayLike | None = None) -> np.ndarray:
     """Unoriented normals of local polynomial (jet) fits.
 
     Parameters
@@ -571,7 +572,8 @@ def _orient(pts, nrm, neighbors, distances, orient):
     return _outward(pts, nrm, neighbors, distances)
 
 
-def orient_normals(points, normals, k: int = DEFAULT_K, *, orient="outward", neighbors=None, distances=None):
+def orient_normals(points: ArrayLike, normals: ArrayLike, k: int = DEFAULT_K, *, orient: str | ArrayLike = "outward",
+                   neighbors: ArrayLike | None = None, distances: ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Flip unoriented normals to a consistent (and, for closed surfaces, outward) orientation.
 
     Parameters
@@ -636,7 +638,9 @@ def _check_k(k, N, degree=None) -> int:
     return k
 
 
-def estimate_normals(points, k: int | None = None, *, orient="outward", return_confidence: bool = False, method: str = "jet", degree: int | None = None, refine: bool = True):
+def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: str | ArrayLike = "outward",
+                     return_confidence: bool = False, method: str = "jet", degree: int | None = None,
+                     refine: bool = True) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """Estimate unit normals of a point cloud: fitted, consistently oriented and outward.
 
     Parameters
