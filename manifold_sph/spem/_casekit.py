@@ -13,13 +13,14 @@ import math
 import time
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .._validation import check_int
 
 __all__ = ["relative_error"]
 
 
-def relative_error(numerical, exact) -> float:
+def relative_error(numerical: ArrayLike, exact: ArrayLike) -> float:
     """mean |numerical - exact| / max |exact| (the issue's error measure)."""
     numerical = np.asarray(numerical, dtype=np.float64)
     exact = np.asarray(exact, dtype=np.float64)

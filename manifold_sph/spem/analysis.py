@@ -23,14 +23,20 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .._validation import check_in, check_positive
 from .constants import C0
 from .layouts import make_layout
 from .operators import cross_gradient
 from .solver import DEFAULT_COUPLING, DEFAULT_H_RATIO
+
+if TYPE_CHECKING:
+    from ..kernels import Kernel
 
 __all__ = ["lattice_symbols", "null_mode_response", "phase_velocity", "yee_fdtd_phase_velocity", "measured_phase_velocity",
            "ppw_for_phase_error"]
@@ -59,8 +65,9 @@ def _centre(points, dr):
     return int(np.argmin(((points - c) ** 2).sum(axis=1)))
 
 
-def lattice_symbols(k, layout: str = "yee", *, h_ratio: float = DEFAULT_H_RATIO, kernel="cubic", form="fpm",
-                    dr: float = 1.0):
+def lattice_symbols(k: ArrayLike, layout: str = "yee", *, h_ratio: float = DEFAULT_H_RATIO,
+                    kernel: str | Kernel | type[Kernel] = "cubic", form: str = "fpm",
+                    dr: float = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Symbols ``(s_x^EH, s_y^EH, s_y^HxE, s_x^HyE)`` at wave vectors ``k`` (K, 2), from interior rows."""
     lay, ops = _operators(layout, h_ratio, kernel, form, dr)
     k = np.atleast_2d(np.asarray(k, dtype=np.float64))
@@ -75,7 +82,8 @@ def lattice_symbols(k, layout: str = "yee", *, h_ratio: float = DEFAULT_H_RATIO,
     return tuple(out)
 
 
-def null_mode_response(layout: str = "yee", *, h_ratio: float = DEFAULT_H_RATIO, kernel="cubic", form="fpm") -> dict:
+def null_mode_response(layout: str = "yee", *, h_ratio: float = DEFAULT_H_RATIO, kernel: str | Kernel | type[Kernel] = "cubic",
+                       form: str = "fpm") -> dict:
     """Interior response of the E-row x-derivative to grid-scale H patterns.
 
     ``dx_row_alternating``: ``H = (-1)^row (x - x_i)/dr`` (exact derivative
@@ -100,7 +108,7 @@ def null_mode_response(layout: str = "yee", *, h_ratio: float = DEFAULT_H_RATIO,
 
 
 def phase_velocity(ppw: float, angle: float = 0.0, layout: str = "yee", *, h_ratio: float = DEFAULT_H_RATIO,
-                   kernel="cubic", form="fpm", courant: float = 0.9) -> float:
+                   kernel: str | Kernel | type[Kernel] = "cubic", form: str = "fpm", courant: float = 0.9) -> float:
     """Numerical phase velocity over c for ``ppw`` particles per wavelength at ``angle`` (rad) from x.
 
     ``courant`` is the SPEM CFL number ``S = sqrt(2) c dt / h``.
@@ -125,8 +133,9 @@ def yee_fdtd_phase_velocity(ppw: float, angle: float = 0.0, courant: float = 1 /
     return 2 * math.asin(math.sqrt(s)) / (courant * k)
 
 
-def ppw_for_phase_error(tol: float = 0.01, layout: str = "yee", *, angles=(0.0, math.pi / 8, math.pi / 4),
-                        fdtd: bool = False, **kw) -> float:
+def ppw_for_phase_error(tol: float = 0.01, layout: str = "yee", *,
+                        angles: Sequence[float] = (0.0, math.pi / 8, math.pi / 4),
+                        fdtd: bool = False, **kw: Any) -> float:
     """Smallest particles per wavelength with ``|v_phase / c - 1| <= tol`` at every angle (bisection)."""
     tol = check_positive("tol", tol)
 
@@ -148,8 +157,9 @@ def ppw_for_phase_error(tol: float = 0.01, layout: str = "yee", *, angles=(0.0, 
 
 
 def measured_phase_velocity(layout: str = "yee", m: int = 4, *, cells: int = 40, h_ratio: float = DEFAULT_H_RATIO,
-                            kernel="cubic", form="fpm", coupling: str = DEFAULT_COUPLING, courant: float = 0.9,
-                            steps: int = 300, seed=0) -> tuple[float, float]:
+                            kernel: str | Kernel | type[Kernel] = "cubic", form: str = "fpm", coupling: str = DEFAULT_COUPLING,
+                            courant: float = 0.9, steps: int = 300,
+                            seed: int | np.random.Generator | None = 0) -> tuple[float, float]:
     """Phase velocity over c of the TM_mm mode of a PEC square, measured by running the solver.
 
     The square has ``cells`` spacings per side; Ez starts as

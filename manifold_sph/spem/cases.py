@@ -14,8 +14,10 @@ Examples
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.special import j0, j1, jn_zeros
 
 from .._validation import check_in, check_int, check_positive
@@ -26,6 +28,9 @@ from .layouts import disk_layout, line_layout
 from .solver import DEFAULT_COUPLING, DEFAULT_H_RATIO, Line1DSolver, TMzSolver
 from .sources import Sinusoid, Source, point_source
 
+if TYPE_CHECKING:
+    from ..kernels import Kernel
+
 __all__ = ["CASES", "relative_error", "cavity_exact", "cavity_frequency", "peak_frequency", "run_line1d",
            "run_cavity", "run_waveguide", "run_planewave", "run_pml", "guided_exact", "run_case"]
 
@@ -35,7 +40,8 @@ CASES = ("line1d", "cavity", "waveguide", "planewave", "pml")
 # ----------------------------------------------------------------------------- line1d
 @_timed
 def run_line1d(*, freq: float = 1.8e9, length: float = math.pi, dr: float = 1.66e-3, h: float | None = None,
-               t_end: float = 4.75e-9, kernel="cubic", form="fpm", courant: float = 0.9, frames: int = 0,
+               t_end: float = 4.75e-9, kernel: str | Kernel | type[Kernel] = "cubic", form: str = "fpm", courant: float = 0.9,
+               frames: int = 0,
                source_width: float = 0.0, progress: bool = False) -> dict:
     """1D line ([2] sec. 4.2): hard source ``sin(2 pi f t)`` at the centre of [0, L].
 
@@ -84,7 +90,7 @@ def run_line1d(*, freq: float = 1.8e9, length: float = math.pi, dr: float = 1.66
 
 
 # ----------------------------------------------------------------------------- cavity
-def cavity_exact(r, t, r0: float = 0.1, eps_r: float = 10.0, n_terms: int = 200):
+def cavity_exact(r: ArrayLike, t: float, r0: float = 0.1, eps_r: float = 10.0, n_terms: int = 200) -> np.ndarray:
     """Bessel series of the cavity ([2] eq. 4.5) for ``Ez(0) = 1 - r^2/r0^2``.
 
     ``Ez = 8 sum_n J0(b_n r/r0) / (b_n^3 J1(b_n)) cos(b_n t / (r0 sqrt(eps_r eps0 mu0)))``.
@@ -103,7 +109,7 @@ def cavity_frequency(r0: float = 0.1, eps_r: float = 10.0) -> float:
     return float(jn_zeros(0, 1)[0] / (2 * math.pi * r0 * math.sqrt(eps_r * EPS0 * MU0)))
 
 
-def peak_frequency(signal, dt: float, fmin: float = 0.0) -> float:
+def peak_frequency(signal: ArrayLike, dt: float, fmin: float = 0.0) -> float:
     """Frequency of the largest spectral peak above ``fmin``.
 
     Hann window, 16x zero padding, then a parabola through the log-magnitude
@@ -123,9 +129,10 @@ def peak_frequency(signal, dt: float, fmin: float = 0.0) -> float:
 
 @_timed
 def run_cavity(*, r0: float = 0.1, eps_r: float = 10.0, n_radial: int = 40, periods: float = 1.0,
-               layout: str = "yee", form: str = "fpm", kernel="cubic", h_ratio: float = DEFAULT_H_RATIO,
+               layout: str = "yee", form: str = "fpm", kernel: str | Kernel | type[Kernel] = "cubic",
+               h_ratio: float = DEFAULT_H_RATIO,
                courant: float = 0.9, coupling: str = DEFAULT_COUPLING, spectrum_periods: float = 0.0, frames: int = 0,
-               sbp_layers=None, progress: bool = False) -> dict:
+               sbp_layers: int | None = None, progress: bool = False) -> dict:
     """Circular PEC cavity ([2] sec. 4.3), ``Ez(0) = 1 - r^2/r0^2``, compared with the Bessel series.
 
     ``dr = r0 / n_radial``. The error is taken over every E particle after
@@ -166,7 +173,7 @@ def run_cavity(*, r0: float = 0.1, eps_r: float = 10.0, n_radial: int = 40, peri
     return out
 
 
-def run_case(case: str, **kwargs) -> dict:
+def run_case(case: str, **kwargs: Any) -> dict:
     """Run a case by name (see :data:`CASES`)."""
     check_in("case", case, CASES)
     fn = {"line1d": run_line1d, "cavity": run_cavity, "waveguide": run_waveguide, "planewave": run_planewave,

@@ -17,8 +17,11 @@ Examples
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .._validation import check_in, check_int, check_positive
 from ._casekit import _every, _fields, _fitted, _timed, relative_error
@@ -28,10 +31,14 @@ from .pml import PML
 from .solver import DEFAULT_COUPLING, DEFAULT_H_RATIO, TMzSolver
 from .sources import GaussianPulse, Sinusoid, Source, point_source
 
+if TYPE_CHECKING:
+    from ..kernels import Kernel
+
 __all__ = ["guided_exact", "adjacent_line_difference", "alternating_amplitude", "run_planewave", "run_waveguide", "run_pml"]
 
 
-def guided_exact(waveform, distances, t: float, *, cutoff: float = 0.0, n_quad: int = 20001):
+def guided_exact(waveform: Callable[[np.ndarray], ArrayLike], distances: ArrayLike, t: float, *, cutoff: float = 0.0,
+                 n_quad: int = 20001) -> np.ndarray:
     """Field at time ``t`` and distances ``d >= 0`` from a line where ``waveform(t)`` is imposed (t >= 0).
 
     Solves the signalling problem of the Klein-Gordon line
@@ -85,7 +92,8 @@ def guided_exact(waveform, distances, t: float, *, cutoff: float = 0.0, n_quad: 
     return out
 
 
-def adjacent_line_difference(points, field, dr, axis: int = 0, mask=None) -> float:
+def adjacent_line_difference(points: ArrayLike, field: ArrayLike, dr: float, axis: int = 0,
+                             mask: ArrayLike | None = None) -> float:
     """Largest |field| difference between neighbouring lattice lines, over lines parallel to the other axis.
 
     Particles are grouped by ``round(coordinate / dr)`` along ``axis`` and by
@@ -104,7 +112,7 @@ def adjacent_line_difference(points, field, dr, axis: int = 0, mask=None) -> flo
     return float(max(diffs)) if diffs else float("nan")
 
 
-def alternating_amplitude(points, field, dr, mask=None) -> float:
+def alternating_amplitude(points: ArrayLike, field: ArrayLike, dr: float, mask: ArrayLike | None = None) -> float:
     """Largest grid-scale alternating component across x: ``max |f(i+1) - 2 f(i) + f(i-1)| / 4``.
 
     A smooth field gives ``O((k dr)^2)``; a pattern alternating from line to
@@ -129,8 +137,9 @@ def _with_pml(interior, pml_cells, dr, sides="all", order=3, reflection=1e-6):
 
 @_timed
 def run_planewave(*, size: float = 0.5, freq: float = 3.6e9, ppw: float = 40.0, pml_cells: int = 10,
-                  layout: str = "yee", form: str = "fpm", kernel="cubic", h_ratio: float = DEFAULT_H_RATIO,
-                  courant: float = 0.9, coupling: str = DEFAULT_COUPLING, travel: float = 0.8, ramp: float = 2.0, seed=0,
+                  layout: str = "yee", form: str = "fpm", kernel: str | Kernel | type[Kernel] = "cubic", h_ratio: float = DEFAULT_H_RATIO,
+                  courant: float = 0.9, coupling: str = DEFAULT_COUPLING, travel: float = 0.8, ramp: float = 2.0,
+                  seed: int | np.random.Generator | None = 0,
                   source_span: str = "full", frames: int = 0, progress: bool = False) -> dict:
     """Free-space plane wave in a ``size`` square with PML on all sides ([2] sec. 4.5).
 
@@ -196,7 +205,8 @@ def run_planewave(*, size: float = 0.5, freq: float = 3.6e9, ppw: float = 40.0, 
 @_timed
 def run_waveguide(*, width: float = 0.5, length: float = 0.4, pml_thickness: float = 0.1, ppw: float = 80.0,
                   f_ratio: float = 1.2, t_end: float = 4.1e-9, line_x: float = 0.244, amplitude: float = 0.2,
-                  layout: str = "yee", form: str = "fpm", kernel="cubic", h_ratio: float = DEFAULT_H_RATIO,
+                  layout: str = "yee", form: str = "fpm", kernel: str | Kernel | type[Kernel] = "cubic",
+                  h_ratio: float = DEFAULT_H_RATIO,
                   courant: float = 0.9, coupling: str = DEFAULT_COUPLING, ramp: float = 0.0, frames: int = 0,
                   progress: bool = False) -> dict:
     """Parallel-plate waveguide ([2] sec. 4.4): PEC plates x = 0 and x = ``width``, TM1 source at y = 0.
@@ -251,7 +261,7 @@ def run_waveguide(*, width: float = 0.5, length: float = 0.4, pml_thickness: flo
 
 @_timed
 def run_pml(*, cells: int = 60, pml_cells: int = 10, order: int = 3, reflection: float = 1e-6,
-            layout: str = "yee", form: str = "fpm", kernel="cubic", h_ratio: float = DEFAULT_H_RATIO,
+            layout: str = "yee", form: str = "fpm", kernel: str | Kernel | type[Kernel] = "cubic", h_ratio: float = DEFAULT_H_RATIO,
             courant: float = 0.9, coupling: str = DEFAULT_COUPLING, dr: float = 1e-3, progress: bool = False) -> dict:
     """PML reflection: a pulse in a ``cells`` square with PML, against a reference run without echo.
 

@@ -17,6 +17,7 @@ import argparse
 import json
 import os
 import sys
+from collections.abc import Sequence
 
 __all__ = ["add_parser", "run", "main"]
 
@@ -34,7 +35,7 @@ def _positive(kind):
     return conv
 
 
-def add_parser(subparsers) -> argparse.ArgumentParser:
+def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Add the ``spem`` subcommand to an ``argparse`` subparsers object and return it."""
     from .cases import CASES
     from .layouts import LAYOUTS
@@ -145,7 +146,7 @@ def _pictures(result, args):
         plt.close(fig)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     """Run the ``spem`` subcommand; 0 on success, 2 on a user mistake (one line on stderr)."""
     from .cases import run_case
 
@@ -168,7 +169,7 @@ def run(args) -> int:
     return 0
 
 
-def main(argv=None) -> int:
+def main(argv: Sequence[str] | None = None) -> int:
     """Standalone entry point: ``python -m manifold_sph.spem.cli CASE [options]``."""
     parser = argparse.ArgumentParser(prog="manifold-sph")
     sub = parser.add_subparsers(dest="command", required=True)

@@ -27,11 +27,12 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
+from numpy.typing import ArrayLike
 from scipy.sparse.linalg import splu
 from scipy.spatial import cKDTree
 
 from .._validation import as_field, as_points, check_positive
-from ..kernels import get_kernel
+from ..kernels import Kernel, get_kernel
 
 __all__ = ["KroneckerSystem"]
 
@@ -51,7 +52,8 @@ class KroneckerSystem:
         row-stochastic-like and well conditioned.
     """
 
-    def __init__(self, points, h, *, kernel="cubic", dV=None):
+    def __init__(self, points: ArrayLike, h: float, *, kernel: str | Kernel | type[Kernel] = "cubic",
+                 dV: float | ArrayLike | None = None) -> None:
         p = np.asarray(points, dtype=np.float64)
         p = as_points("points", p, dim=(1, 2))
         if len(p) == 0:
@@ -71,10 +73,10 @@ class KroneckerSystem:
         self.lu = splu(self.K)
         self.n = len(p)
 
-    def nodal(self, values) -> np.ndarray:
+    def nodal(self, values: ArrayLike) -> np.ndarray:
         """Nodal parameters u with ``K u = values`` (reuses the LU factors)."""
         return self.lu.solve(as_field("values", values, self.n))
 
-    def values(self, nodal) -> np.ndarray:
+    def values(self, nodal: ArrayLike) -> np.ndarray:
         """Point values ``K u`` of nodal parameters u."""
         return self.K @ as_field("nodal", nodal, self.n)

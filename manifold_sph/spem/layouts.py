@@ -28,9 +28,11 @@ True
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .._validation import as_points, check_in, check_positive
 
@@ -67,7 +69,7 @@ class Layout:
     e_fixed: np.ndarray | None = None
     bounds: tuple = field(default=(0.0, 0.0, 0.0, 0.0))
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         self.dr = check_positive("dr", self.dr)
         shared = self.hx is self.hy
         self.e = _nonempty("E particles", self.e)
@@ -124,7 +126,7 @@ def _walls(points, bounds, dr):
     return (np.abs(x - x0) < tol) | (np.abs(x - x1) < tol) | (np.abs(y - y0) < tol) | (np.abs(y - y1) < tol)
 
 
-def staggered_layout(bounds, dr) -> Layout:
+def staggered_layout(bounds: Sequence[float], dr: float) -> Layout:
     """The layout of [2]: Ez at ``(i, j) dr``, Hx and Hy shared at the cell centres.
 
     Parameters
@@ -141,14 +143,14 @@ def staggered_layout(bounds, dr) -> Layout:
     return Layout(e, h, h, dr, "staggered", _walls(e, b, dr), b)
 
 
-def yee_layout(bounds, dr) -> Layout:
+def yee_layout(bounds: Sequence[float], dr: float) -> Layout:
     """Yee-style layout: Ez at ``(i, j)``, Hx at ``(i, j+1/2)``, Hy at ``(i+1/2, j)`` (times dr)."""
     b, dr = _check_bounds(bounds, dr)
     e = _grid(*b, dr, 0.0, 0.0)
     return Layout(e, _grid(*b, dr, 0.0, 0.5), _grid(*b, dr, 0.5, 0.0), dr, "yee", _walls(e, b, dr), b)
 
 
-def jitter(layout: Layout, amplitude: float = 0.2, seed=0) -> Layout:
+def jitter(layout: Layout, amplitude: float = 0.2, seed: int | np.random.Generator | None = 0) -> Layout:
     """Move every free particle by a uniform random offset in ``[-a, a] dr`` per coordinate.
 
     Fixed (wall) E particles keep their positions so the PEC walls stay
@@ -173,7 +175,7 @@ def jitter(layout: Layout, amplitude: float = 0.2, seed=0) -> Layout:
     return Layout(e, hx, hy, layout.dr, f"jittered-{layout.name}", layout.e_fixed.copy(), layout.bounds)
 
 
-def poisson_layout(bounds, dr, seed=0) -> Layout:
+def poisson_layout(bounds: Sequence[float], dr: float, seed: int | np.random.Generator | None = 0) -> Layout:
     """Independent near-uniform random E and H sets with mean spacing ``dr`` and E on the walls.
 
     The free particles come from :func:`manifold_sph.reference.sampling.square` (a
@@ -197,7 +199,8 @@ def poisson_layout(bounds, dr, seed=0) -> Layout:
     return Layout(e, h, h, dr, "poisson", fixed, b)
 
 
-def make_layout(name: str, bounds, dr, *, seed=0, amplitude: float = 0.2) -> Layout:
+def make_layout(name: str, bounds: Sequence[float], dr: float, *, seed: int | np.random.Generator | None = 0,
+                amplitude: float = 0.2) -> Layout:
     """Build a layout by name: ``staggered``, ``yee``, ``jittered`` (a jittered Yee layout) or ``poisson``."""
     check_in("layout", name, LAYOUTS)
     if name == "staggered":
@@ -209,7 +212,7 @@ def make_layout(name: str, bounds, dr, *, seed=0, amplitude: float = 0.2) -> Lay
     return poisson_layout(bounds, dr, seed)
 
 
-def disk_layout(center, radius, dr, kind: str = "yee") -> Layout:
+def disk_layout(center: ArrayLike, radius: float, dr: float, kind: str = "yee") -> Layout:
     """A circular PEC cavity: a lattice clipped to the disk plus E particles on the circle.
 
     The wall particles (spacing about ``dr`` along the circle) are fixed at
@@ -238,7 +241,7 @@ def disk_layout(center, radius, dr, kind: str = "yee") -> Layout:
     return Layout(e_all, hx, hy, dr, f"disk-{kind}", fixed, b)
 
 
-def line_layout(z0: float, z1: float, dr: float):
+def line_layout(z0: float, z1: float, dr: float) -> tuple[np.ndarray, np.ndarray]:
     """1D staggered line: E (Ex) at ``z0 + i dr`` and H (Hy) at ``z0 + (i+1/2) dr``.
 
     Returns

@@ -41,10 +41,11 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
+from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 
 from .._validation import as_points, check_in, check_positive
-from ..kernels import get_kernel
+from ..kernels import Kernel, get_kernel
 
 __all__ = ["FORMS", "cross_pairs", "cross_gradient"]
 
@@ -63,7 +64,8 @@ SBP_LAYERS = 2
 SBP_REGULARISATION = 1e-12
 
 
-def cross_pairs(rows, cols, radius: float, *, row_name: str = "rows", col_name: str = "cols"):
+def cross_pairs(rows: np.ndarray, cols: np.ndarray, radius: float, *, row_name: str = "rows",
+                col_name: str = "cols") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """All pairs (i, j) with ``|cols[j] - rows[i]| < radius``.
 
     Parameters
@@ -89,8 +91,9 @@ def cross_pairs(rows, cols, radius: float, *, row_name: str = "rows", col_name: 
     return i, j, cols[j] - rows[i]
 
 
-def cross_gradient(rows, cols, h, *, kernel="cubic", form: str = "fpm", dV=None,
-                   row_name: str = "rows", col_name: str = "cols", max_condition: float = 1e10):
+def cross_gradient(rows: ArrayLike, cols: ArrayLike, h: float | ArrayLike, *, kernel: str | Kernel | type[Kernel] = "cubic",
+                   form: str = "fpm", dV: float | ArrayLike | None = None,
+                   row_name: str = "rows", col_name: str = "cols", max_condition: float = 1e10) -> list[sp.csr_matrix]:
     """Sparse first-derivative matrices from the column set to the row set.
 
     Parameters
@@ -207,7 +210,9 @@ def _safe_inverse(A, max_condition, row_name, col_name, rows):
     return np.linalg.inv(A)
 
 
-def sbp_correct(D, rows, cols, axis: int, vol_rows, vol_cols, col_mask=None, scale: float = 1.0):
+def sbp_correct(D: sp.spmatrix | sp.sparray, rows: np.ndarray, cols: np.ndarray, axis: int,
+                vol_rows: ArrayLike, vol_cols: ArrayLike,
+                col_mask: np.ndarray | None = None, scale: float = 1.0) -> sp.csr_matrix:
     """Smallest change of ``D`` (same sparsity) that makes its negative adjoint consistent too.
 
     ``D`` (rows x cols) approximates ``d/dx_axis`` from the column set to the
@@ -288,8 +293,10 @@ def sbp_correct(D, rows, cols, axis: int, vol_rows, vol_cols, col_mask=None, sca
     return out
 
 
-def sbp_pair(D, rows, cols, axis: int, vol_rows, vol_cols, B=None, wall=None, scale: float = 1.0,
-             degree: int = 1, layers=SBP_LAYERS):
+def sbp_pair(D: sp.spmatrix | sp.sparray, rows: np.ndarray, cols: np.ndarray, axis: int,
+             vol_rows: ArrayLike, vol_cols: ArrayLike,
+             B: sp.spmatrix | sp.sparray | None = None, wall: np.ndarray | None = None, scale: float = 1.0,
+             degree: int = 1, layers: int | None = SBP_LAYERS) -> tuple[sp.csr_matrix, sp.csr_matrix | None]:
     """Energy-conserving pair with a boundary closure: corrected ``D`` and the wall weights ``B``.
 
     ``D`` (rows x cols) approximates ``d/dx_axis`` from the column set (H)

@@ -16,8 +16,10 @@ Examples
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .._validation import check_int, check_positive
 from .constants import C0, EPS0
@@ -54,7 +56,8 @@ class PML:
         Any of "left", "right", "bottom", "top", or "all".
     """
 
-    def __init__(self, thickness: float, order: int = 3, reflection: float = 1e-6, *, interior, sides="all"):
+    def __init__(self, thickness: float, order: int = 3, reflection: float = 1e-6, *, interior: Sequence[float],
+                 sides: str | Sequence[str] = "all") -> None:
         self.thickness = check_positive("thickness", thickness)
         self.order = check_int("order", order, minimum=0)
         self.reflection = float(reflection)
@@ -73,7 +76,7 @@ class PML:
         rho = np.clip(rho, 0.0, self.thickness)
         return self.sigma_max * (rho / self.thickness) ** self.order
 
-    def sigma(self, points):
+    def sigma(self, points: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Electric conductivities ``(sigma_x, sigma_y)`` (S/m) at ``points`` (N, 2)."""
         p = np.asarray(points, dtype=np.float64)
         x0, x1, y0, y1 = self.interior
@@ -89,7 +92,7 @@ class PML:
             sy += self._profile(p[:, 1] - y1)
         return sx, sy
 
-    def outer_bounds(self):
+    def outer_bounds(self) -> tuple[float, float, float, float]:
         """The interior grown by the thickness on the PML sides."""
         x0, x1, y0, y1 = self.interior
         t = self.thickness

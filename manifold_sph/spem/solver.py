@@ -30,9 +30,12 @@ from __future__ import annotations
 
 import math
 import time as _time
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
+from numpy.typing import ArrayLike
 
 from .._validation import check_in, check_int, check_positive
 from .constants import C0, EPS0, MU0
@@ -40,6 +43,9 @@ from .layouts import Layout
 from .operators import SBP_LAYERS, cross_gradient, sbp_pair
 from .pml import PML
 from .sources import Source
+
+if TYPE_CHECKING:
+    from ..kernels import Kernel
 
 __all__ = ["TMzSolver", "Line1DSolver", "cfl_number", "leapfrog_growth", "DEFAULT_H_RATIO", "DEFAULT_COUPLING",
            "COUPLINGS"]
@@ -111,7 +117,7 @@ def _check_dt(dt, h_min, courant, c=C0):
     return dt
 
 
-def leapfrog_growth(lam, dt: float) -> np.ndarray:
+def leapfrog_growth(lam: ArrayLike, dt: float) -> np.ndarray:
     """Per-step amplification ``max |z|`` of leap-frog for ``y'' = lam y`` (``z^2 - (2 + dt^2 lam) z + 1 = 0``).
 
     1 for real ``lam`` in ``[-4/dt^2, 0]``, above 1 otherwise (complex or
@@ -128,7 +134,8 @@ def leapfrog_growth(lam, dt: float) -> np.ndarray:
 class _Leapfrog:
     """Shared run loop: probes, snapshots, progress."""
 
-    def run(self, steps=None, *, t_end=None, probes=None, snapshot_every=None, progress=False):
+    def run(self, steps: int | None = None, *, t_end: float | None = None, probes: ArrayLike | None = None,
+            snapshot_every: int | None = None, progress: bool = False) -> dict:
         """Advance ``steps`` steps (or up to time ``t_end``), recording probes and snapshots.
 
         Parameters
@@ -241,9 +248,13 @@ class TMzSolver(_Leapfrog):
         "direct" only: the measured per-step leap-frog amplification at ``dt`` (1 when stable).
     """
 
-    def __init__(self, layout: Layout, *, h=None, h_ratio: float = DEFAULT_H_RATIO, kernel="cubic", form="fpm",
-                 eps_r=1.0, mu_r=1.0, sigma=0.0, pml: PML | None = None, dt=None, courant: float = 0.9, sources=(),
-                 coupling: str = DEFAULT_COUPLING, workers: int = 1, sbp_layers=SBP_LAYERS):
+    def __init__(self, layout: Layout, *, h: float | None = None, h_ratio: float = DEFAULT_H_RATIO,
+                 kernel: str | Kernel | type[Kernel] = "cubic", form: str = "fpm",
+                 eps_r: float | ArrayLike | Callable[[np.ndarray], ArrayLike] = 1.0,
+                 mu_r: float | ArrayLike | Callable[[np.ndarray], ArrayLike] = 1.0,
+                 sigma: float | ArrayLike | Callable[[np.ndarray], ArrayLike] = 0.0,
+                 pml: PML | None = None, dt: float | None = None, courant: float = 0.9, sources: Sequence[Source] = (),
+                 coupling: str = DEFAULT_COUPLING, workers: int = 1, sbp_layers: int | None = SBP_LAYERS) -> None:
         if not isinstance(layout, Layout):
             raise TypeError(f"layout must be a Layout, got {type(layout).__name__}")
         if pml is not None and not isinstance(pml, PML):
@@ -482,7 +493,7 @@ class TMzSolver(_Leapfrog):
         fr = self.free
         self._cax, self._cbx, self._cay, self._cby = self.ca_x[fr], self.cb_x[fr], self.ca_y[fr], self.cb_y[fr]
 
-    def set_dt(self, dt: float):
+    def set_dt(self, dt: float) -> None:
         """Change the time step (checked against the CFL rule and the stability limit).
 
         Call it before ``set_initial`` / ``run``; the fields are not rescaled.
@@ -511,7 +522,7 @@ class TMzSolver(_Leapfrog):
         """Number of particles (E plus distinct H)."""
         return self.layout.n_particles
 
-    def reset(self):
+    def reset(self) -> None:
         """Zero every field and set t = 0."""
         self.ezx = np.zeros(self.n_e)
         self.ezy = np.zeros(self.n_e)
@@ -525,7 +536,7 @@ class TMzSolver(_Leapfrog):
         """Ez = Ezx + Ezy at the E particles (time ``t``)."""
         return self.ezx + self.ezy
 
-    def probe_indices(self, xy) -> np.ndarray:
+    def probe_indices(self, xy: ArrayLike) -> np.ndarray:
         """Indices of the E particles nearest to the points ``xy`` (P, 2), for ``run(probes=...)``."""
         from .._validation import as_points
 
@@ -533,7 +544,7 @@ class TMzSolver(_Leapfrog):
         d2 = ((self.layout.e[None, :, :] - q[:, None, :]) ** 2).sum(axis=2)
         return np.argmin(d2, axis=1)
 
-    def set_initial(self, ez0, hx0=None, hy0=None):
+    def set_initial(self, ez0: ArrayLike, hx0: ArrayLike | None = None, hy0: ArrayLike | None = None) -> None:
         """Start from Ez(0) = ez0 (and H(0)), with H advanced half a step.
 
         ``H^{1/2} = H(0) + dt/2 dH/dt(0)``, second-order accurate when
@@ -558,7 +569,7 @@ class TMzSolver(_Leapfrog):
         b = B @ y
         return fa.result(), b
 
-    def step(self):
+    def step(self) -> None:
         """One leap-frog step: Ez to t + dt, then H to t + 3 dt / 2."""
         fr = self.free
         dhy, dhx = self._pair(self.Dx_e, self.hy, self.Dy_e, self.hx)
@@ -596,8 +607,10 @@ class Line1DSolver(_Leapfrog):
     0.5
     """
 
-    def __init__(self, e_points, h_points, *, h, kernel="cubic", form="fpm", eps_r=1.0, mu_r=1.0, dt=None,
-                 courant: float = 0.9, sources=(), fixed_ends: bool = True):
+    def __init__(self, e_points: ArrayLike, h_points: ArrayLike, *, h: float, kernel: str | Kernel | type[Kernel] = "cubic",
+                 form: str = "fpm", eps_r: float | ArrayLike | Callable[[np.ndarray], ArrayLike] = 1.0,
+                 mu_r: float | ArrayLike | Callable[[np.ndarray], ArrayLike] = 1.0, dt: float | None = None,
+                 courant: float = 0.9, sources: Sequence[Source] = (), fixed_ends: bool = True) -> None:
         self.e_points = np.asarray(e_points, dtype=np.float64).reshape(-1, 1)
         self.h_points = np.asarray(h_points, dtype=np.float64).reshape(-1, 1)
         self.h = check_positive("h", h)
@@ -623,11 +636,11 @@ class Line1DSolver(_Leapfrog):
         self.n = 0
 
     @property
-    def e_field(self):
+    def e_field(self) -> np.ndarray:
         """Ex at the E particles."""
         return self.ex
 
-    def step(self):
+    def step(self) -> None:
         """One leap-frog step."""
         fr = self.free
         self.ex[fr] -= self.dt / self.eps[fr] * (self.D_e @ self.hy)

@@ -17,9 +17,11 @@ Examples
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .._validation import check_in, check_positive
 
@@ -39,11 +41,11 @@ class Sinusoid:
     phase: float = 0.0
     ramp: float = 0.0
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         check_positive("freq", self.freq)
         check_positive("ramp", self.ramp, allow_zero=True)
 
-    def __call__(self, t):
+    def __call__(self, t: ArrayLike) -> np.ndarray:
         t = np.asarray(t, dtype=np.float64)
         v = self.amplitude * np.sin(2 * np.pi * self.freq * t + self.phase)
         if self.ramp > 0:
@@ -61,11 +63,11 @@ class GaussianPulse:
     amplitude: float = 1.0
     freq: float = 0.0
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         check_positive("tau", self.tau)
         check_positive("freq", self.freq, allow_zero=True)
 
-    def __call__(self, t):
+    def __call__(self, t: ArrayLike) -> np.ndarray:
         t = np.asarray(t, dtype=np.float64)
         s = (t - self.t0) / self.tau
         v = self.amplitude * np.exp(-s * s)
@@ -79,10 +81,10 @@ class Source:
     """A waveform applied at E particles ``indices``: ``kind`` "hard" (set) or "soft" (add)."""
 
     indices: np.ndarray
-    waveform: object
+    waveform: Callable[[float], ArrayLike]
     kind: str = "hard"
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         check_in("kind", self.kind, ("hard", "soft"))
         self.indices = np.atleast_1d(np.asarray(self.indices, dtype=np.int64))
         if self.indices.size == 0:
@@ -91,7 +93,8 @@ class Source:
             raise TypeError(f"waveform must be callable t -> value, got {type(self.waveform).__name__}")
 
 
-def point_source(e_points, position, waveform, kind: str = "hard", max_distance: float | None = None) -> Source:
+def point_source(e_points: ArrayLike, position: ArrayLike, waveform: Callable[[float], ArrayLike], kind: str = "hard",
+                 max_distance: float | None = None) -> Source:
     """A source at the E particle nearest to ``position``.
 
     ``position`` farther than ``max_distance`` from every E particle (default:
@@ -128,7 +131,8 @@ def point_source(e_points, position, waveform, kind: str = "hard", max_distance:
     return Source(np.array([int(idx)]), waveform, kind)
 
 
-def line_source(e_points, y: float, waveform, kind: str = "hard", tol: float | None = None) -> Source:
+def line_source(e_points: ArrayLike, y: float, waveform: Callable[[float], ArrayLike], kind: str = "hard",
+                tol: float | None = None) -> Source:
     """A plane-wave line source: every E particle with ``|y_i - y| <= tol`` (default: the nearest row)."""
     e = np.asarray(e_points, dtype=np.float64)
     dy = np.abs(e[:, 1] - y)
