@@ -41,6 +41,30 @@ MODULES = [
     "manifold_sph.geometry",
     "manifold_sph.domain",
     "manifold_sph.pointcloud",
+    "manifold_sph.surface",
+    "manifold_sph.operators",
+    "manifold_sph.pde",
+    "manifold_sph.threads",
+    "manifold_sph._validation",
+    "manifold_sph._lazy",
+    "manifold_sph.cli",
+    "manifold_sph.scans.normals",
+    "manifold_sph.scans.cleaning",
+    "manifold_sph.scans.boundary",
+    "manifold_sph.scans.io",
+    "manifold_sph.scans.io_read",
+    "manifold_sph.scans.io_write",
+    "manifold_sph.spem._casekit",
+    "manifold_sph.spem.analysis",
+    "manifold_sph.spem.cases",
+    "manifold_sph.spem.cases2d",
+    "manifold_sph.spem.cli",
+    "manifold_sph.spem.dirichlet",
+    "manifold_sph.spem.layouts",
+    "manifold_sph.spem.operators",
+    "manifold_sph.spem.pml",
+    "manifold_sph.spem.solver",
+    "manifold_sph.spem.sources",
 ]
 
 # module-level dunders that are part of a module's interface (PEP 562)
@@ -112,7 +136,9 @@ def public_callables(module_name: str) -> Iterator[tuple[str, Callable[..., obje
         if inspect.isclass(obj):
             yield from _class_callables(obj, module_name)
         elif inspect.isfunction(obj):
-            yield f"{module_name}.{name}", obj, False
+            # a decorator's wrapper (contextmanager, functools.wraps): the signature checkers see is the wrapped one
+            wrapped = getattr(obj, "__wrapped__", None)
+            yield f"{module_name}.{name}", wrapped if inspect.isfunction(wrapped) else obj, False
         elif callable(obj) and inspect.isfunction(getattr(obj, "__wrapped__", None)):
             yield f"{module_name}.{name}", obj.__wrapped__, False
 
@@ -163,10 +189,13 @@ def test_walker_reports_missing_annotations(tmp_path: Path, monkeypatch: pytest.
     """The walker itself: unannotated parameters and returns are found, self and private names are not."""
     (tmp_path / "fake_annotations_module.py").write_text(
         "from __future__ import annotations\n"
+        "from contextlib import contextmanager\n"
         "from dataclasses import dataclass\n"
         "def good(x: int, *args: int, **kw: str) -> int: ...\n"
         "def bad(x, y: int = 0): ...\n"
         "def _private(x): ...\n"
+        "@contextmanager\n"
+        "def cm(n): yield\n"
         "class C:\n"
         "    def __init__(self, a): ...\n"
         "    def m(self) -> None: ...\n"
@@ -183,7 +212,7 @@ def test_walker_reports_missing_annotations(tmp_path: Path, monkeypatch: pytest.
         total, complete, missing = walk(["fake_annotations_module"])
     finally:
         sys.modules.pop("fake_annotations_module", None)
-    assert (total, complete) == (6, 2)  # D's generated __init__, __repr__, __eq__ are not counted
+    assert (total, complete) == (7, 2)  # D's generated __init__, __repr__, __eq__ are not counted
     assert sorted(missing) == sorted([
         "fake_annotations_module.bad(x)",
         "fake_annotations_module.bad -> return",
@@ -191,6 +220,8 @@ def test_walker_reports_missing_annotations(tmp_path: Path, monkeypatch: pytest.
         "fake_annotations_module.C.__init__ -> return",
         "fake_annotations_module.C.p -> return",
         "fake_annotations_module.C.s(z)",
+        "fake_annotations_module.cm(n)",  # through the contextmanager wrapper's (*args, **kwds)
+        "fake_annotations_module.cm -> return",
     ])
 
 
