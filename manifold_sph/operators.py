@@ -248,7 +248,12 @@ class OperatorSet:
         return self._ops.dx, self._ops.dy
 
     def laplacian_matrix(self) -> sp.csr_matrix:
-        """Laplace-Beltrami matrix L, shape (N, N): ``L @ f == laplacian(f)``."""
+        """Laplace-Beltrami matrix L, shape (N, N): ``L @ f == laplacian(f)``.
+
+        The matrix is the one the operators use, not a copy: do not change it in place
+        (scipy's ``abs(L)`` and some other operations sort its unsorted column indices in
+        place, which changes the order of later row sums at round-off; use ``L.copy()``).
+        """
         return self._ops.lap
 
     def _pair_coefficients(self):

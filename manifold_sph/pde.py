@@ -115,7 +115,7 @@ def _strong_form_check(surface, maxiter: int) -> tuple[bool, str]:
     L = surface.laplacian_matrix()
     n = L.shape[0]
     reason = ""
-    absL = abs(L)
+    absL = abs(L.copy())  # abs() of a CSR with unsorted indices sorts them in place: not the shared matrix
     bound = float(absL.sum(axis=1).max())
     diag = L.diagonal()
     if np.all(diag + (np.asarray(absL.sum(axis=1)).ravel() - np.abs(diag)) <= 1e-12 * bound):

@@ -306,3 +306,13 @@ def test_bad_input_to_the_new_entry_points(rand2000):
         stiffness_matrix(np.array([0, 1]), np.array([1]), np.array([1.0]), 2)
     with pytest.raises(ValueError, match="weights must be finite"):
         stiffness_matrix(np.array([0]), np.array([1]), np.array([np.inf]), 2)
+
+
+def test_the_stability_check_does_not_reorder_the_operator_matrix():
+    """Regression: scipy's abs() sorted the shared Laplacian's unsorted indices in place, so a
+    build's later products summed its rows in another order (round-off differences that broke
+    bit-for-bit equality of tiled and single-process builds)."""
+    s = Surface(shapes.sphere(3000))
+    before = s.laplacian_matrix().indices.copy()
+    pde.strong_form_is_stable(s)
+    np.testing.assert_array_equal(s.laplacian_matrix().indices, before)
