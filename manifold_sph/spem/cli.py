@@ -15,9 +15,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 from collections.abc import Sequence
+
+from .._validation import check_output_path
 
 __all__ = ["add_parser", "run", "main"]
 
@@ -99,8 +100,12 @@ def _kwargs(args) -> dict:
 
 
 def _check_target(path, overwrite):
-    if path and os.path.exists(path) and not overwrite:
-        raise ValueError(f"{path} exists; pass --overwrite to replace it")
+    """The package's one overwrite guard (folder, missing folder, existing file), before the run."""
+    if path:
+        try:
+            check_output_path("output", path, overwrite, hint="--overwrite")
+        except (FileExistsError, FileNotFoundError, IsADirectoryError) as exc:
+            raise ValueError(str(exc)) from None
 
 
 def _draw(ax, points, values, vmax):
