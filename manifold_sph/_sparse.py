@@ -117,7 +117,8 @@ def _solve_blocks(A: sp.csr_matrix) -> np.ndarray:
     return np.unique(_nnz_bounds(A, n_blocks)).astype(np.int64)
 
 
-def bicgstab_csr(A: sp.csr_matrix, b: np.ndarray, dinv: np.ndarray, x0: np.ndarray, rtol: float, maxiter: int):
+def bicgstab_csr(A: sp.csr_matrix, b: np.ndarray, dinv: np.ndarray, x0: np.ndarray, rtol: float, maxiter: int,
+                 stall_window: int | None = None):
     """BiCGSTAB for ``A x = b`` with the preconditioner ``diag(dinv)``, each step one fused compiled pass on threads.
 
     scipy's iteration (right preconditioning by ``diag(dinv)``, stop when
@@ -132,6 +133,11 @@ def bicgstab_csr(A: sp.csr_matrix, b: np.ndarray, dinv: np.ndarray, x0: np.ndarr
     b, dinv, x0 : ndarray, shape (N,)
     rtol : float
     maxiter : int
+    stall_window : int, optional
+        Give up early (``info = maxiter``, not converged) when the smallest residual
+        so far is not 10x below the smallest one ``stall_window`` iterations earlier:
+        a stalled iteration (uniformly random clouds in the area solve) stops there
+        instead of running to ``maxiter``.
 
     Returns
     -------
@@ -187,9 +193,13 @@ def bicgstab_csr(A: sp.csr_matrix, b: np.ndarray, dinv: np.ndarray, x0: np.ndarr
     rr = float(np.einsum("i,i->", r, r))
     rho = float(np.einsum("i,i->", rtilde, r))
     rho_prev = alpha = omega = beta = 1.0
+    best = np.full(max(int(maxiter), 1), np.inf)  # smallest residual norm up to each iteration
     for it in range(maxiter):
         if np.sqrt(rr) < atol:
             return x, 0
+        best[it] = min(np.sqrt(rr), best[it - 1] if it else np.inf)
+        if stall_window and it >= stall_window and best[it] > 0.1 * best[it - stall_window]:
+            return x, max(int(maxiter), 1)  # stalled: reported as not converged
         if abs(rho) < tiny:
             return x, -10
         if it > 0:
