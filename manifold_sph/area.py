@@ -21,6 +21,7 @@ import scipy.sparse.linalg as spla
 from .exceptions import ManifoldSPHWarning
 from . import _jit
 from ._sparse import bicgstab_csr
+from ._validation import check_positive
 from .kernels import Kernel, QuinticSpline
 from .frames import PairOffsets, offsets_of_rows
 from .neighbors import Neighborhood
@@ -63,7 +64,7 @@ def near_duplicate_pairs(
     nb: Neighborhood, xy: np.ndarray | PairOffsets, columns: np.ndarray | None = None, tol: float | None = None
 ) -> np.ndarray:
     """Positions of the pairs ``i != j`` closer than ``tol h_i`` (default :data:`MERGE_TOL`), in row chunks."""
-    tol = MERGE_TOL if tol is None else tol
+    tol = MERGE_TOL if tol is None else check_positive("tol", tol)
     n = nb.n_rows
     cols = nb.indices if columns is None else np.asarray(columns)
     found = []

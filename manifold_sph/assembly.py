@@ -185,7 +185,7 @@ class ColumnAreas:
         return self.dV[self.columns[p0:p1]]
 
 
-def _dv_at(dV_pairs, nb, pos):
+def _dv_at(dV_pairs, pos):
     if isinstance(dV_pairs, ColumnAreas):
         return dV_pairs.dV[dV_pairs.columns[pos]]
     return dV_pairs[pos]
@@ -213,7 +213,7 @@ def _local_pairs(rows, nb, xy, dV_pairs, kernel) -> tuple[LocalPairs, np.ndarray
     y = np.where(valid, xp[..., 1], 0.0)
     xi, W, dW, d2W, q = pair_kernel_data(kernel, x, y, h)
     xi[:, 0][~valid] = 0.0
-    dV = np.where(valid, _dv_at(dV_pairs, nb, pos), 0.0) / (h * h)[:, None]
+    dV = np.where(valid, _dv_at(dV_pairs, pos), 0.0) / (h * h)[:, None]
     return LocalPairs(valid=valid, xy=xi, dV=dV, W=W, dW=dW, d2W=d2W, dw_over_r=q), pos
 
 

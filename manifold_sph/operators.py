@@ -157,6 +157,8 @@ class OperatorSet:
         (2, 2, 1)
         """
         if key not in self._cache:
+            if not callable(compute):
+                raise TypeError(f"compute must be a callable returning the value, got {type(compute).__name__}")
             self._cache[key] = compute()
         return self._cache[key]
 

@@ -316,3 +316,21 @@ def test_the_stability_check_does_not_reorder_the_operator_matrix():
     before = s.laplacian_matrix().indices.copy()
     pde.strong_form_is_stable(s)
     np.testing.assert_array_equal(s.laplacian_matrix().indices, before)
+
+
+def test_new_entry_points_reject_bad_input():
+    """cached, near_duplicate_pairs, heat's diffusivity and explicit_dt_limit name the bad argument."""
+    from manifold_sph.area import near_duplicate_pairs
+
+    s = Surface(shapes.sphere(500), area="shepard")
+    with pytest.raises(TypeError, match="compute must be a callable"):
+        s.cached("nothing", 3.0)
+    with pytest.raises(ValueError, match="tol must be a finite positive number"):
+        near_duplicate_pairs(s.neighborhood, s.pair_offsets(), tol=float("nan"))
+    for bad in (float("nan"), -1.0, 0.0):
+        with pytest.raises(ValueError, match="diffusivity must be a finite positive number"):
+            pde.heat(s, s.points[:, 2], dt=0.01, steps=1, diffusivity=bad)
+        with pytest.raises(ValueError, match="c must be a finite positive number"):
+            pde.explicit_dt_limit(s, equation="wave", c=bad)
+    with pytest.raises(ValueError, match="equation must be one of"):
+        pde.explicit_dt_limit(s, equation="poisson")
