@@ -3,6 +3,7 @@
     python benchmarks/perf.py                                   # N = 10000, 100000
     python benchmarks/perf.py --sizes 10000,100000,1000000 --repeat 3 --json perf.json --peers
     python benchmarks/perf.py --ratios --sizes 10000,131072,1000000,4000000   # issue 22: ratios, RSS
+    python benchmarks/perf.py --ratios --sampling random --sizes 131072,1000000
 
 Unit sphere, Fibonacci points (``manifold_sph.reference.shapes.sphere``), exact normals,
 f = cos(xz - sin y). Every speed figure stands next to the relative L2 error of
@@ -486,7 +487,7 @@ def warm_up():
 RATIO_MODES = ("query", "default", "shepard")
 
 
-def ratio_child(n: int, mode: str, repeat: int) -> dict:
+def ratio_child(n: int, mode: str, repeat: int, sampling: str = "fibonacci") -> dict:
     """One measurement in a fresh process (so ``ru_maxrss`` is this step's peak): the bare KD-tree
     query of the issue (``cKDTree(p).query(p, k=40, distance_upper_bound=3 h, workers=-1)``, h the
     default build's), or ``Surface(p, n)`` with defaults, or with ``area="shepard"``."""
@@ -494,7 +495,7 @@ def ratio_child(n: int, mode: str, repeat: int) -> dict:
 
     from manifold_sph.neighbors import smoothing_length_for_count
 
-    c = shapes.sphere(n)
+    c = shapes.sphere(n) if sampling == "fibonacci" else shapes.sphere(n, sampling="random", seed=0)
     p, nn = c.points.copy(), c.normals.copy()
     del c
     quiet(lambda: Surface(shapes.sphere(2000)))()  # numba's cache loaded
@@ -511,23 +512,24 @@ def ratio_child(n: int, mode: str, repeat: int) -> dict:
             quiet(lambda: Surface(p, nn, area="shepard"))()
         times.append(time.perf_counter() - t0)
     rss1 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    return {"n": n, "mode": mode, "seconds": float(np.median(times)), "rss_before_mb": rss0, "rss_peak_mb": rss1}
+    return {"n": n, "mode": mode, "sampling": sampling, "seconds": float(np.median(times)), "rss_before_mb": rss0,
+            "rss_peak_mb": rss1}
 
 
-def ratio_table(sizes, repeat: int) -> list[dict]:
+def ratio_table(sizes, repeat: int, sampling: str = "fibonacci") -> list[dict]:
     """Issue 22's table: default and Shepard builds as ratios of the bare KD-tree query, each in a fresh
     process with its peak resident memory, and the fitted scaling exponent of the default build."""
     import subprocess
 
     print(f"cores {os.cpu_count()}, load average at start {' '.join(f'{x:.2f}' for x in os.getloadavg())}; "
-          f"Fibonacci sphere, exact normals; median of {repeat} runs, each row in a fresh process")
+          f"{sampling} points on the unit sphere, exact normals; median of {repeat} runs, each row in a fresh process")
     print(f"{'N':>9} {'query s':>8} {'default s':>10} {'ratio':>6} {'shepard s':>10} {'ratio':>6} "
           f"{'peak RSS MB':>12} {'RSS before':>11} {'build MB per 1M':>16}")
     rows = []
     for n in sizes:
         r = {}
         for mode in RATIO_MODES:
-            out = subprocess.run([sys.executable, __file__, "--ratio-child", f"{n},{mode},{repeat}"], check=True,
+            out = subprocess.run([sys.executable, __file__, "--ratio-child", f"{n},{mode},{repeat},{sampling}"], check=True,
                                  capture_output=True, text=True).stdout
             r[mode] = json.loads(out.strip().splitlines()[-1])
         q, d, sh = (r[m]["seconds"] for m in RATIO_MODES)
@@ -548,8 +550,8 @@ def ratio_table(sizes, repeat: int) -> list[dict]:
 
 def main(argv=None):
     if argv is None and len(sys.argv) == 3 and sys.argv[1] == "--ratio-child":
-        n, mode, repeat = sys.argv[2].split(",")
-        print(json.dumps(ratio_child(int(n), mode, int(repeat))))
+        n, mode, repeat, sampling = sys.argv[2].split(",")
+        print(json.dumps(ratio_child(int(n), mode, int(repeat), sampling)))
         return
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sizes", default="10000,100000", help="comma-separated cloud sizes (default 10000,100000)")
@@ -564,10 +566,12 @@ def main(argv=None):
     ap.add_argument("--ratios", action="store_true",
                     help="only issue 22's table: builds as ratios of the bare KD-tree query, peak RSS per million "
                          "points, scaling exponent (each row in a fresh process)")
+    ap.add_argument("--sampling", choices=("fibonacci", "random"), default="fibonacci",
+                    help="--ratios on Fibonacci (near-uniform) or uniformly random sphere points")
     args = ap.parse_args(argv)
     sizes = [int(float(x)) for x in args.sizes.split(",") if x]
     if args.ratios:
-        rows = ratio_table(sizes, args.repeat)
+        rows = ratio_table(sizes, args.repeat, args.sampling)
         if args.json:
             with open(args.json, "w") as fh:
                 json.dump(rows, fh, indent=1)
