@@ -1,6 +1,9 @@
-"""SPEM against a staircased Yee FDTD on the circular PEC cavity (TMz, [2] sec. 4.3).
+"""SPEM against a staircased Yee FDTD on the circular PEC cavity (TMz, [2] sec. 4.3) and cylinder scattering.
 
 Run: .venv/bin/python benchmarks/spem_vs_yee.py [--full]
+     .venv/bin/python benchmarks/spem_vs_yee.py --scattering [--full]   (plane wave on PEC, dielectric and
+     coated cylinders, :mod:`manifold_sph.spem.scattering`, against the same scattered-field formulation,
+     PML and DFT on the Yee grid; staircased, and for the dielectric also cell-averaged like SPEM's particles)
 
 The cavity: radius r0 = 0.1 m, eps_r = 10, Ez(0) = 1 - r^2/r0^2, exact Bessel series
 (:func:`manifold_sph.spem.cases.cavity_exact`). Both methods report
@@ -134,8 +137,13 @@ def row(r):
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--full", action="store_true", help="add SPEM at 80 spacings per radius (set-up ~40 s)")
+    ap.add_argument("--full", action="store_true", help="add SPEM at 80 spacings per radius (set-up ~40 s); "
+                    "with --scattering, jittered particles at 16 spacings per radius too")
+    ap.add_argument("--scattering", action="store_true", help="the cylinder scattering cases instead of the cavity")
     a = ap.parse_args()
+    if a.scattering:
+        scattering_main(a.full)
+        return
     e1, e2 = yee_square_check()
     print(f"Yee check, square PEC cavity TM11 at 40 cells: frequency error {e1:.2e} against the exact mode, "
           f"{e2:.1e} against the Yee dispersion relation")
@@ -169,6 +177,175 @@ def main():
         e = math.exp(np.interp(math.log(r["unknowns"]), lu, le))
         print(f"  SPEM n_r={r['n_radial']} ({r['unknowns']} unknowns): error {r['error']:.2e}, Yee {e:.2e}: "
               f"Yee/SPEM = {e / r['error']:.1f}")
+
+
+def run_spem_scattering(kind, n_radial, **kw):
+    from manifold_sph.spem.scattering import run_scattering
+
+    r = run_scattering(kind, n_radial=n_radial, **kw)
+    return {"method": f"SPEM {r.coupling} {r.layout}", "case": kind, "n_radial": n_radial, "unknowns": r.particles,
+            "error": r.error, "ring_error": r.ring_error, "setup": r.setup_seconds,
+            "run": r.seconds - r.setup_seconds, "steps": r.steps,
+            "ns_per_unknown_step": 1e9 * (r.seconds - r.setup_seconds) / (r.steps * r.particles)}
+
+
+def _compare(spem, yee, label):
+    """Yee interpolated (log-log) on its own unknowns/error and error/CPU curves."""
+    le = np.log([r["error"] for r in yee])
+    lt = np.log([r["setup"] + r["run"] for r in yee])
+    lu = np.log([r["unknowns"] for r in yee])
+    order = np.argsort(le)
+    for r in spem:
+        e = math.exp(np.interp(math.log(r["unknowns"]), lu, le))
+        cpu = r["setup"] + r["run"]
+        x = math.log(r["error"])
+        if x < le.min():
+            eq = f"below every {label} run (best {math.exp(le.min()):.2e})"
+        elif x > le.max():
+            eq = f"above every {label} run"
+        else:
+            t = math.exp(np.interp(x, le[order], lt[order]))
+            eq = f"{label} reaches it in ~{t:.2f} s: SPEM/{label} CPU = {cpu / t:.1f}"
+        print(f"  {r['case']:<10s} n_r={r['n_radial']:<3d} ({r['unknowns']} unknowns): SPEM {r['error']:.2e} in "
+              f"{cpu:.2f} s; {label} at equal unknowns {e:.2e} ({label}/SPEM = {e / r['error']:.1f}); equal error: {eq}")
+
+
+def scattering_main(full=False, kinds=("pec", "dielectric", "coated"), layouts=("yee", "jittered")):
+    """Plane-wave scattering by PEC, dielectric (eps_r 4) and coated cylinders, ka = 2 (issue 21 item 3)."""
+    head = (f"{'method':<26s} {'case':<10s} {'n_r':>4s} {'unknowns':>8s} {'error':>10s} {'ring':>10s} {'setup s':>8s} "
+            f"{'run s':>8s} {'steps':>6s} {'ns/u/st':>8s}")
+
+    def line(r):
+        return (f"{r['method']:<26s} {r['case']:<10s} {r['n_radial']:>4d} {r['unknowns']:>8d} {r['error']:>10.3e} "
+                f"{r['ring_error']:>10.3e} {r['setup']:>8.2f} {r['run']:>8.2f} {r['steps']:>6d} "
+                f"{r['ns_per_unknown_step']:>8.1f}")
+
+    print("relative L2 error of the complex scattered field (DFT at the drive frequency) on the particles/nodes "
+          "outside the PML; 'ring': the annulus a < r <= 2a")
+    print(head)
+    for kind in kinds:
+        periods = 12.0 if kind == "pec" else 20.0
+        yee = [run_yee_scattering(kind, n, periods=periods) for n in (4, 8, 16, 32)]
+        avg = [] if kind == "pec" else [run_yee_scattering(kind, n, periods=periods, eps_mode="average")
+                                        for n in (4, 8, 16, 32)]
+        for r in yee + avg:
+            print(line(r), flush=True)
+        spem = {}
+        for layout in layouts:
+            sizes = (4, 8, 16) if (full or layout == "yee") else (4, 8)
+            spem[layout] = [run_spem_scattering(kind, n, periods=periods, layout=layout) for n in sizes]
+            for r in spem[layout]:
+                print(line(r), flush=True)
+        for layout in layouts:
+            print(f"{kind}, SPEM {layout} against the staircased Yee:")
+            _compare(spem[layout], yee, "Yee")
+            if avg:
+                print(f"{kind}, SPEM {layout} against Yee with the same cell-averaged eps:")
+                _compare(spem[layout], avg, "Yee-avg")
+
+
+# ----------------------------------------------------------------------------- scattering (issue 21 item 3)
+def run_yee_scattering(kind, n_radial, *, radius=0.1, ka=2.0, eps_r=4.0, core_radius=None, margin=0.5,
+                       pml_thickness=0.5, periods=12.0, ramp=3.0, dft_periods=2.0, courant=0.99 / math.sqrt(2),
+                       eps_mode="staircase"):
+    """The scattering cases of :func:`manifold_sph.spem.scattering.run_scattering` on a numpy Yee grid.
+
+    Same scattered-field formulation, incident switch-on, split-field PML (the same
+    :class:`~manifold_sph.spem.pml.PML` profile, same thickness in metres), periods and DFT. Cells of
+    side d = radius / n_radial with an Ez node at the centre; the conductor is staircased (Ez_s = -Ez_inc
+    on every node with r <= b), the dielectric too (``eps_mode="staircase"``: eps_r on the nodes with
+    r < a) or cell-averaged like SPEM's particles (``"average"``).
+    """
+    from manifold_sph.spem.pml import PML
+    from manifold_sph.spem.scattering import _Switched, cell_fraction, l2_error, scattered_field
+
+    t_start = time.perf_counter()
+    if kind == "coated" and core_radius is None:
+        core_radius = 0.5 * radius
+    freq = ka * C0 / (2 * math.pi * radius)
+    lam = C0 / freq
+    d = radius / n_radial
+    inner = d * math.ceil((radius + margin * lam) / d - 1e-9)
+    outer = inner + d * math.ceil(pml_thickness * lam / d - 1e-9)
+    n = int(round(2 * outer / d))
+    x = np.arange(n + 1) * d - outer
+    X, Y = np.meshgrid(x, x, indexing="ij")
+    R = np.hypot(X, Y)
+    pml = PML(outer - inner, 3, 1e-6, interior=(-inner, inner, -inner, inner))
+    pts = np.column_stack([X.ravel(), Y.ravel()])
+    sx, sy = (v.reshape(X.shape) for v in pml.sigma(pts))
+    hxp = np.column_stack([X[:, :-1].ravel(), (Y[:, :-1] + d / 2).ravel()])
+    hyp = np.column_stack([(X[:-1, :] + d / 2).ravel(), Y[:-1, :].ravel()])
+    sy_hx = pml.sigma(hxp)[1].reshape(n + 1, n)
+    sx_hy = pml.sigma(hyp)[0].reshape(n, n + 1)
+    eps = np.ones_like(X)
+    wall_r = {"pec": radius, "coated": core_radius}.get(kind)
+    pec = np.zeros(X.shape, bool) if wall_r is None else R <= wall_r
+    if kind != "pec":
+        b = core_radius if kind == "coated" else 0.0
+        if eps_mode == "staircase":
+            eps = np.where((R < radius) & ~pec, eps_r, 1.0)
+        else:
+            frac = cell_fraction(pts, d, lambda u, v: (np.hypot(u, v) < radius) & (np.hypot(u, v) >= b)).reshape(X.shape)
+            eps = 1.0 + (eps_r - 1.0) * frac
+    dt_max = courant * d / C0
+    T = 1.0 / freq
+    per = int(math.ceil(T / dt_max - 1e-9))
+    dt = T / per
+
+    def coef(s, m):
+        a = s * dt / (2 * m)
+        return (1 - a) / (1 + a), (dt / m) / (1 + a) / d
+
+    cax, cbx = coef(sx, EPS0 * eps)
+    cay, cby = coef(sy, EPS0 * eps)
+    dax, dbx = coef(sy_hx * MU0 / EPS0, MU0)
+    day, dby = coef(sx_hy * MU0 / EPS0, MU0)
+    cax, cbx, cay, cby = (v[1:-1, 1:-1] for v in (cax, cbx, cay, cby))
+    x0 = -radius
+    pec_i = np.nonzero(pec)
+    drive_pec = _Switched(X[pec_i], freq, x0, ramp)
+    diel = np.nonzero((eps > 1.0) & ~pec)
+    drive_d = _Switched(X[diel], freq, x0, ramp)
+    fac = (eps[diel] - 1.0) / eps[diel]
+    ezx = np.zeros(X.shape)
+    ezy = np.zeros(X.shape)
+    hx = np.zeros((n + 1, n))
+    hy = np.zeros((n, n + 1))
+    steps = int(round(periods * per))
+    n_dft = int(round(dft_periods * per))
+    ev = (np.abs(X) <= inner + 1e-9 * d) & (np.abs(Y) <= inner + 1e-9 * d) & ~pec
+    ev[0, :] = ev[-1, :] = ev[:, 0] = ev[:, -1] = False
+    acc = np.zeros(int(ev.sum()), dtype=complex)
+    w = 2 * math.pi * freq
+    unknowns = int((~pec[1:-1, 1:-1]).sum() + hx.size + hy.size)
+    setup = time.perf_counter() - t_start
+    t1 = time.perf_counter()
+    t = 0.0
+    for k in range(steps):
+        ezx[1:-1, 1:-1] = cax * ezx[1:-1, 1:-1] + cbx * (hy[1:, 1:-1] - hy[:-1, 1:-1])
+        ezy[1:-1, 1:-1] = cay * ezy[1:-1, 1:-1] - cby * (hx[1:-1, 1:] - hx[1:-1, :-1])
+        t = (k + 1) * dt
+        if len(diel[0]):
+            ezx[diel] -= fac * (drive_d(t) - drive_d(t - dt))
+        if len(pec_i[0]):
+            ezx[pec_i] = -drive_pec(t)
+            ezy[pec_i] = 0.0
+        ez = ezx + ezy
+        hx = dax * hx - dbx * (ez[:, 1:] - ez[:, :-1])
+        hy = day * hy + dby * (ez[1:, :] - ez[:-1, :])
+        if k >= steps - n_dft:
+            acc += ez[ev] * np.exp(1j * w * t)
+    run = time.perf_counter() - t1
+    phasor = acc * (2.0 / n_dft)
+    p = np.column_stack([X[ev], Y[ev]])
+    exact = scattered_field(p, kind, freq=freq, radius=radius, eps_r=eps_r, core_radius=core_radius)
+    rr = np.hypot(p[:, 0], p[:, 1])
+    ring = (rr > radius) & (rr <= 2 * radius)
+    return {"method": f"Yee FDTD ({eps_mode})" if kind != "pec" else "Yee FDTD (staircased)", "case": kind,
+            "n_radial": n_radial, "unknowns": unknowns, "error": l2_error(phasor, exact),
+            "ring_error": l2_error(phasor[ring], exact[ring]), "setup": setup, "run": run, "steps": steps,
+            "ns_per_unknown_step": 1e9 * run / (steps * unknowns)}
 
 
 if __name__ == "__main__":

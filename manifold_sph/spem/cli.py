@@ -45,7 +45,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
 
     p = subparsers.add_parser("spem", help="SPEM time-domain Maxwell cases (line1d, cavity, waveguide, planewave, pml)",
                               description="Run a SPEM validation case against its exact solution.")
-    p.add_argument("case", choices=CASES)
+    p.add_argument("case", choices=(*CASES, *SCATTERING_CASES))
     p.add_argument("--layout", default="yee", choices=LAYOUTS, help="particle layout (default yee)")
     p.add_argument("--form", default="fpm", choices=FORMS, help="derivative system (default fpm)")
     p.add_argument("--kernel", default="cubic", help="kernel (default cubic)")
@@ -68,6 +68,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     p.add_argument("--overwrite", action="store_true", help="allow replacing existing picture files")
     p.add_argument("--progress", action="store_true", help="show a progress bar")
     p.add_argument("--json", action="store_true", help="print JSON")
+    _add_scattering_arguments(p)
     return p
 
 
@@ -155,6 +156,8 @@ def run(args: argparse.Namespace) -> int:
     """Run the ``spem`` subcommand; 0 on success, 2 on a user mistake (one line on stderr)."""
     from .cases import run_case
 
+    if args.case in SCATTERING_CASES or any(getattr(args, n, None) is not None for n in _SCATTERING_OPTIONS):
+        return _run_scattering(args)
     try:
         kw = _kwargs(args)
         _check_target(args.png, args.overwrite)
@@ -166,6 +169,63 @@ def run(args: argparse.Namespace) -> int:
     if args.png or args.gif:
         _pictures(result, args)
     public = {k: v for k, v in result.items() if not k.startswith("_")}
+    if args.json:
+        print(json.dumps(public))
+    else:
+        for k, v in public.items():
+            print(f"{k:>28s}  {v:.6g}" if isinstance(v, float) else f"{k:>28s}  {v}")
+    return 0
+
+
+# ----------------------------------------------------------------------------- scattering cases (issue 21 item 3)
+#: The cylinder scattering cases of :mod:`.scattering`, beside :data:`.cases.CASES`.
+SCATTERING_CASES = ("scatter-pec", "scatter-dielectric", "scatter-coated")
+_SCATTERING_OPTIONS = ("ka", "core_radius", "periods")
+_NOT_FOR_SCATTERING = ("spectrum_periods", "size", "freq", "pml_cells", "r0", "png", "gif", "ppw")
+
+
+def _add_scattering_arguments(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("scatter-pec, scatter-dielectric, scatter-coated (plane wave on a cylinder of radius "
+                             "0.1 m; also --n-radial, default 8, --eps-r, default 4, --layout yee|jittered, "
+                             "--coupling, --h-ratio)")
+    g.add_argument("--ka", type=_positive(float), default=None, help="wavenumber times radius (default 2)")
+    g.add_argument("--core-radius", type=_positive(float), default=None,
+                   help="scatter-coated: PEC core radius in m (default 0.05)")
+    g.add_argument("--periods", type=_positive(float), default=None,
+                   help="periods of the drive (default 20; the last 2 are Fourier-analysed)")
+
+
+def _run_scattering(args: argparse.Namespace) -> int:
+    """``spem scatter-*``: :func:`.scattering.run_scattering` against the exact series."""
+    from .scattering import run_scattering
+    from .solver import DEFAULT_COUPLING
+
+    try:
+        if args.case not in SCATTERING_CASES:
+            given = [n for n in _SCATTERING_OPTIONS if getattr(args, n) is not None]
+            raise ValueError(f"--{given[0].replace('_', '-')} applies only to the cases {', '.join(SCATTERING_CASES)}")
+        for name in _NOT_FOR_SCATTERING:
+            if getattr(args, name, None) not in (None, False):
+                raise ValueError(f"--{name.replace('_', '-')} does not apply to case {args.case!r}")
+        if args.layout not in ("yee", "jittered"):
+            raise ValueError(f"--layout for the scattering cases must be yee or jittered, got {args.layout!r}")
+        kind = args.case.split("-", 1)[1]
+        kw = {"layout": args.layout, "coupling": args.coupling or DEFAULT_COUPLING, "form": args.form,
+              "kernel": args.kernel}
+        for name, key in (("n_radial", "n_radial"), ("eps_r", "eps_r"), ("h_ratio", "h_ratio"), ("ka", "ka"),
+                          ("core_radius", "core_radius"), ("periods", "periods")):
+            if getattr(args, name) is not None:
+                kw[key] = getattr(args, name)
+        if "core_radius" in kw and kind != "coated":
+            raise ValueError("--core-radius applies only to scatter-coated")
+        if "eps_r" in kw and kind == "pec":
+            raise ValueError("--eps-r does not apply to scatter-pec")
+        kw.setdefault("periods", 20.0)
+        result = run_scattering(kind, **kw)
+    except (ValueError, TypeError) as exc:
+        print(f"manifold-sph spem: error: {exc}", file=sys.stderr)
+        return 2
+    public = result.to_dict()
     if args.json:
         print(json.dumps(public))
     else:

@@ -1,0 +1,156 @@
+"""Plane-wave scattering by circular cylinders (issue 21 item 3): the exact series and the SPEM cases."""
+
+import math
+
+import numpy as np
+import pytest
+
+from manifold_sph.spem import scattering as sc
+from manifold_sph.spem.constants import C0
+
+A = 0.1
+F = 2.0 * C0 / (2 * math.pi * A)  # ka = 2
+
+
+def _circle(r, m=13):
+    th = np.linspace(0.0, 2 * np.pi, m, endpoint=False) + 0.1
+    return np.column_stack([r * np.cos(th), r * np.sin(th)])
+
+
+# ----------------------------------------------------------------------------- the series
+@pytest.mark.parametrize("kind,kw", [("pec", {}), ("dielectric", {"eps_r": 4.0}),
+                                     ("coated", {"eps_r": 3.0, "core_radius": 0.05})])
+def test_lossless_cylinders_conserve_energy(kind, kw):
+    # optical theorem per order: |1 + 2 a_n| = 1 for every lossless scatterer
+    a_n, _ = sc.mie_coefficients(kind, F, A, **kw)
+    np.testing.assert_allclose(np.abs(1 + 2 * a_n), 1.0, atol=1e-12)
+
+
+def test_series_meets_the_boundary_conditions():
+    # PEC: Ez = 0 on r = a; coated: Ez = 0 on the core; dielectric: Ez and dEz/dr continuous
+    assert np.abs(sc.total_field(_circle(A), "pec", freq=F, radius=A)).max() < 1e-12
+    core = _circle(0.05 * (1 + 1e-12))
+    assert np.abs(sc.total_field(core, "coated", freq=F, radius=A, eps_r=3.0, core_radius=0.05)).max() < 1e-9
+    for kind, kw in (("dielectric", {"eps_r": 4.0}), ("coated", {"eps_r": 3.0, "core_radius": 0.05})):
+        d = 1e-6
+
+        def ez(r):
+            return sc.total_field(_circle(r), kind, freq=F, radius=A, **kw)
+
+        assert np.abs(ez(A - d) - ez(A + d)).max() < 1e-4
+        inner = (ez(A - d) - ez(A - 3 * d)) / (2 * d)
+        outer = (ez(A + 3 * d) - ez(A + d)) / (2 * d)
+        assert np.abs(inner - outer).max() < 1e-3 * np.abs(outer).max()
+
+
+def test_series_solves_helmholtz():
+    # (Laplacian + k^2 eps_r) Ez = 0 outside and inside, by a fourth-order finite difference
+    k = sc.wavenumber(F)
+    h = 1e-4
+    for p, eps in (([0.17, 0.06], 1.0), ([0.03, -0.04], 4.0)):
+        p = np.asarray(p)
+        offs = [(0, 0), (h, 0), (-h, 0), (0, h), (0, -h)]
+        v = sc.total_field(p + np.array(offs), "dielectric", freq=F, radius=A, eps_r=4.0)
+        lap = (v[1:].sum() - 4 * v[0]) / h**2
+        assert abs(lap + k * k * eps * v[0]) < 2e-4 * k * k * eps * abs(v[0]) + 1e-3
+
+
+def test_no_contrast_no_scattering():
+    pts = np.array([[0.05, 0.02], [0.3, -0.1]])
+    assert np.abs(sc.scattered_field(pts, "dielectric", freq=F, radius=A, eps_r=1.0)).max() < 1e-13
+
+
+def test_series_is_converged():
+    pts = np.vstack([_circle(0.15), _circle(0.05)])
+    a = sc.scattered_field(pts, "dielectric", freq=F, radius=A, eps_r=4.0)
+    b = sc.scattered_field(pts, "dielectric", freq=F, radius=A, eps_r=4.0, n_terms=60)
+    assert np.abs(a - b).max() < 1e-12
+
+
+def test_dft_and_error_helpers():
+    t = np.arange(64) / (16 * F)  # 4 periods, 16 samples each
+    p = 0.7 * np.exp(0.4j)
+    s = np.real(p * np.exp(-2j * np.pi * F * t))
+    assert abs(sc.dft_phasor(s[:, None], t, F)[0] - p) < 1e-12
+    assert sc.l2_error([1.0, 2.0], [1.0, 2.0]) == 0.0
+    with pytest.raises(ValueError, match="identically zero"):
+        sc.l2_error([1.0], [0.0])
+
+
+def test_cell_fraction_of_a_disk():
+    # the fractions of a lattice's cells sum to the disk's area
+    dr = 0.01
+    g = np.arange(-0.12, 0.1201, dr)
+    X, Y = np.meshgrid(g, g)
+    f = sc.cell_fraction(np.column_stack([X.ravel(), Y.ravel()]), dr, lambda x, y: np.hypot(x, y) < A, n_sub=16)
+    assert abs(f.sum() * dr * dr - math.pi * A * A) < 2e-3 * math.pi * A * A
+
+
+# ----------------------------------------------------------------------------- input checks
+@pytest.mark.parametrize("kwargs,match", [
+    ({"kind": "metal"}, "kind"),
+    ({"kind": "coated", "core_radius": 0.2}, "core_radius"),
+    ({"n_radial": 1}, "n_radial"),
+    ({"ka": -1.0}, "ka"),
+    ({"eps_r": 0.0}, "eps_r"),
+    ({"layout": "poisson"}, "layout"),
+    ({"coupling": "none"}, "coupling"),
+    ({"periods": 4.0, "ramp": 3.0, "dft_periods": 2.0}, "dft_periods"),
+])
+def test_run_scattering_refuses_bad_input(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        sc.run_scattering(**kwargs)
+
+
+def test_series_refuses_bad_input():
+    with pytest.raises(ValueError, match="kind"):
+        sc.mie_coefficients("glass", F, A)
+    with pytest.raises(ValueError, match="radius"):
+        sc.scattered_field([[0.0, 0.0]], "pec", freq=F, radius=-1.0)
+    with pytest.raises(ValueError, match="freq"):
+        sc.wavenumber(0.0)
+    with pytest.raises(ValueError, match="points"):
+        sc.total_field([[0.0, 0.0, 0.0]], "pec", freq=F, radius=A)
+    with pytest.raises(ValueError, match="half_width"):
+        sc.scattering_layout("pec", A, 0.02, 0.11)
+
+
+# ----------------------------------------------------------------------------- SPEM against the series
+def test_pec_layout_conforms_to_the_cylinder():
+    lay = sc.scattering_layout("pec", A, A / 8, 0.3)
+    r_e = np.hypot(*lay.e.T)
+    wall = lay.e_fixed & (r_e < 0.2)
+    np.testing.assert_allclose(r_e[wall], A, rtol=1e-12)  # on the circle, not staircased
+    assert r_e[~lay.e_fixed].min() >= A + 0.5 * lay.dr
+    assert min(np.hypot(*lay.hx.T).min(), np.hypot(*lay.hy.T).min()) > A
+
+
+def test_dielectric_cylinder_second_order():
+    # measured (20 periods): 1.97e-1 / 5.03e-2 / 1.21e-2 at 4 / 8 / 16 spacings per radius (order 2.0);
+    # here 8 periods (the slow ring-down of the cylinder's modes adds ~1e-3 at 8 spacings)
+    kw = dict(periods=8.0, dft_periods=2.0, sbp_layers=2)
+    r4 = sc.run_scattering("dielectric", n_radial=4, **kw)
+    r8 = sc.run_scattering("dielectric", n_radial=8, **kw)
+    assert r4.error < 0.22 and r8.error < 0.06
+    assert math.log2(r4.error / r8.error) > 1.8
+    assert r8.ring_error < 0.07
+
+
+def test_pec_cylinder():
+    # measured: 1.73e-1 at 4 spacings per radius (Yee staircased: 3.66e-1)
+    r = sc.run_scattering("pec", n_radial=4, periods=8.0, sbp_layers=2)
+    assert r.error < 0.2
+    assert r.to_dict()["case"] == "pec" and r.phasor.shape == r.exact.shape
+
+
+def test_coated_cylinder():
+    r = sc.run_scattering("coated", n_radial=4, periods=8.0, sbp_layers=2)
+    assert r.error < 0.3
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", ["dielectric", "pec"])
+def test_scattering_converges_slow(kind):
+    e = [sc.run_scattering(kind, n_radial=n, periods=20.0 if kind == "dielectric" else 12.0, sbp_layers=2).error
+         for n in (8, 16)]
+    assert math.log2(e[0] / e[1]) > 1.3
