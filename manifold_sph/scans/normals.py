@@ -43,6 +43,17 @@ Pipeline of :func:`estimate_normals` (default ``method="jet"``, ``degree=2``):
    99 % of them within 5 degrees (measured, tests/test_normals.py).
    Where too few neighbours remain for the degree, a plane is fitted.
 
+6. **High degree, guarded.** With ``degree=3`` or ``4`` steps 2-5 run at degree 2
+   (``k = 12``), and each particle is then refitted at the full degree with the wider
+   neighbourhood, starting from its oriented degree-2 normal. The high-degree normal
+   is kept where it agrees with the degree-2 one within 3 degrees (smooth parts: the
+   full order, e.g. a mean error of 1.9e-4 degrees against 1.5e-2 on a 32k-point
+   torus) or where its fit residual is below a quarter of the degree-2 fit's (the
+   one-sided fit next to a crease); elsewhere (thin or coarse parts, where the wider
+   neighbourhood reaches across) the degree-2 normal stays. Unguarded, degree 3 had a
+   median error of 9.0 degrees on the cow model and 12.3 on the teapot (degree 2: 6.4
+   and 2.7); guarded 6.6 and 3.5.
+
 ``method="pca"`` stops after step 1 (with the given ``k``, default 16) and orients.
 
 The per-particle **confidence** is the product of the shape term
@@ -99,6 +110,8 @@ _MIN_PATCH = 8
 _MAX_PROBES = 6000  # particles probed by the winding number (all of them up to this many)
 _PROBE_OFFSET = 1.0  # probe distance over the local spacing (0.5: noisy clouds flip, measured)
 _ROUNDS = 3
+_GUARD_DEGREES = 3.0  # a degree-3/4 normal within this angle of the degree-2 one is kept, or
+_GUARD_RESIDUAL = 0.25  # one whose fit residual is below this fraction of the degree-2 fit's (measured)
 
 
 def _knn(points: np.ndarray, k: int, tree: cKDTree | None = None):
@@ -222,7 +235,7 @@ def _jet_fit(pts: np.ndarray, neighbors: np.ndarray, frame: np.ndarray, degree, 
     return out
 
 
-def _refit(pts, neighbors, normals, degree, iterations=None, threshold=None):
+def _refit(pts, neighbors, normals, degree, iterations=None, threshold=None, residual=None):
     """Refit with only the neighbours whose oriented normal agrees (``n_i . n_j > threshold``)."""
     iterations = _REFIT_ITERATIONS if iterations is None else iterations
     threshold = _REFIT_DOT if threshold is None else threshold
@@ -234,8 +247,28 @@ def _refit(pts, neighbors, normals, degree, iterations=None, threshold=None):
         w[:, 0] = 1.0  # the particle itself (first neighbour)
         count = w.sum(axis=1)
         deg = np.where(count >= need, degree, np.where(count >= 5, 1, 0))
-        n = _jet_fit(pts, neighbors, n, deg, w)
+        n = _jet_fit(pts, neighbors, n, deg, w, residual=residual)
     return n
+
+
+def _high_order(pts, neighbors, base, base_residual, degree, refine):
+    """Degree-``degree`` fits started from the oriented ``base`` (degree-2) normals, guarded.
+
+    The high-degree normal replaces the base one where the two agree within
+    ``_GUARD_DEGREES`` (smooth, well-resolved parts: the error drops from ``O(h^2)``
+    to ``O(h^degree)``) or where its fit residual is below ``_GUARD_RESIDUAL`` times the
+    base fit's (one face of a crease found by the wider neighbourhood). Elsewhere, on
+    thin or coarsely sampled parts where the wider neighbourhood of a high-degree fit
+    reaches across, the base normal is kept (module notes, step 6).
+    """
+    res = np.zeros(pts.shape[0])
+    if refine:
+        hi = _refit(pts, neighbors, base, degree, residual=res)
+    else:
+        hi = _jet_fit(pts, neighbors, base, degree, residual=res)
+    dot = np.einsum("ij,ij->i", hi, base)
+    keep = (np.abs(dot) > np.cos(np.radians(_GUARD_DEGREES))) | (res < _GUARD_RESIDUAL * base_residual)
+    return np.where(keep[:, None], hi, base)
 
 
 def jet_normals(points: ArrayLike, k: int | None = None, *, degree: int = 2, neighbors: ArrayLike | None = None) -> np.ndarray:
@@ -713,14 +746,22 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: str | A
         k = _check_k(k, N, degree)
     orient = _check_orient(orient)
     dist, idx = _knn(pts, max(k, min(_ORIENT_K, N)))
+    refine = bool(refine) and not (isinstance(orient, str) and orient == "none")
     if method == "pca":
         w, v = _covariance(pts, idx[:, :k])
         nrm = v[:, :, 0]
     else:
+        # degree 3/4: fit and orient at degree 2 first (its smaller neighbourhood is
+        # the robust one on thin parts), then refit at the full degree (step 6)
+        base_deg, kb = (degree, k) if degree <= 2 else (2, min(k, DEFAULT_JET_K[2]))
         w, v = _covariance(pts, idx[:, : min(k, _PCA_K)])
-        nrm = _jet_fit(pts, idx[:, :k], v[:, :, 0], degree)
+        base_res = np.zeros(N)
+        nrm = _jet_fit(pts, idx[:, :kb], v[:, :, 0], base_deg, residual=base_res)
     conf = _shape_confidence(w)
     nrm, _, oconf = _orient(pts, nrm, idx, dist, orient)
-    if method == "jet" and refine and not (isinstance(orient, str) and orient == "none"):
-        nrm = _refit(pts, idx[:, :k], nrm, degree)
+    if method == "jet":
+        if refine:
+            nrm = _refit(pts, idx[:, :kb], nrm, base_deg, residual=base_res)
+        if degree > 2:
+            nrm = _high_order(pts, idx[:, :k], nrm, base_res, degree, refine)
     return (nrm, conf * oconf) if return_confidence else nrm
