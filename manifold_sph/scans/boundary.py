@@ -11,11 +11,16 @@ side. Two measures of that, per particle, from the projected neighbour offsets
 - ``offset``: ``|mean_j x_ij| / mean_j |x_ij|``, the centroid shift of the
   neighbourhood, ~0 inside and ~0.64 on a straight rim of a uniform cloud.
 
-A particle is on the boundary when both ``gap > max_gap`` and ``offset > max_offset``
+A particle is a boundary candidate when both ``gap > max_gap`` and ``offset > max_offset``
 (either alone flags interior particles of clumpy random samples; both together
 did not in the tests: on a uniformly random hemisphere of 2000 points, interior
 gaps reach about 120 degrees at the 99th percentile and offsets 0.5, but rarely
 together, while rim particles have gaps of 130-190 degrees and offsets above 0.4).
+For bare points, only neighbours whose normal agrees with the particle's (either
+sign) and that lie near its tangent plane count, so that another sheet nearby
+does not close a rim. Candidates linked in the neighbour graph form pieces; a
+piece is kept when it has a few particles and one with a gap above ``seed_gap``
+(hysteresis), which drops isolated specks of clumpy or anisotropic samplings.
 
 What the operators and PDEs do there
 ------------------------------------
@@ -47,7 +52,7 @@ from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
 from .._validation import as_points, check_int, check_positive
-from ..frames import project_pairs, tangent_frames
+from ..frames import tangent_frames
 from ..pointcloud import PointCloud
 from ..threads import get_num_threads
 
@@ -148,38 +153,162 @@ def angular_gaps(xy: np.ndarray, indptr: np.ndarray) -> np.ndarray:
     return np.where(m >= 2, gap, 2 * np.pi)
 
 
+_CHUNK = 65536  # rows per batch of the dense (rows, k) arrays
+
+
+def _dense_gaps(ang: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """Largest circular gap between the valid angles of each row (2 pi with fewer than two)."""
+    n, k = ang.shape
+    a = np.where(valid, ang, np.inf)
+    a.sort(axis=1)
+    m = valid.sum(axis=1)
+    last = a[np.arange(n), np.maximum(m - 1, 0)]
+    first = a[:, 0]
+    wrap = np.where(m > 0, first + 2 * np.pi - np.where(m > 0, last, 0.0), 2 * np.pi)
+    if k > 1:
+        inside = np.arange(1, k)[None, :] < m[:, None]
+        d = np.diff(np.where(np.isfinite(a), a, 0.0), axis=1)
+        gap = np.maximum(np.where(inside, d, 0.0).max(axis=1), wrap)
+    else:
+        gap = wrap
+    return np.where(m >= 2, gap, 2 * np.pi)
+
+
+_CONSENSUS = 9  # the particle and its 8 nearest neighbours vote on its normal
+
+
+def _consensus_normals(nrm, idx):
+    """The particle's normal or, when most of its nearest neighbours' normals disagree with it
+    (by more than 70 degrees, either sign: a normal turned across the surface), the
+    neighbour normal that agrees with the most of them."""
+    C = nrm[idx]
+    agree = np.abs(np.einsum("ncd,nmd->ncm", C, C)) > np.cos(np.radians(70))
+    votes = agree.sum(axis=2)
+    own_ok = 2 * votes[:, 0] > idx.shape[1]
+    best = votes.argmax(axis=1)
+    return np.where(own_ok[:, None], C[:, 0], C[np.arange(idx.shape[0]), best])
+
+
+def _cloud_measures(pts, nrm, idx, normal_threshold, max_elevation):
+    """Gap and centroid shift per particle from its ``k`` nearest neighbours, in batches.
+
+    A neighbour counts when its normal is within ``arccos(normal_threshold)`` of the
+    particle's, either sign (orientation-free), and its offset rises at most
+    ``max_elevation`` out of the particle's tangent plane (another sheet nearby, the
+    other side of a thin part, a part piercing the surface, does not close a rim).
+    """
+    n, k = idx.shape
+    gap = np.empty(n)
+    offset = np.empty(n)
+    tan_el = np.tan(max_elevation)
+    for s in range(0, n, _CHUNK):
+        e = min(s + _CHUNK, n)
+        nb = idx[s:e, 1:]
+        ni = _consensus_normals(nrm, idx[s:e, :_CONSENSUS])
+        d = pts[nb] - pts[s:e, None, :]
+        h = np.einsum("nd,nkd->nk", ni, d)
+        t = d - h[..., None] * ni[:, None, :]
+        r = np.linalg.norm(t, axis=2)
+        keep = (r > 0) & (np.abs(h) <= tan_el * r)
+        keep &= np.abs(np.einsum("nd,nkd->nk", ni, nrm[nb])) > normal_threshold
+        u, v = tangent_frames(ni)
+        x = np.einsum("nd,nkd->nk", u, t)
+        y = np.einsum("nd,nkd->nk", v, t)
+        gap[s:e] = _dense_gaps(np.arctan2(y, x), keep)
+        cnt = keep.sum(axis=1)
+        mean_r = np.where(keep, r, 0.0).sum(axis=1)
+        cx, cy = np.where(keep, x, 0.0).sum(axis=1), np.where(keep, y, 0.0).sum(axis=1)
+        offset[s:e] = np.where((cnt > 0) & (mean_r > 0), np.hypot(cx, cy) / np.where(mean_r > 0, mean_r, 1.0), 1.0)
+    return gap, offset
+
+
 def detect_boundary(
     surface: OperatorSet | PointCloud | ArrayLike,
     normals: ArrayLike | None = None,
     *,
-    k: int = 20,
+    k: int = 24,
     max_gap: float = 110.0,
     max_offset: float = 0.3,
-    normal_threshold: float = 0.0,
+    normal_threshold: float = 0.3,
+    max_elevation: float = 45.0,
+    seed_gap: float = 160.0,
+    min_piece: int = 3,
 ) -> BoundaryReport:
     """Find the particles on open boundaries (holes, rims) of a point-cloud surface.
+
+    Each particle's neighbours are projected into its tangent plane; a particle is a
+    boundary *candidate* when the largest angular gap between their directions
+    exceeds ``max_gap`` **and** their centroid is shifted by more than
+    ``max_offset`` mean radii (module notes). Then the candidates are linked
+    through the neighbour graph, and a piece is kept only when it holds at least
+    ``min_piece`` particles and one *seed*, a particle whose gap exceeds
+    ``seed_gap`` (hysteresis, as in Canny's edge detector: a rim has particles
+    with a half-plane or more empty; isolated specks of a clumpy or anisotropic
+    sampling rarely do).
+
+    For points (not a Surface), a neighbour takes part only when its normal is
+    within ``arccos(normal_threshold)`` of the particle's, **either sign** (a
+    minority of normals that point inward no longer cuts a neighbourhood apart),
+    and when it lies within ``max_elevation`` of the particle's tangent plane,
+    so that another sheet close by (the other side of a thin part, a lid
+    resting on a rim, a handle piercing a body) does not fill a rim's empty side.
+    A particle whose normal disagrees (by more than 70 degrees) with most of its
+    8 nearest neighbours' takes the neighbour normal that most of them agree
+    with: a minority of bad normals (5 % turned by 90 degrees on a hemisphere)
+    then adds no false boundary.
 
     Parameters
     ----------
     surface : Surface, PointCloud or array_like (N, 3)
         A :class:`~manifold_sph.Surface` is analysed with its own neighbourhood
-        and tangent frames; otherwise the ``k`` nearest neighbours (filtered by
-        normals, which are estimated if missing) are used.
+        and tangent frames; otherwise the ``k`` nearest neighbours (filtered as
+        above; normals are estimated if missing) are used.
     normals : array_like, shape (N, 3), optional
-        For a bare array of points.
+        For points or a PointCloud (replacing its normals). Sign does not matter.
     k : int
-        Neighbours (itself included) when ``surface`` is not a Surface.
+        Neighbours (itself included) when ``surface`` is not a Surface; 3 <= k <= N.
     max_gap : float
-        Angular gap (degrees) that a boundary particle exceeds.
+        Angular gap (degrees, in (0, 360]) that a boundary candidate exceeds.
     max_offset : float
-        Centroid shift (fraction of the mean neighbour distance) that a boundary
-        particle also exceeds.
+        Centroid shift (fraction of the mean neighbour distance, > 0) that a
+        candidate also exceeds.
     normal_threshold : float
-        Neighbours need ``n_i . n_j > normal_threshold`` (not for a Surface).
+        Neighbours need ``|n_i . n_j| > normal_threshold``, in [0, 1) (not for a Surface).
+    max_elevation : float
+        Largest angle (degrees, in (0, 90]) between a neighbour's offset and the
+        tangent plane (90 switches the test off; not for a Surface).
+    seed_gap : float
+        Every kept piece holds a particle with a gap above this (degrees, at least
+        ``max_gap``; pass ``max_gap`` to keep every candidate piece).
+    min_piece : int
+        Smallest piece kept (>= 1; 1 keeps lone candidates).
 
     Returns
     -------
     BoundaryReport
+        ``gap`` and ``offset`` are the raw measures of every particle; ``mask`` the
+        kept candidates; ``n_loops`` and ``labels`` their pieces.
+
+    Raises
+    ------
+    ValueError
+        For points that are not (N, 3) and finite, normals of another shape, or
+        parameters outside the ranges above.
+
+    Notes
+    -----
+    Measured on public test meshes whose vertices are used as bare points (issue 16;
+    ``python tests/test_boundary.py`` prints them): against the mesh's boundary
+    vertices, with the meshes' normals the teapot gives recall 0.79 with 24 %
+    false positives in 6 pieces (its mesh has 6 boundary loops; before these
+    filters: 0.67 / 49 % in 9), the beetle 0.53 / 48 % in 3 pieces (23 loops,
+    many of 2-4 vertices). With estimated normals the teapot flags 4x too many
+    particles (0.76 / 83 %): a quarter of its estimated normals are more than
+    60 degrees off, in whole rows, which the neighbours' vote cannot outvote;
+    the beetle gives 0.58 / 47 %. Both meshes are strongly
+    anisotropic and part of their mesh boundary lies on other parts of the
+    surface (the teapot's handle and spout end on its body; the beetle's panels
+    meet in cracks and T-junctions), which no test on the points alone can see.
 
     Examples
     --------
@@ -193,14 +322,39 @@ def detect_boundary(
     >>> rep = detect_boundary(plate, np.tile([0.0, 0, 1], (400, 1)))
     >>> rep.n_boundary, rep.n_loops                # the 76 particles on the square's edges
     (76, 1)
+    >>> c = shapes.sphere(2000, sampling="poisson", seed=1)
+    >>> cap = c.points[:, 2] < 0.5                 # a sphere with its north cap cut off
+    >>> rep = detect_boundary(c.points[cap], c.normals[cap])
+    >>> rep.n_loops, bool(c.points[cap][rep.mask, 2].min() > 0.35)
+    (1, True)
     """
     from ..operators import OperatorSet
 
+    max_gap_deg = check_positive("max_gap", max_gap)
+    if max_gap_deg > 360.0:
+        raise ValueError(f"max_gap must be at most 360 degrees, got {max_gap!r}")
+    max_offset = check_positive("max_offset", max_offset)
+    seed_deg = check_positive("seed_gap", seed_gap)
+    if seed_deg < max_gap_deg:
+        raise ValueError(f"seed_gap must be at least max_gap ({max_gap_deg:g}), got {seed_gap!r}")
+    thr = check_positive("normal_threshold", normal_threshold, allow_zero=True)
+    if thr >= 1.0:
+        raise ValueError(f"normal_threshold must be below 1, got {normal_threshold!r}")
+    elev = check_positive("max_elevation", max_elevation)
+    if elev > 90.0:
+        raise ValueError(f"max_elevation must be at most 90 degrees, got {max_elevation!r}")
+    min_piece = check_int("min_piece", min_piece, minimum=1)
     if isinstance(surface, OperatorSet):
         nb = surface.neighborhood
         xy = surface.pair_offsets()
         indptr, rows, cols = nb.indptr, nb.rows, nb.indices
         n = nb.n_rows
+        gap = angular_gaps(xy, indptr)
+        r = np.hypot(xy[:, 0], xy[:, 1])
+        cnt = np.maximum(np.diff(indptr), 1)
+        mean_xy = np.stack([np.bincount(rows, weights=xy[:, a], minlength=n) for a in range(2)], axis=1) / cnt[:, None]
+        mean_r = np.bincount(rows, weights=r, minlength=n) / cnt
+        offset = np.where(mean_r > 0, np.hypot(mean_xy[:, 0], mean_xy[:, 1]) / np.where(mean_r > 0, mean_r, 1.0), 1.0)
     else:
         if isinstance(surface, PointCloud):
             pts = surface.points
@@ -218,32 +372,27 @@ def detect_boundary(
             nrm = estimate_normals(pts)
         elif nrm.shape != pts.shape:
             raise ValueError(f"normals must have shape {pts.shape} to match points, got shape {nrm.shape}")
-        nrm = nrm / np.linalg.norm(nrm, axis=1, keepdims=True)
+        length = np.linalg.norm(nrm, axis=1, keepdims=True)
+        if not np.all(length > 0):
+            raise ValueError(f"normals must be non-zero; {int((length == 0).sum())} are zero")
+        nrm = nrm / length
         _, idx = cKDTree(pts).query(pts, k=k, workers=get_num_threads())
-        keep = np.einsum("nd,nkd->nk", nrm, nrm[idx]) > normal_threshold
-        counts = keep.sum(axis=1)
-        indptr = np.zeros(n + 1, dtype=np.int64)
-        np.cumsum(counts, out=indptr[1:])
-        rows = np.repeat(np.arange(n), counts)
-        cols = idx[keep]
-        u, v = tangent_frames(nrm)
-        xy = project_pairs(pts, u, v, rows, cols)
-    max_gap = np.radians(check_positive("max_gap", max_gap))
-    max_offset = check_positive("max_offset", max_offset)
-    gap = angular_gaps(xy, indptr)
-    r = np.hypot(xy[:, 0], xy[:, 1])
-    cnt = np.maximum(np.diff(indptr), 1)
-    mean_xy = np.stack([np.bincount(rows, weights=xy[:, a], minlength=n) for a in range(2)], axis=1) / cnt[:, None]
-    mean_r = np.bincount(rows, weights=r, minlength=n) / cnt
-    offset = np.where(mean_r > 0, np.hypot(mean_xy[:, 0], mean_xy[:, 1]) / np.where(mean_r > 0, mean_r, 1.0), 1.0)
-    mask = (gap > max_gap) & (offset > max_offset)
+        gap, offset = _cloud_measures(pts, nrm, idx, thr, np.radians(elev))
+        rows = np.repeat(np.arange(n), k - 1)
+        cols = idx[:, 1:].ravel()
+    cand = (gap > np.radians(max_gap_deg)) & (offset > max_offset)
     labels = np.full(n, -1, dtype=np.int64)
+    mask = np.zeros(n, dtype=bool)
     n_loops = 0
-    if mask.any():
-        both = mask[rows] & mask[cols] & (rows != cols)
+    if cand.any():
+        both = cand[rows] & cand[cols] & (rows != cols)
         G = sp.coo_matrix((np.ones(int(both.sum())), (rows[both], cols[both])), shape=(n, n))
         _, lab = csgraph.connected_components(G, directed=False)
-        _, lab_b = np.unique(lab[mask], return_inverse=True)
-        labels[mask] = lab_b.ravel()
-        n_loops = int(lab_b.max()) + 1
+        size = np.bincount(lab[cand], minlength=lab.max() + 1)
+        seeded = np.bincount(lab[cand & (gap > np.radians(seed_deg))], minlength=lab.max() + 1) > 0
+        mask = cand & (size[lab] >= min_piece) & seeded[lab]
+        if mask.any():
+            _, lab_b = np.unique(lab[mask], return_inverse=True)
+            labels[mask] = lab_b.ravel()
+            n_loops = int(lab_b.max()) + 1
     return BoundaryReport(mask=mask, gap=gap, offset=offset, n_loops=n_loops, labels=labels)
