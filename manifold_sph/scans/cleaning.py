@@ -190,6 +190,12 @@ def _local_outlier_scores(pts, k):
     return ratio, offset, small_volumetric
 
 
+#: The joint test of :func:`remove_outliers`: distance ratio above ``1 + (ratio - 1) * _JOINT_RATIO``
+#: and off-plane distance above ``max_offset * _JOINT_OFFSET`` (1.6 and 0.8 with the defaults).
+_JOINT_RATIO = 0.22
+_JOINT_OFFSET = 0.53
+
+
 def remove_outliers(
     points: ArrayLike | PointCloud,
     normals: ArrayLike | None = None,
@@ -197,7 +203,7 @@ def remove_outliers(
     k: int = 16,
     std_ratio: float = 3.0,
     method: str = "local",
-    ratio: float = 3.0,
+    ratio: float = 3.7,
     max_offset: float = 1.5,
 ) -> CleanResult:
     """Outlier removal, density-adaptive by default.
@@ -216,18 +222,24 @@ def remove_outliers(
     - it belongs to a clump (a piece of the mutual-k-NN graph with at most ``k``
       points or under 5 % of the cloud) whose neighbourhoods are volumetric,
       not surface-like: outliers far from the surface, which have only each
-      other as neighbours and so pass the ratio test.
+      other as neighbours and so pass the ratio test;
+    - both measures are moderately high together: distance ratio above
+      ``1 + (ratio - 1) * 0.22`` (1.6 by default) **and** off-plane distance above
+      ``max_offset * 0.53`` (0.8 spacings by default). Noise-free samples have
+      one or the other (thin parts, sharp edges, coarse patches), rarely both;
+      a stray point a few spacings off the surface has both.
 
-    Measured (k = 16) on public noise-free test meshes (cow, homer, rocker-arm, ...) and the
-    scans, used as bare points: at most 0.1 % removed (cow 0.07 %, rocker-arm
-    0.01 %, homer, cheburashka, teapot, alligator, bunny, Igea 0 %), except
-    the coarse beetle (0.7 %). Of 1 % injected outliers (uniform in the
-    bounding box) 93 % are caught on Igea and 86 % on the bunny; the misses
-    lie within about 2 spacings of the surface (median 1.0 on Igea), where
-    they are indistinguishable from samples. On the coarse models (a few
-    thousand vertices, so only 11-100 outliers) 27-76 % are caught: there a
-    uniform outlier often lands within a few (large) spacings of the surface
-    or inside a thin part.
+    Measured (k = 16) on public noise-free test meshes (cow, homer, rocker-arm,
+    cheburashka, teapot, beetle, alligator) and the scans, vertices used as bare
+    points (``python tests/test_cleaning.py`` prints the table): at most 0.1 %
+    removed (cow 0.07 %, every other model and both scans 0 %; the beetle lost
+    0.7 % with ``ratio=3``). Of 1 % injected outliers (uniform in the bounding
+    box, seed 0) 93 % are caught on Igea, 88 % on the bunny, 61-78 % on the
+    cow, homer, rocker-arm, cheburashka and teapot (2,900-10,000 points, so
+    29-100 outliers) and 27 % (3 of 11) on the coarse beetle; the misses lie
+    within about 2 local spacings of the surface, where they are
+    indistinguishable from samples (the alligator is planar: its outliers land
+    in its plane, 19 % caught). This falls short of issue 16's 95 % target.
 
     ``method="statistical"`` is the former rule (PCL, open3d): removed when
     the mean distance to the ``k`` neighbours exceeds the cloud's mean of that
@@ -289,11 +301,14 @@ def remove_outliers(
             raise ValueError(f"k must be at least 3 for method='local', got {k}")
         rat, off, clump = _local_outlier_scores(pts, k)
         far, hover = rat > lim_ratio, off > lim_off
-        keep = ~(far | hover | clump)
+        j_ratio, j_off = 1.0 + (lim_ratio - 1.0) * _JOINT_RATIO, lim_off * _JOINT_OFFSET
+        both = (rat > j_ratio) & (off > j_off) & ~(far | hover | clump)
+        keep = ~(far | hover | clump | both)
         why = (
             f"(local, {k} neighbours): {int(far.sum())} with distance ratio > {lim_ratio:g}, "
             f"{int(hover.sum())} more than {lim_off:g} spacings off the local planes, "
-            f"{int(clump.sum())} in volumetric clumps"
+            f"{int(clump.sum())} in volumetric clumps, "
+            f"{int(both.sum())} more with ratio > {j_ratio:.2g} and offset > {j_off:.2g}"
         )
     groups = np.full(n, -1, dtype=np.int64)
     groups[keep] = np.arange(int(keep.sum()))
