@@ -487,7 +487,8 @@ class TiledSurface:
     progress : bool
         Show Dask's progress bar while tiles build.
     normal_options : dict, optional
-        Passed to :func:`manifold_sph.estimate_normals` (``k``, ``method``, ``degree``).
+        Passed to :func:`manifold_sph.estimate_normals` (``k``, ``method``, ``degree``;
+        ``degree`` defaults to the scheme's Taylor degree, 2 to 4, as in ``Surface``).
     keep : tuple of {"laplacian", "derivatives"}
         The operator rows stored per tile (on disk, 12 bytes per pair and matrix):
         ``"derivatives"`` (the tangent-plane ``Dx``, ``Dy``) serve the gradient and
@@ -559,6 +560,11 @@ class TiledSurface:
         self.scheduler = "distributed" if client is not None else scheduler
         self.memory_limit = memory_limit
         opts = self._check_surface_options(surface_options)
+        if self.normal_options.get("method", "jet") == "jet" and "degree" not in self.normal_options:
+            # as Surface: jets of the scheme's Taylor degree (2 to 4)
+            from .schemes import get_scheme
+
+            self.normal_options["degree"] = int(min(max(getattr(get_scheme(opts["scheme"]), "degree", 2), 2), 4))
         # --- the work directory
         self._tmp = cache_dir is None
         self.cache_dir = Path(tempfile.mkdtemp(prefix="msph-tiles-") if cache_dir is None else cache_dir)
@@ -984,12 +990,10 @@ class TiledSurface:
     def mean_curvature(self, method: str = "auto"):
         """(N,) Dask array of the mean curvature; ``method`` as :func:`manifold_sph.geometry.mean_curvature`.
 
-        ``"auto"`` is ``"laplacian"`` when the normals were estimated and ``"normals"`` otherwise.
+        ``"auto"`` is ``"normals"`` (the shape operator's trace), as for ``Surface``.
         """
         check_in("method", method, ("auto", "normals", "laplacian"))
-        if method == "auto":
-            method = "laplacian" if self.normals_estimated else "normals"
-        return self._field("H_" + method)
+        return self._field("H_" + ("normals" if method == "auto" else method))
 
     def _points_array(self, func, width):
         import dask.array as da
