@@ -8,9 +8,9 @@ as a scanner would deliver it). Without that file, or with --quick, a torus
 (R = 0.8, r = 0.2, Poisson-disk points, normals estimated as well), whose exact
 mean curvature is known and printed beside the SPH one.
 
-The mean curvature ``H = (k1 + k2) / 2`` comes from the Laplacian of the
-coordinates, ``Lap_S x = -2 H n``, which keeps its accuracy with estimated
-normals (:meth:`manifold_sph.Surface.mean_curvature`, ``method="auto"``); the
+The mean curvature ``H = (k1 + k2) / 2`` comes from the tangential gradient of
+the normals (estimated by jet fits; :meth:`manifold_sph.Surface.mean_curvature`,
+``method="auto"``; ``method="laplacian"`` takes it from ``Lap_S x = -2 H n``); the
 geodesic distance from one particle (the highest one of a scan, up as guessed by
 :func:`manifold_sph.viz.render.detect_up_axis`: the tip of the bunny's ear; a point on the
 torus' outer equator) by the heat method (:meth:`manifold_sph.Surface.geodesic_distance`).
@@ -50,7 +50,7 @@ def main(argv=None) -> int:
         exact_H = 0.5 * torus.geometry.mean_curvature(points)  # the shapes give the sum k1 + k2
     t0 = time.perf_counter()
     s = Surface(points, scheme="msph")  # no normals given: estimated (and oriented) from the points
-    H = s.mean_curvature()  # "auto": from the Laplacian of the coordinates, as the normals are estimated
+    H = s.mean_curvature()  # "auto": half the trace of the shape operator (the normals' gradient)
     t1 = time.perf_counter()
     p = s.points
     extent = np.ptp(p, axis=0)
