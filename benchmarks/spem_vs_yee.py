@@ -207,7 +207,8 @@ def _compare(spem, yee, label):
             t = math.exp(np.interp(x, le[order], lt[order]))
             eq = f"{label} reaches it in ~{t:.2f} s: SPEM/{label} CPU = {cpu / t:.1f}"
         print(f"  {r['case']:<10s} n_r={r['n_radial']:<3d} ({r['unknowns']} unknowns): SPEM {r['error']:.2e} in "
-              f"{cpu:.2f} s; {label} at equal unknowns {e:.2e} ({label}/SPEM = {e / r['error']:.1f}); equal error: {eq}")
+              f"{cpu:.2f} s; {label} at equal unknowns {e:.2e} ({label}/SPEM = {e / r['error']:.1f}); "
+              f"equal error: {eq}")
 
 
 def scattering_main(full=False, kinds=("pec", "dielectric", "coated"), layouts=("yee", "jittered")):
@@ -286,7 +287,8 @@ def run_yee_scattering(kind, n_radial, *, radius=0.1, ka=2.0, eps_r=4.0, core_ra
         if eps_mode == "staircase":
             eps = np.where((R < radius) & ~pec, eps_r, 1.0)
         else:
-            frac = cell_fraction(pts, d, lambda u, v: (np.hypot(u, v) < radius) & (np.hypot(u, v) >= b)).reshape(X.shape)
+            frac = cell_fraction(pts, d, lambda u, v: (np.hypot(u, v) < radius) & (np.hypot(u, v) >= b))
+            frac = frac.reshape(X.shape)
             eps = 1.0 + (eps_r - 1.0) * frac
     dt_max = courant * d / C0
     T = 1.0 / freq

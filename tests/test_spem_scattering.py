@@ -154,3 +154,72 @@ def test_scattering_converges_slow(kind):
     e = [sc.run_scattering(kind, n_radial=n, periods=20.0 if kind == "dielectric" else 12.0, sbp_layers=2).error
          for n in (8, 16)]
     assert math.log2(e[0] / e[1]) > 1.3
+
+
+# ----------------------------------------------------------------------------- TEz (issue 21 item 4)
+from manifold_sph.spem import tez  # noqa: E402
+
+
+@pytest.mark.parametrize("coupling", ["sbp", "adjoint", "direct"])
+def test_tez_rectangle_second_order(coupling):
+    # measured (sbp): error 4.24e-2 / 9.06e-3 / 2.15e-3 and resonance 3.3e-3 / 8.3e-4 / 2.1e-4 at 6 / 12 / 24
+    # spacings along b (orders 2.2, 2.1 and 2.0, 2.0); the three couplings agree on the lattice
+    r6 = tez.run_tez_cavity(n=6, coupling=coupling)
+    r12 = tez.run_tez_cavity(n=12, coupling=coupling)
+    assert r6.error < 0.05 and r12.error < 0.01
+    assert math.log2(r6.error / r12.error) > 1.9
+    assert math.log2(r6.frequency_error / r12.frequency_error) > 1.9
+    assert r12.frequency_error < 1e-3
+
+
+def test_tez_exact_frequencies():
+    assert tez.tez_cavity_frequency(0.1, 0.06, 1, 0) == pytest.approx(C0 / 0.2)
+    assert tez.tez_cavity_frequency(0.1, 0.06, 1, 1, eps_r=4.0) == pytest.approx(C0 / 4 * math.hypot(10, 1 / 0.06))
+    with pytest.raises(ValueError, match="TE_00"):
+        tez.tez_cavity_frequency(0.1, 0.06, 0, 0)
+
+
+@pytest.mark.parametrize("coupling,amplitude", [("sbp", 0.0), ("adjoint", 0.0), ("sbp", 0.2), ("adjoint", 0.2)])
+def test_tez_energy_is_conserved(coupling, amplitude):
+    lay = tez.tez_layout((0.0, 0.1, 0.0, 0.06), 0.01, amplitude=amplitude)
+    s = tez.TEzSolver(lay, coupling=coupling, h_ratio=0.8, eps_r=2.0, sbp_layers=None)
+    rng = np.random.default_rng(1)
+    s.set_initial(rng.standard_normal(len(lay.hz)))
+    s.run(3000)
+    assert abs(s.energy() / s.energy0 - 1) < 1e-9
+
+
+def test_tez_direct_refused_where_it_grows():
+    lay = tez.tez_layout((0.0, 0.1, 0.0, 0.06), 0.01, amplitude=0.2)
+    with pytest.raises(ValueError, match="unstable"):
+        tez.TEzSolver(lay, coupling="direct")
+
+
+def test_tez_refuses_bad_input():
+    with pytest.raises(ValueError, match="multiples"):
+        tez.tez_layout((0.0, 0.1, 0.0, 0.06), 0.007)
+    with pytest.raises(ValueError, match="amplitude"):
+        tez.tez_layout((0.0, 0.1, 0.0, 0.06), 0.01, amplitude=0.6)
+    with pytest.raises(TypeError, match="layout"):
+        tez.TEzSolver("grid")
+    lay = tez.tez_layout((0.0, 0.1, 0.0, 0.06), 0.01)
+    with pytest.raises(ValueError, match="coupling"):
+        tez.TEzSolver(lay, coupling="weak")
+    with pytest.raises(ValueError, match="eps_r"):
+        tez.TEzSolver(lay, eps_r=0.0)
+    with pytest.raises(ValueError, match="modes"):
+        tez.run_tez_cavity(modes=[])
+    with pytest.raises(ValueError, match="layout"):
+        tez.run_tez_cavity(layout="poisson")
+
+
+def test_cli_runs_the_new_cases(capsys):
+    from manifold_sph.spem.cli import main
+
+    assert main(["tez-cavity", "--n-radial", "6", "--json"]) == 0
+    assert '"case": "tez-cavity"' in capsys.readouterr().out
+    assert main(["tez-cavity", "--ka", "2"]) == 2
+    assert main(["scatter-pec", "--eps-r", "3"]) == 2
+    assert main(["cavity", "--core-radius", "0.05"]) == 2
+    assert main(["scatter-dielectric", "--layout", "poisson"]) == 2
+    assert "only to the cases" in capsys.readouterr().err

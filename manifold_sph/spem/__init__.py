@@ -8,7 +8,8 @@ limits, the measured-spectrum check that refuses a growing "direct" coupling,
 PEC, materials, split-field PML), :mod:`.pml`, :mod:`.sources` (sinusoid,
 Gaussian pulse, hard/soft point and line sources), :mod:`.dirichlet` (the
 Kronecker-delta system), :mod:`.scattering` (plane-wave scattering by PEC, dielectric and
-coated cylinders: exact Bessel series and SPEM cases), :mod:`.cases` / :mod:`.cases2d` (helpers in
+coated cylinders: exact Bessel series and SPEM cases), :mod:`.tez` (TEz: Hz, Ex, Ey),
+:mod:`.cases` / :mod:`.cases2d` (helpers in
 :mod:`._casekit`; :mod:`.cases` imports :mod:`.cases2d`, not the reverse) (the
 validation cases of the thesis [2] with exact references), :mod:`.analysis` (null modes and
 dispersion), :mod:`.cli` (``manifold-sph spem CASE``).
@@ -34,6 +35,7 @@ from .operators import FORMS, cross_gradient, cross_pairs, sbp_pair
 from .pml import PML, sigma_max
 from .scattering import (SCATTERERS, ScatteringResult, mie_coefficients, run_scattering, scattered_field,
                          scattering_layout, total_field)
+from .tez import TEzCavityResult, TEzLayout, TEzSolver, run_tez_cavity, tez_cavity_frequency, tez_layout
 from .solver import COUPLINGS, DEFAULT_COUPLING, DEFAULT_H_RATIO, Line1DSolver, TMzSolver, cfl_number, leapfrog_growth
 from .sources import GaussianPulse, Sinusoid, Source, line_source, point_source
 
@@ -45,7 +47,8 @@ __all__ = [
     "FORMS", "cross_gradient", "cross_pairs", "sbp_pair",
     "PML", "sigma_max",
     "SCATTERERS", "ScatteringResult", "mie_coefficients", "run_scattering", "scattered_field", "scattering_layout",
-    "total_field",
+    "total_field", "TEzCavityResult", "TEzLayout", "TEzSolver", "run_tez_cavity", "tez_cavity_frequency",
+    "tez_layout",
     "COUPLINGS", "DEFAULT_COUPLING", "DEFAULT_H_RATIO", "Line1DSolver", "TMzSolver", "cfl_number", "leapfrog_growth",
     "GaussianPulse", "Sinusoid", "Source", "line_source", "point_source",
 ]

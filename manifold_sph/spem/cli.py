@@ -177,9 +177,9 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-# ----------------------------------------------------------------------------- scattering cases (issue 21 item 3)
-#: The cylinder scattering cases of :mod:`.scattering`, beside :data:`.cases.CASES`.
-SCATTERING_CASES = ("scatter-pec", "scatter-dielectric", "scatter-coated")
+# ----------------------------------------------------------------------------- scattering and TEz cases (issue 21)
+#: The cylinder scattering cases of :mod:`.scattering` and the TEz cavity of :mod:`.tez`, beside :data:`.cases.CASES`.
+SCATTERING_CASES = ("scatter-pec", "scatter-dielectric", "scatter-coated", "tez-cavity")
 _SCATTERING_OPTIONS = ("ka", "core_radius", "periods")
 _NOT_FOR_SCATTERING = ("spectrum_periods", "size", "freq", "pml_cells", "r0", "png", "gif", "ppw")
 
@@ -187,18 +187,21 @@ _NOT_FOR_SCATTERING = ("spectrum_periods", "size", "freq", "pml_cells", "r0", "p
 def _add_scattering_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("scatter-pec, scatter-dielectric, scatter-coated (plane wave on a cylinder of radius "
                              "0.1 m; also --n-radial, default 8, --eps-r, default 4, --layout yee|jittered, "
-                             "--coupling, --h-ratio)")
+                             "--coupling, --h-ratio) and tez-cavity (TEz modes of a 0.1 x 0.06 m PEC rectangle; "
+                             "--n-radial: spacings along 0.06 m, default 12)")
     g.add_argument("--ka", type=_positive(float), default=None, help="wavenumber times radius (default 2)")
     g.add_argument("--core-radius", type=_positive(float), default=None,
                    help="scatter-coated: PEC core radius in m (default 0.05)")
     g.add_argument("--periods", type=_positive(float), default=None,
-                   help="periods of the drive (default 20; the last 2 are Fourier-analysed)")
+                   help="scatter-*: periods of the drive (default 20; the last 2 are Fourier-analysed); "
+                        "tez-cavity: periods before the error is taken (default 1)")
 
 
 def _run_scattering(args: argparse.Namespace) -> int:
-    """``spem scatter-*``: :func:`.scattering.run_scattering` against the exact series."""
+    """``spem scatter-*`` (:func:`.scattering.run_scattering`) and ``spem tez-cavity`` (:func:`.tez.run_tez_cavity`)."""
     from .scattering import run_scattering
     from .solver import DEFAULT_COUPLING
+    from .tez import run_tez_cavity
 
     try:
         if args.case not in SCATTERING_CASES:
@@ -208,20 +211,28 @@ def _run_scattering(args: argparse.Namespace) -> int:
             if getattr(args, name, None) not in (None, False):
                 raise ValueError(f"--{name.replace('_', '-')} does not apply to case {args.case!r}")
         if args.layout not in ("yee", "jittered"):
-            raise ValueError(f"--layout for the scattering cases must be yee or jittered, got {args.layout!r}")
-        kind = args.case.split("-", 1)[1]
-        kw = {"layout": args.layout, "coupling": args.coupling or DEFAULT_COUPLING, "form": args.form,
-              "kernel": args.kernel}
-        for name, key in (("n_radial", "n_radial"), ("eps_r", "eps_r"), ("h_ratio", "h_ratio"), ("ka", "ka"),
-                          ("core_radius", "core_radius"), ("periods", "periods")):
-            if getattr(args, name) is not None:
-                kw[key] = getattr(args, name)
-        if "core_radius" in kw and kind != "coated":
-            raise ValueError("--core-radius applies only to scatter-coated")
-        if "eps_r" in kw and kind == "pec":
-            raise ValueError("--eps-r does not apply to scatter-pec")
-        kw.setdefault("periods", 20.0)
-        result = run_scattering(kind, **kw)
+            raise ValueError(f"--layout for case {args.case!r} must be yee or jittered, got {args.layout!r}")
+        kw = {"layout": args.layout, "coupling": args.coupling or DEFAULT_COUPLING}
+        if args.case == "tez-cavity":
+            for name in ("ka", "core_radius"):
+                if getattr(args, name) is not None:
+                    raise ValueError(f"--{name.replace('_', '-')} does not apply to case 'tez-cavity'")
+            for name, key in (("n_radial", "n"), ("eps_r", "eps_r"), ("h_ratio", "h_ratio"), ("periods", "periods")):
+                if getattr(args, name) is not None:
+                    kw[key] = getattr(args, name)
+            result = run_tez_cavity(**kw)
+        else:
+            kind = args.case.split("-", 1)[1]
+            kw.update(form=args.form, kernel=args.kernel)
+            for name in ("n_radial", "eps_r", "h_ratio", "ka", "core_radius", "periods"):
+                if getattr(args, name) is not None:
+                    kw[name] = getattr(args, name)
+            if "core_radius" in kw and kind != "coated":
+                raise ValueError("--core-radius applies only to scatter-coated")
+            if "eps_r" in kw and kind == "pec":
+                raise ValueError("--eps-r does not apply to scatter-pec")
+            kw.setdefault("periods", 20.0)
+            result = run_scattering(kind, **kw)
     except (ValueError, TypeError) as exc:
         print(f"manifold-sph spem: error: {exc}", file=sys.stderr)
         return 2

@@ -310,7 +310,7 @@ class _PECDrive:
 
 
 class _VolumeDrive:
-    """Soft source in a dielectric: ``-(eps_r - 1)/eps_r (Ez_inc(t) - Ez_inc(t - dt))`` (``dt`` set after the solver)."""
+    """Soft source in a dielectric: ``-(eps_r - 1)/eps_r (Ez_inc(t) - Ez_inc(t - dt))`` (``dt`` set later)."""
 
     def __init__(self, inc, factor):
         self.inc, self.factor, self.dt = inc, factor, None
