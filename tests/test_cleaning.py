@@ -142,13 +142,13 @@ def test_local_and_statistical_methods_and_errors(sphere):
 # planar, so its outliers lie in its own plane). Statistical rule: cow 1.41 %, homer 0.15 %,
 # rocker-arm 1.05 %, cheburashka 2.26 %, teapot 0 % removed; the beetle lost 0.7 % with ratio=3.
 MODEL_LIMITS = {
-    "cow": (0.1, 0.55),  # 0.069 %, 0.62
-    "homer": (0.0, 0.65),  # 0 %, 0.73
-    "rocker-arm": (0.0, 0.55),  # 0 %, 0.61
-    "cheburashka": (0.0, 0.70),  # 0 %, 0.78
-    "teapot": (0.0, 0.6),  # 0 %, 0.66
-    "beetle": (0.0, 0.25),  # 0 %, 0.27 (3 of 11)
-    "alligator": (0.0, 0.15),  # 0 %, 0.19
+    "cow": (0.1, 0.6),  # 0.069 %, 0.66 (before issue 16: 0.48)
+    "homer": (0.0, 0.7),  # 0 %, 0.80 (0.70)
+    "rocker-arm": (0.0, 0.6),  # 0 %, 0.67 (0.58)
+    "cheburashka": (0.02, 0.75),  # 0.015 %, 0.82 (0.75)
+    "teapot": (0.0, 0.7),  # 0 %, 0.75 (0.69)
+    "beetle": (0.0, 0.5),  # 0 % (0.70 %), 0.64 (0.27)
+    "alligator": (0.0, 0.15),  # 0 %, 0.19 (0.19)
 }
 
 
@@ -175,19 +175,19 @@ def test_models_lose_almost_nothing(name):
     assert (~r.keep_mask[-m:]).mean() >= min_caught  # the 95 % target is not met (see remove_outliers)
 
 
-@pytest.mark.parametrize("noise", [0.0, 0.1, 0.2])
+@pytest.mark.parametrize("noise", [0.0, 0.2, 0.5, 1.0])
 def test_noisy_sphere_keeps_its_samples_and_loses_far_outliers(noise):
-    """Gaussian noise of 0.1 and 0.2 spacings is not mistaken for outliers; of 80 uniform outliers in
-    the bounding box, those more than 3 spacings off the sphere are caught (measured 0.98-1.0;
-    all of them: 0.69-0.70, the rest lie within 3 spacings)."""
+    """Gaussian noise of up to one spacing is not mistaken for outliers (measured: none removed up to
+    0.5, 2 of 8000 at 1.0; without the noise guard of the joint tests 17 and 183); of 80 uniform
+    outliers in the bounding box, those more than 3 spacings off the sphere are caught."""
     c = shapes.sphere(8000, sampling="poisson", seed=1)
     h = np.sqrt(4 * np.pi / 8000)
     p = c.points + np.random.default_rng(0).normal(scale=noise * h, size=c.points.shape)
     q = np.random.default_rng(1).uniform(-1, 1, (80, 3))
     r = clean(np.vstack([p, q]))
-    assert r.keep_mask[:-80].mean() >= 0.999  # measured: all kept
+    assert r.keep_mask[:-80].mean() >= 0.999
     far = np.abs(np.linalg.norm(q, axis=1) - 1) > 3 * h
-    assert (~r.keep_mask[-80:])[far].mean() >= 0.95
+    assert (~r.keep_mask[-80:])[far].mean() >= (0.95 if noise < 1 else 0.7)  # measured 0.98-1.0; 0.76 at 1.0
 
 
 def test_far_outliers_of_a_dense_cloud_are_caught():
