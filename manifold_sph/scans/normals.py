@@ -61,7 +61,16 @@ The per-particle **confidence** is the product of the shape term
 it is isotropic: noise, outliers, corners; or collinear) and an orientation term:
 how clearly the winding number jumps from 1 to 0 across the particle
 (``clip(w_in - w_out, 0, 1)`` at the particle, or at its nearest probe), low where
-the orientation is in doubt.
+the orientation is in doubt; and a scale term: the agreement of the normal with a
+plane fitted to the 8 nearest points and a quadric fitted to the 20 nearest
+(1 within 10 degrees of both, 0 beyond 30, linear in the cosine between). A normal
+that changes with the neighbourhood size is not determined by the points: thin parts
+sampled a few points across, ring-sampled lips, coarse creases. Measured against the
+mesh normals of the test models (share of the normals more than 30 degrees off or
+pointing the wrong way that get a confidence below 0.5, and of the others): cow 0.92
+and 0.18, homer 0.94 and 0.05, rocker-arm 0.90 and 0.03, cheburashka 0.83 and 0.04,
+teapot 0.70 and 0.15, beetle 0.74 and 0.18, alligator (none doubtful) 0.0 (without the scale term 0.31, 0.47, 0.0,
+0.50, 0.08 and 0.04 of the doubtful normals were flagged).
 """
 
 from __future__ import annotations
@@ -110,6 +119,8 @@ _MIN_PATCH = 8
 _MAX_PROBES = 6000  # particles probed by the winding number (all of them up to this many)
 _PROBE_OFFSET = 1.0  # probe distance over the local spacing (0.5: noisy clouds flip, measured)
 _ROUNDS = 3
+_SCALE_K = (8, 20)  # neighbourhoods of the scale term of the confidence (a plane, a quadric)
+_SCALE_COS = (np.cos(np.radians(30.0)), np.cos(np.radians(10.0)))  # its 0 and 1
 _GUARD_DEGREES = 3.0  # a degree-3/4 normal within this angle of the degree-2 one is kept, or
 _GUARD_RESIDUAL = 0.25  # one whose fit residual is below this fraction of the degree-2 fit's (measured)
 
@@ -132,6 +143,19 @@ def _covariance(pts: np.ndarray, neighbors: np.ndarray):
     local -= local.mean(axis=1, keepdims=True)
     cov = np.einsum("nki,nkj->nij", local, local) / neighbors.shape[1]
     return np.linalg.eigh(cov)  # ascending eigenvalues
+
+
+def _scale_confidence(pts: np.ndarray, neighbors: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """1 where ``normals`` agree within 10 degrees with fits on smaller and larger neighbourhoods, 0 beyond 30."""
+    agree = np.ones(pts.shape[0])
+    for k, degree in zip(_SCALE_K, (1, 2)):
+        k = min(k, neighbors.shape[1])
+        if k < _n_coefficients(degree) + 2:
+            continue
+        other = _jet_fit(pts, neighbors[:, :k], normals, degree)
+        agree = np.minimum(agree, np.abs(np.einsum("ij,ij->i", other, normals)))
+    lo, hi = _SCALE_COS
+    return np.clip((agree - lo) / (hi - lo), 0.0, 1.0)
 
 
 def _shape_confidence(w: np.ndarray) -> np.ndarray:
@@ -745,7 +769,7 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: str | A
                 raise ValueError(f"points must hold at least {k} points for a degree-{degree} jet fit with the default k, got {N}")
         k = _check_k(k, N, degree)
     orient = _check_orient(orient)
-    dist, idx = _knn(pts, max(k, min(_ORIENT_K, N)))
+    dist, idx = _knn(pts, min(max(k, _ORIENT_K, _SCALE_K[-1] if return_confidence else 0), N))
     refine = bool(refine) and not (isinstance(orient, str) and orient == "none")
     if method == "pca":
         w, v = _covariance(pts, idx[:, :k])
@@ -764,4 +788,6 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: str | A
             nrm = _refit(pts, idx[:, :kb], nrm, base_deg, residual=base_res)
         if degree > 2:
             nrm = _high_order(pts, idx[:, :k], nrm, base_res, degree, refine)
-    return (nrm, conf * oconf) if return_confidence else nrm
+    if not return_confidence:
+        return nrm
+    return nrm, conf * oconf * _scale_confidence(pts, idx, nrm)
