@@ -60,6 +60,11 @@ __all__ = [
     "ncsph_rows",
     "project_rows",
     "quintic_values",
+    "ssor_backward",
+    "ssor_forward",
+    "ssor_count",
+    "ssor_fill",
+    "ssor_upper_times",
     "voronoi_rows",
     "winding_rows",
 ]
@@ -703,6 +708,130 @@ def bicgstab_step(g0, g1, bounds, x, phat, shat, alpha, omega, r, t, rtilde, par
             rho += rtilde[i] * ri
         partial[b, 0] = rr
         partial[b, 1] = rho
+
+
+# ------------------------------------------------ block SSOR (Eisenstat) for the area solve
+# The matrix ``A = D + L + U + B`` is cut into row blocks ``bounds[b]:bounds[b + 1]``; ``L`` and
+# ``U`` are the strictly lower and upper parts inside the blocks, ``B`` the couplings between
+# blocks. :func:`ssor_count` and :func:`ssor_fill` copy ``U`` and ``L + B`` of the matrix with
+# its unknowns permuted (a sweep order) into two CSR arrays and ``D`` into a vector; the split-preconditioned operator ``(D + L)^-1 A (D + U)^-1`` is
+# then applied in two passes that read each entry once (Eisenstat's trick): ``t = (D + U)^-1 x``
+# backward over ``U``, then ``out = t + (D + L)^-1 (x - D t + B t)`` forward over ``L + B``.
+# Blocks are independent inside a pass.
+@_jit
+def ssor_count(g0, g1, bounds, perm, iperm, indptr, indices, data, n_upper, n_rest, diag, partial):
+    """Per row ``r`` of blocks ``g0:g1`` of the permuted matrix ``A[perm][:, perm]`` (``iperm`` the
+    inverse permutation): entries of ``U`` and of ``L + B``, and the diagonal (summed if repeated);
+    ``partial[b, 0]`` the rows of block ``b`` whose diagonal is not positive."""
+    for b in range(g0, g1):
+        hi = bounds[b + 1]
+        bad = 0.0
+        for r in range(bounds[b], hi):
+            i = perm[r]
+            nu = 0
+            nr = 0
+            d = 0.0
+            for p in range(_u(indptr[i]), _u(indptr[i + 1])):
+                c = iperm[_u(indices[p])]
+                if c == r:
+                    d += data[p]
+                elif r < c < hi:
+                    nu += 1
+                else:
+                    nr += 1
+            n_upper[r] = nu
+            n_rest[r] = nr
+            diag[r] = d
+            if not d > 0.0:
+                bad += 1.0
+        partial[b, 0] = bad
+
+
+@_jit
+def ssor_fill(g0, g1, bounds, perm, iperm, indptr, indices, data, ptr_u, idx_u, dat_u, ptr_r, idx_r, dat_r, partial):
+    """Copy the entries of ``U`` and of ``L + B`` of blocks ``g0:g1`` of ``A[perm][:, perm]`` (row offsets
+    from :func:`ssor_count`), each row's in their order."""
+    for b in range(g0, g1):
+        hi = bounds[b + 1]
+        for r in range(bounds[b], hi):
+            i = perm[r]
+            qu = ptr_u[r]
+            qr = ptr_r[r]
+            for p in range(_u(indptr[i]), _u(indptr[i + 1])):
+                c = iperm[_u(indices[p])]
+                if c == r:
+                    continue
+                if r < c < hi:
+                    idx_u[qu] = c
+                    dat_u[qu] = data[p]
+                    qu += 1
+                else:
+                    idx_r[qr] = c
+                    dat_r[qr] = data[p]
+                    qr += 1
+
+
+@_jit
+def ssor_backward(g0, g1, bounds, ptr_u, idx_u, dat_u, diag, mode, r, p, v, c1, c2, t, partial):
+    """``t = (D + U)^-1 x`` on blocks ``g0:g1`` (rows in reverse order), ``x`` formed on the fly:
+    ``mode`` 0: ``x = r``; 1: ``x = p = r + c1 (p - c2 v)`` (BiCGSTAB's direction, stored in ``p``);
+    2: ``x = s = r - c1 v`` (stored in ``r``; ``partial[b, 0] = s . s``)."""
+    for b in range(g0, g1):
+        lo = bounds[b]
+        ss = 0.0
+        for i in range(bounds[b + 1] - 1, lo - 1, -1):
+            if mode == 0:
+                x = r[i]
+            elif mode == 1:
+                x = r[i] + c1 * (p[i] - c2 * v[i])
+                p[i] = x
+            else:
+                x = r[i] - c1 * v[i]
+                r[i] = x
+                ss += x * x
+            acc = x
+            for q in range(_u(ptr_u[i]), _u(ptr_u[i + 1])):
+                acc -= dat_u[q] * t[_u(idx_u[q])]
+            t[i] = acc / diag[i]
+        partial[b, 0] = ss
+
+
+@_jit
+def ssor_forward(g0, g1, bounds, ptr_r, idx_r, dat_r, diag, x, t, w, out, a, partial):
+    """``out = t + w``, ``w = (D + L)^-1 (x - D t + B t)`` on blocks ``g0:g1`` (``t`` of every block
+    from :func:`ssor_backward`; ``t = 0`` gives ``out = (D + L)^-1 x``);
+    ``partial[b] = (out . out, a . out)``."""
+    for b in range(g0, g1):
+        lo = bounds[b]
+        s0 = 0.0
+        s1 = 0.0
+        for i in range(lo, bounds[b + 1]):
+            acc = x[i] - diag[i] * t[i]
+            for q in range(_u(ptr_r[i]), _u(ptr_r[i + 1])):
+                j = idx_r[q]
+                if lo <= j < i:
+                    acc -= dat_r[q] * w[_u(j)]
+                else:
+                    acc += dat_r[q] * t[_u(j)]
+            wi = acc / diag[i]
+            w[i] = wi
+            o = t[i] + wi
+            out[i] = o
+            s0 += o * o
+            s1 += a[i] * o
+        partial[b, 0] = s0
+        partial[b, 1] = s1
+
+
+@_jit
+def ssor_upper_times(g0, g1, bounds, ptr_u, idx_u, dat_u, diag, x, out, partial):
+    """``out = (D + U) x`` on blocks ``g0:g1``."""
+    for b in range(g0, g1):
+        for i in range(bounds[b], bounds[b + 1]):
+            acc = diag[i] * x[i]
+            for q in range(_u(ptr_u[i]), _u(ptr_u[i + 1])):
+                acc += dat_u[q] * x[_u(idx_u[q])]
+            out[i] = acc
 
 
 # ------------------------------------------------------------- Voronoi cells

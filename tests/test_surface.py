@@ -216,6 +216,7 @@ def test_numerical_area_without_convergence_falls_back_for_large_clouds(monkeypa
     from manifold_sph.reference import shapes as _shapes
 
     monkeypatch.setattr(area_mod, "LU_MAX_ROWS", 100)
+    monkeypatch.setattr(area_mod, "bicgstab_ssor", lambda A, b, *a, **k: (np.zeros(b.shape), -12))  # not used
     monkeypatch.setattr(area_mod, "bicgstab_csr", lambda A, b, *a, **k: (np.zeros(b.shape), 5))
     with pytest.warns(RuntimeWarning, match=r"not solved within 150 BiCGSTAB iterations \(500 particles.*using the Shepard"):
         s = Surface(_shapes.sphere(500), scheme="cspm", area="numerical")
