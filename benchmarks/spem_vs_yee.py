@@ -232,17 +232,25 @@ def scattering_main(full=False, kinds=("pec", "dielectric", "coated"), layouts=(
         for r in yee + avg:
             print(line(r), flush=True)
         spem = {}
-        for layout in layouts:
-            sizes = (4, 8, 16) if (full or layout == "yee") else (4, 8)
-            spem[layout] = [run_spem_scattering(kind, n, periods=periods, layout=layout) for n in sizes]
-            for r in spem[layout]:
+        # "auto": the whole operator corrected with a conductor, a band of 2 rings for the dielectric
+        configs = [(layout, "auto") for layout in layouts]
+        if kind != "dielectric":
+            configs.insert(1, ("yee", 2))
+        for layout, layers in configs:
+            sizes = {("yee", "auto"): (4, 8, 16), ("yee", 2): (8, 16, 24)}.get((layout, layers), (4, 8, 16) if full
+                                                                                else (4, 8))
+            rows = [run_spem_scattering(kind, n, periods=periods, layout=layout, sbp_layers=layers) for n in sizes]
+            for r in rows:
+                r["method"] += "" if layers == "auto" else f" {layers} rings"
                 print(line(r), flush=True)
-        for layout in layouts:
-            print(f"{kind}, SPEM {layout} against the staircased Yee:")
-            _compare(spem[layout], yee, "Yee")
+            spem[layout, layers] = rows
+        for (layout, layers), rows in spem.items():
+            what = f"SPEM {layout}" + ("" if layers == "auto" else f" ({layers} rings)")
+            print(f"{kind}, {what} against the staircased Yee:")
+            _compare(rows, yee, "Yee")
             if avg:
-                print(f"{kind}, SPEM {layout} against Yee with the same cell-averaged eps:")
-                _compare(spem[layout], avg, "Yee-avg")
+                print(f"{kind}, {what} against Yee with the same cell-averaged eps:")
+                _compare(rows, avg, "Yee-avg")
 
 
 # ----------------------------------------------------------------------------- scattering (issue 21 item 3)

@@ -121,7 +121,7 @@ def test_pec_layout_conforms_to_the_cylinder():
     r_e = np.hypot(*lay.e.T)
     wall = lay.e_fixed & (r_e < 0.2)
     np.testing.assert_allclose(r_e[wall], A, rtol=1e-12)  # on the circle, not staircased
-    assert r_e[~lay.e_fixed].min() >= A + 0.5 * lay.dr
+    assert r_e[~lay.e_fixed].min() >= A + 0.3 * lay.dr
     assert min(np.hypot(*lay.hx.T).min(), np.hypot(*lay.hy.T).min()) > A
 
 
@@ -137,23 +137,26 @@ def test_dielectric_cylinder_second_order():
 
 
 def test_pec_cylinder():
-    # measured: 1.73e-1 at 4 spacings per radius (Yee staircased: 3.66e-1)
+    # measured: 3.9e-2 at 4 spacings per radius with a band of 2 rings (3.3e-2 with the whole operator
+    # corrected; the staircased Yee grid: 3.7e-1), 3.3e-2 at 8, 6.5e-3 at 16
     r = sc.run_scattering("pec", n_radial=4, periods=8.0, sbp_layers=2)
-    assert r.error < 0.2
+    assert r.error < 0.05
     assert r.to_dict()["case"] == "pec" and r.phasor.shape == r.exact.shape
 
 
 def test_coated_cylinder():
-    r = sc.run_scattering("coated", n_radial=4, periods=8.0, sbp_layers=2)
-    assert r.error < 0.3
+    # measured (20 periods, whole operator): 1.2e-1 / 4.3e-2 / 1.4e-2 at 4 / 8 / 16 spacings per radius
+    r = sc.run_scattering("coated", n_radial=4, periods=8.0)  # a band of 2 rings: 2.6e-1
+    assert r.error < 0.15
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", ["dielectric", "pec"])
 def test_scattering_converges_slow(kind):
+    # measured: dielectric 5.03e-2 -> 1.21e-2 (order 2.1), PEC (band of 2 rings) 3.3e-2 -> 6.5e-3 (order 2.3)
     e = [sc.run_scattering(kind, n_radial=n, periods=20.0 if kind == "dielectric" else 12.0, sbp_layers=2).error
          for n in (8, 16)]
-    assert math.log2(e[0] / e[1]) > 1.3
+    assert math.log2(e[0] / e[1]) > 1.8
 
 
 # ----------------------------------------------------------------------------- TEz (issue 21 item 4)

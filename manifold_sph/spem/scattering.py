@@ -247,13 +247,18 @@ def _ring(radius, dr):
 
 
 def scattering_layout(kind: str, radius: float, dr: float, half_width: float, *, core_radius: float | None = None,
-                      amplitude: float = 0.0, seed: int | None = 0) -> Layout:
+                      amplitude: float = 0.0, seed: int | None = 0, wall_spacing: float = 0.5,
+                      wall_margin: float = 0.3) -> Layout:
     """Yee-style particles on ``[-L, L]^2`` (``L = half_width``, the cylinder at the origin), optionally jittered.
 
-    For "pec" (and the core of "coated") the E particles within ``0.5 dr``
-    of the conductor and the particles inside it are removed and E particles
-    are put on the circle (spacing about ``dr``), flagged ``e_fixed``: the
-    body-conforming wall that a lattice cannot have. The E particles on the
+    For "pec" (and the core of "coated") the E particles within
+    ``wall_margin * dr`` of the conductor and the particles inside it are
+    removed and E particles are put on the circle (spacing about
+    ``wall_spacing * dr``), flagged ``e_fixed``: the body-conforming wall that
+    a lattice cannot have. The defaults (0.5 and 0.3) were measured on the
+    PEC cylinder at 4 / 8 / 16 spacings per radius: 3.3e-2 / 1.7e-2 / 4.9e-3
+    against 2.0e-1 / 2.4e-2 / 1.5e-2 with the cavity's wall (spacing ``dr``,
+    margin ``0.5 dr``), and a 2-4x larger stable step. The E particles on the
     outer box are flagged as well (PEC behind the PML). ``amplitude`` > 0
     jitters every free particle by up to ``amplitude * dr`` per coordinate
     before the conductor is cut out; the wall particles are not moved.
@@ -262,11 +267,13 @@ def scattering_layout(kind: str, radius: float, dr: float, half_width: float, *,
     --------
     >>> lay = scattering_layout("pec", 0.1, 0.025, 0.2)
     >>> int((lay.e_fixed & (np.hypot(*lay.e.T) < 0.15)).sum()), bool(np.hypot(*lay.hx.T).min() > 0.1)
-    (26, True)
+    (51, True)
     """
     kind, radius, _, core_radius = _check_scatterer(kind, radius, 1.0, core_radius)
     dr = check_positive("dr", dr)
     half_width = check_positive("half_width", half_width)
+    wall_spacing = check_positive("wall_spacing", wall_spacing)
+    wall_margin = check_positive("wall_margin", wall_margin, allow_zero=True)
     if half_width < radius + 2 * dr:
         raise ValueError(f"half_width must exceed radius + 2 dr = {radius + 2 * dr:.4g}, got {half_width}")
     L = dr * math.ceil(half_width / dr - 1e-9)
@@ -276,8 +283,8 @@ def scattering_layout(kind: str, radius: float, dr: float, half_width: float, *,
     wall_r = {"pec": radius, "coated": core_radius}.get(kind)
     if wall_r is None:
         return Layout(lay.e, lay.hx, lay.hy, dr, f"cylinder-{lay.name}", lay.e_fixed, lay.bounds)
-    ring = _ring(wall_r, dr)
-    keep = np.hypot(lay.e[:, 0], lay.e[:, 1]) >= wall_r + 0.5 * dr
+    ring = _ring(wall_r, wall_spacing * dr)
+    keep = np.hypot(lay.e[:, 0], lay.e[:, 1]) >= wall_r + wall_margin * dr
     e = np.vstack([lay.e[keep], ring])
     fixed = np.r_[lay.e_fixed[keep], np.ones(len(ring), bool)]
     hx = lay.hx[np.hypot(lay.hx[:, 0], lay.hx[:, 1]) > wall_r]
