@@ -175,7 +175,7 @@ def test_models_lose_almost_nothing(name):
     assert (~r.keep_mask[-m:]).mean() >= min_caught  # the 95 % target is not met (see remove_outliers)
 
 
-@pytest.mark.parametrize("noise", [0.0, 0.2, 0.5, 1.0])
+@pytest.mark.parametrize("noise", [0.0, 0.5, 1.0])
 def test_noisy_sphere_keeps_its_samples_and_loses_far_outliers(noise):
     """Gaussian noise of up to one spacing is not mistaken for outliers (measured: none removed up to
     0.5, 2 of 8000 at 1.0; without the noise guard of the joint tests 17 and 183); of 80 uniform
@@ -219,5 +219,14 @@ if __name__ == "__main__":  # the table behind MODEL_LIMITS: python tests/test_c
         p = mesh_reference(path)[0]
         r = clean(p)
         q, m = _inject(p)
-        caught = (~clean(q).keep_mask[-m:]).mean()
-        print(f"{path.stem:15s} {len(p):7d} points  removed {100 * r.n_removed / len(p):.3f} %  outliers caught {100 * caught:5.1f} % of {m}")
+        caught = ~clean(q).keep_mask[-m:]
+        # outliers farther from the vertices than one neighbourhood radius (the nearest vertex's
+        # mean distance to its 16 neighbours)
+        from scipy.spatial import cKDTree
+
+        tree = cKDTree(p)
+        d, j = tree.query(q[-m:])
+        radius = tree.query(p[j], 17)[0][:, 1:].mean(axis=1)
+        far = d > radius
+        print(f"{path.stem:15s} {len(p):7d} points  removed {100 * r.n_removed / len(p):.3f} %  outliers caught "
+              f"{100 * caught.mean():5.1f} % of {m}, {100 * caught[far].mean():5.1f} % of the {int(far.sum())} beyond one neighbourhood radius")
