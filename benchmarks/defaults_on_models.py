@@ -38,7 +38,7 @@ def main():
                     warnings.simplefilter("ignore")
                     s = Surface(V, scheme=scheme)
                     z = V[:, 1] - V[:, 1].mean()
-                    u = pde.heat(s, z, dt=1e-3 * np.ptp(V) ** 2, steps=20)
+                    u = pde.heat(s, z, dt=1e-3 * np.ptp(V) ** 2, steps=20).u
                 finite = bool(np.all(np.isfinite(s.laplacian_matrix().data)) and np.all(np.isfinite(u)))
                 bounded = bool(np.abs(u).max() <= np.abs(z).max() * (1 + 1e-9))
                 print(f"{f.stem:12s} {scheme:9s} finite={finite} bounded={bounded} widened={len(s.widened)} "

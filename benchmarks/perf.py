@@ -320,7 +320,7 @@ def bench_size(n, repeat, mem, peers, pc):
     exact_inc = z / (1 + 2 * HEAT_DT) - z
     heat_t = {}
     for solver in (("direct", "iterative") if n <= DIRECT_MAX else ("iterative",)):
-        fn = lambda solver=solver: heat(s, z, dt=HEAT_DT, steps=1, method="implicit", solver=solver)
+        fn = lambda solver=solver: heat(s, z, dt=HEAT_DT, steps=1, method="implicit", solver=solver).u
         heat_t[solver], u1 = timed(fn, repeat)
         add(f"heat implicit 1 step {solver}", heat_t[solver], lap_err(u1 - z, exact_inc), traced_peak(fn, mem),
             "error of the increment (u0 = z)" + (", includes LU" if solver == "direct" else ", BiCGSTAB 1e-10"))

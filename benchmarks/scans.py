@@ -81,7 +81,7 @@ def models_table(scans: Path):
                     s = Surface(P, nrm, scheme=scheme)
                     tb = time.perf_counter() - t
                     z = P[:, 1] - P[:, 1].mean()
-                    u = heat(s, z, dt=1e-3 * np.ptp(P) ** 2, steps=20)
+                    u = heat(s, z, dt=1e-3 * np.ptp(P) ** 2, steps=20).u
                 bounded = bool(np.all(np.isfinite(u)) and np.abs(u).max() <= np.abs(z).max() * (1 + 1e-9))
                 fb = sum(len(v) for v in s.fallback.values())
                 cols.append(f"{tb:6.2f}/{fb:4d}/{len(s.widened):4d}/{'yes' if bounded else 'NO':>3s}")
@@ -117,7 +117,7 @@ def heat_run(surface, source: int, dt: float, steps: int):
     u0[source] = 1.0
     try:
         with np.errstate(all="ignore"):
-            u = heat(surface, u0, dt, steps, method="implicit")
+            u = heat(surface, u0, dt, steps, method="implicit").u
     except FloatingPointError as exc:
         return None, str(exc)
     return u, ""

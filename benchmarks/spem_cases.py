@@ -15,7 +15,7 @@ from manifold_sph.spem.cases2d import run_planewave, run_pml, run_waveguide
 
 
 def show(tag, r):
-    print(json.dumps({"run": tag, **{k: v for k, v in r.items() if not k.startswith("_")}}))
+    print(json.dumps({"run": tag, **r.to_dict()}))
 
 
 def main():

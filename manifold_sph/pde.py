@@ -27,7 +27,7 @@ Which Laplacian (``laplacian=`` of every solver):
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Callable, NamedTuple
 
 import numpy as np
@@ -36,6 +36,7 @@ import scipy.sparse.linalg as spla
 from numpy.typing import ArrayLike
 
 from .exceptions import ManifoldSPHWarning
+from ._results import LegacyArray, short_repr, to_dict
 from ._sparse import RowBlocks, _dot, bicgstab_csr
 from ._validation import as_field, check_in, check_int, check_positive
 from .operators import OperatorSet
@@ -44,7 +45,7 @@ if TYPE_CHECKING:
     from .surface import Surface
 
 __all__ = [
-    "Snapshots",
+    "Solution",
     "spectral_radius",
     "spectrum_right_edge",
     "strong_form_is_stable",
@@ -63,11 +64,58 @@ __all__ = [
 HEAT_METHODS = ("explicit", "implicit", "crank-nicolson")
 
 
-class Snapshots(NamedTuple):
-    """States saved every ``every`` steps: ``snapshots`` (S, N) and ``times`` (S,)."""
+@dataclass(frozen=True, eq=False)
+class Solution(LegacyArray):
+    """What :func:`heat` and :func:`wave` return, whatever the options.
 
-    snapshots: np.ndarray
+    Attributes
+    ----------
+    u : ndarray, shape (N,)
+        The final state.
+    times : ndarray, shape (S,)
+        The times of the saved states: ``0, every dt, 2 every dt, ...`` and the
+        final time (``[0, steps dt]`` without ``every=``).
+    snapshots : ndarray, shape (S, N)
+        The saved states, the initial and the final one included.
+    laplacian : str
+        The Laplacian the steps used: ``"strong"``, ``"stable"`` (what ``"auto"``
+        chose) or ``"matrix"`` (one passed in).
+
+    Until 0.3 a Solution also stands in for 0.1's return values (the final array
+    without ``every=``, ``Snapshots(snapshots, times)`` with it), with a
+    DeprecationWarning naming the attribute to use.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from manifold_sph import Surface
+    >>> from manifold_sph.reference import shapes
+    >>> s = Surface(shapes.sphere(500))
+    >>> sol = heat(s, s.points[:, 2], dt=0.01, steps=10, every=5)
+    >>> sol.u.shape, sol.snapshots.shape, sol.times.tolist(), sol.laplacian
+    ((500,), (3, 500), [0.0, 0.05, 0.1], 'strong')
+    """
+
+    u: np.ndarray
     times: np.ndarray
+    snapshots: np.ndarray
+    laplacian: str
+    _legacy_kind: str = field(default="none", repr=False)
+
+    def to_dict(self) -> dict:
+        """The fields as a dict (arrays stay arrays)."""
+        return to_dict(self, skip=("_legacy_kind",))
+
+    def __repr__(self) -> str:
+        return short_repr(self)
+
+
+def __getattr__(name: str) -> type:
+    if name == "Snapshots":  # 0.1's return type of heat/wave with every=, until 0.3
+        warnings.warn("pde.Snapshots is deprecated: heat and wave return pde.Solution (.snapshots, .times, .u)",
+                      DeprecationWarning, stacklevel=2)
+        return Solution
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 # ----------------------------------------------------------------------------- helpers
@@ -242,19 +290,20 @@ class _Recorder:
 
     def __init__(self, name, u0, dt, steps, every, callback):
         self.name, self.dt, self.steps, self.every, self.callback = name, dt, steps, every, callback
-        self.saved, self.times = ([u0.copy()], [0.0]) if every else (None, None)
+        self.saved, self.times = [u0.copy()], [0.0]
 
     def __call__(self, step, u):
         if not np.all(np.isfinite(u)):
             raise FloatingPointError(f"{self.name}: the solution stopped being finite at step {step}")
         if self.callback is not None:
             self.callback(step, step * self.dt, u)
-        if self.every and (step % self.every == 0 or step == self.steps):
+        if (self.every and step % self.every == 0) or step == self.steps:
             self.saved.append(u.copy())
             self.times.append(step * self.dt)
 
-    def result(self, u):
-        return Snapshots(np.array(self.saved), np.array(self.times)) if self.every else u
+    def result(self, u, laplacian):
+        return Solution(u, np.array(self.times), np.array(self.saved), laplacian,
+                        "snapshots" if self.every else "array")
 
 
 def _check_steps(dt, steps, every):
@@ -404,7 +453,7 @@ def heat(
     laplacian: str | sp.spmatrix | sp.sparray | np.ndarray | None = "auto",
     solver: str = "auto",
     k: float | None = None,
-) -> np.ndarray | Snapshots:
+) -> Solution:
     """Heat equation ``u_t = diffusivity Lap_S u``.
 
     Parameters
@@ -426,7 +475,8 @@ def heat(
         heat source at the north pole.
     fixed_values : float or array_like, shape (n_fixed,), optional
     every : int, optional
-        Save the state every ``every`` steps (the initial and the final state included).
+        Also save the state every ``every`` steps (the initial and the final state
+        are always saved).
     callback : callable, optional
         ``callback(step, t, u)`` after every step.
     laplacian : {"auto", "strong", "stable"} or sparse matrix
@@ -447,8 +497,11 @@ def heat(
 
     Returns
     -------
-    ndarray, shape (N,) or Snapshots
-        The final state, or ``Snapshots(snapshots (S, N), times (S,))`` when ``every`` is given.
+    Solution
+        ``.u`` the final state (N,), ``.snapshots`` (S, N) saved at ``.times`` (S,),
+        ``.laplacian`` the Laplacian used. (0.1 returned the array, or a
+        ``Snapshots`` tuple with ``every=``; that use works until 0.3 with a
+        DeprecationWarning.)
 
     Examples
     --------
@@ -457,7 +510,7 @@ def heat(
     >>> from manifold_sph.reference import shapes
     >>> cloud = shapes.sphere(2000)
     >>> z = cloud.points[:, 2]                      # a degree-1 harmonic: decays as exp(-2 k t)
-    >>> u = heat(Surface(cloud), z, dt=0.01, steps=10, method="crank-nicolson")
+    >>> u = heat(Surface(cloud), z, dt=0.01, steps=10, method="crank-nicolson").u
     >>> bool(np.allclose(u, np.exp(-0.2) * z, atol=2e-3))
     True
     """
@@ -505,7 +558,7 @@ def heat(
             u = new
         u[mask] = values
         record(step, u)
-    return record.result(u)
+    return record.result(u, op.kind)
 
 
 #: Jacobi-BiCGSTAB iterations tried before multigrid is set up.
@@ -579,7 +632,7 @@ def wave(
     every: int | None = None,
     callback: Callable | None = None,
     laplacian: str | sp.spmatrix | sp.sparray | np.ndarray | None = "auto",
-) -> np.ndarray | Snapshots:
+) -> Solution:
     """Wave equation ``u_tt = c^2 Lap_S u`` with the centred scheme.
 
     ``u^{n+1} = 2 u^n - u^{n-1} + c^2 dt^2 L u^n`` (docs/method.md section 6; eq. 3.20
@@ -601,7 +654,7 @@ def wave(
     >>> from manifold_sph.reference import shapes
     >>> cloud = shapes.sphere(2000)
     >>> z = cloud.points[:, 2]                      # Y_1: u = cos(sqrt(2) t) z
-    >>> u = wave(Surface(cloud), z, dt=0.01, steps=100)
+    >>> u = wave(Surface(cloud), z, dt=0.01, steps=100).u
     >>> bool(np.allclose(u, np.cos(np.sqrt(2.0)) * z, atol=1e-2))
     True
     """
@@ -632,7 +685,7 @@ def wave(
             prev, u = u, 2 * u - prev + b * (Lb @ u)
             u[mask] = values
         record(step, u)
-    return record.result(u)
+    return record.result(u, op.kind)
 
 
 def wave_energy(surface: OperatorSet, u_prev: ArrayLike, u_next: ArrayLike, dt: float, c: float = 1.0,

@@ -44,6 +44,7 @@ MODULES = [
     "manifold_sph.surface",
     "manifold_sph.operators",
     "manifold_sph.pde",
+    "manifold_sph._results",
     "manifold_sph.threads",
     "manifold_sph._validation",
     "manifold_sph._lazy",
@@ -63,6 +64,7 @@ MODULES = [
     "manifold_sph.spem.layouts",
     "manifold_sph.spem.operators",
     "manifold_sph.spem.pml",
+    "manifold_sph.spem.results",
     "manifold_sph.spem.solver",
     "manifold_sph.spem.sources",
 ]

@@ -32,7 +32,7 @@ def rel(a, b):
 def test_heat_decays_spherical_harmonics(surf, sphere, method, tol):
     """u = exp(-k l(l+1) t) Y_l; at N = 2000 the Laplacian error (~1.5e-2) bounds the accuracy."""
     for l, Y in harmonics(sphere.points):
-        u = pde.heat(surf, Y, dt=2e-3, steps=50, diffusivity=1.0, method=method)
+        u = pde.heat(surf, Y, dt=2e-3, steps=50, diffusivity=1.0, method=method).u
         assert rel(u, np.exp(-l * (l + 1) * 0.1) * Y) < tol, l
 
 
@@ -41,7 +41,7 @@ def test_heat_explicit_matches_implicit_below_limit(surf, sphere):
     limit = pde.explicit_dt_limit(surf)
     dt = 0.5 * limit
     steps = int(0.05 / dt)
-    ue = pde.heat(surf, Y, dt=dt, steps=steps, method="explicit")
+    ue = pde.heat(surf, Y, dt=dt, steps=steps, method="explicit").u
     assert rel(ue, np.exp(-2 * steps * dt) * Y) < 1e-2
 
 
@@ -69,7 +69,7 @@ def test_fixed_source_is_held_and_snapshots(surf, sphere):
     assert out.snapshots[-1].mean() > out.snapshots[1].mean() > 0  # heat flows in from the source
     mask = np.zeros(2000, bool)
     mask[north] = True
-    u = pde.heat(surf, np.zeros(2000), dt=1e-2, steps=30, fixed=mask, fixed_values=[1.0])
+    u = pde.heat(surf, np.zeros(2000), dt=1e-2, steps=30, fixed=mask, fixed_values=[1.0]).u
     assert np.allclose(u, out.snapshots[-1])
 
 
@@ -89,8 +89,8 @@ def test_iterative_solver_matches_direct(surf, sphere, monkeypatch, jacobi_iters
 
         monkeypatch.setattr(pyamg, "ruge_stuben_solver", lambda A: 1 / 0)
     Y = sphere.points[:, 1]
-    a = pde.heat(surf, Y, dt=1e-2, steps=5, solver="direct")
-    b = pde.heat(surf, Y, dt=1e-2, steps=5, solver="iterative")
+    a = pde.heat(surf, Y, dt=1e-2, steps=5, solver="direct").u
+    b = pde.heat(surf, Y, dt=1e-2, steps=5, solver="iterative").u
     assert np.abs(a - b).max() < 1e-8
 
 
@@ -116,7 +116,7 @@ def test_wave_phase_and_energy(surf, sphere):
 def test_wave_initial_velocity(surf, sphere):
     Y = sphere.points[:, 2]
     w = np.sqrt(2.0)
-    u = pde.wave(surf, np.zeros(2000), dt=1e-2, steps=100, v0=w * Y)  # u = sin(w t) Y
+    u = pde.wave(surf, np.zeros(2000), dt=1e-2, steps=100, v0=w * Y).u  # u = sin(w t) Y
     assert rel(u, np.sin(w * 1.0) * Y) < 2e-2
 
 
@@ -170,7 +170,7 @@ def test_helmholtz_hodge_recovers_potentials(sphere, surf):
 
 def test_implicit_heat_does_not_grow(surf):
     u0 = np.random.default_rng(0).standard_normal(2000)
-    u = pde.heat(surf, u0, dt=1e-3, steps=1000, method="implicit")
+    u = pde.heat(surf, u0, dt=1e-3, steps=1000, method="implicit").u
     assert np.abs(u).max() <= np.abs(u0).max()
     assert np.all(np.isfinite(u))
 
@@ -190,7 +190,7 @@ def test_stabilized_laplacians_have_left_half_plane_spectra():
     np.testing.assert_allclose(S, S.T, rtol=0, atol=1e-10 * np.abs(S).max())
     assert np.linalg.eigvalsh(0.5 * (S + S.T)).max() < 1e-8 * np.abs(S).max()  # dense symmetric: fast
     for L in (T, W):
-        u = pde.heat(s, np.random.default_rng(2).standard_normal(800), dt=1e-3, steps=200, laplacian=sp.csr_matrix(L))
+        u = pde.heat(s, np.random.default_rng(2).standard_normal(800), dt=1e-3, steps=200, laplacian=sp.csr_matrix(L)).u
         assert np.all(np.isfinite(u))
     T = pde.stabilized_laplacian(s, "taylor")
     off = T - sp.diags(T.diagonal())
@@ -224,7 +224,7 @@ def test_targets_at_8672():
     c = shapes.sphere(8672)
     s = Surface(c)
     for l, Y in harmonics(c.points):
-        u = pde.heat(s, Y, dt=1e-3, steps=100, method="crank-nicolson")
+        u = pde.heat(s, Y, dt=1e-3, steps=100, method="crank-nicolson").u
         assert rel(u, np.exp(-l * (l + 1) * 0.1) * Y) <= 5e-3
     x, n = c.points, c.normals
     gphi = c.shape.surface_gradient(x, functions.cos_xz_sin_y.gradient(x))
@@ -232,7 +232,7 @@ def test_targets_at_8672():
     d = pde.helmholtz_hodge(s, gphi + cog)
     assert rel(d.gradient, gphi) <= 1e-2 and rel(d.cogradient, cog) <= 1e-2
     u0 = np.random.default_rng(0).standard_normal(8672)
-    u = pde.heat(s, u0, dt=1e-3, steps=10000, method="implicit")
+    u = pde.heat(s, u0, dt=1e-3, steps=10000, method="implicit").u
     assert np.abs(u).max() <= np.abs(u0).max()
 
 
@@ -241,9 +241,9 @@ def test_diffusivity_replaces_k():
     one release with a DeprecationWarning, and both at once is an error."""
     s = Surface(shapes.sphere(500), area="shepard")
     z = s.points[:, 2]
-    new = pde.heat(s, z, dt=0.01, steps=3, diffusivity=2.0)
+    new = pde.heat(s, z, dt=0.01, steps=3, diffusivity=2.0).u
     with pytest.warns(DeprecationWarning, match="k= is deprecated: pass diffusivity="):
-        old = pde.heat(s, z, dt=0.01, steps=3, k=2.0)
+        old = pde.heat(s, z, dt=0.01, steps=3, k=2.0).u
     np.testing.assert_array_equal(new, old)
     with pytest.raises(TypeError, match="pass diffusivity= only"):
         pde.heat(s, z, dt=0.01, steps=3, diffusivity=2.0, k=2.0)

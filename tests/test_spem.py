@@ -100,30 +100,30 @@ def test_pec_cavity_conserves_energy_and_fixed_particles_stay_zero():
 
 def test_line1d_matches_the_travelling_sine_within_one_percent():
     r = run_line1d()  # the sizes of [2]: [0, pi], 1.8 GHz, dr = 1.66e-3, t = 4.75 ns
-    assert r["error"] <= 1e-2
-    assert r["error"] <= 5e-3  # measured 3.1e-3
+    assert r.error <= 1e-2
+    assert r.error <= 5e-3  # measured 3.1e-3
 
 
 def test_cavity_matches_bessel_series_within_1_percent_and_resonance_within_half_percent():
     assert float(cavity_exact(np.array([0.0]), 0.0)[0]) == pytest.approx(1.0, abs=1e-4)
     assert cavity_frequency() == pytest.approx(362.8e6, rel=1e-3)
     r = run_cavity(n_radial=20, spectrum_periods=10.0)
-    assert r["error"] <= 0.01  # measured 3.9e-3 (sbp; the refused direct coupling: 2.4e-3)
-    assert r["f1_error"] <= 0.005  # measured 1.5e-3
+    assert r.error <= 0.01  # measured 3.9e-3 (sbp; the refused direct coupling: 2.4e-3)
+    assert r.f1_error <= 0.005  # measured 1.5e-3
 
 
 @pytest.mark.slow
 def test_cavity_converges_from_20_to_40_spacings_per_radius():
     r = run_cavity(n_radial=20)
     full = run_cavity(n_radial=40)
-    assert full["error"] <= 0.002  # measured 1.26e-3: order 1.6 from 3.9e-3
-    assert full["error"] < 0.5 * r["error"]
+    assert full.error <= 0.002  # measured 1.26e-3: order 1.6 from 3.9e-3
+    assert full.error < 0.5 * r.error
 
 
 def test_cavity_eps_r_option_changes_the_period():
     r = run_cavity(n_radial=12, eps_r=4.0, r0=0.05)
-    assert r["f1_exact"] == pytest.approx(cavity_frequency(0.05, 4.0))
-    assert r["error"] <= 0.02
+    assert r.f1_exact == pytest.approx(cavity_frequency(0.05, 4.0))
+    assert r.error <= 0.02
 
 
 def test_peak_frequency_reads_a_sinusoid():
@@ -134,7 +134,7 @@ def test_peak_frequency_reads_a_sinusoid():
 
 def test_waveguide_error_below_0p2_percent():
     r = run_waveguide()  # full size: 80 particles per wavelength, t = 4.1 ns, line x ~ 0.244 m
-    assert r["error"] <= 0.002  # measured 3.6e-4
+    assert r.error <= 0.002  # measured 3.6e-4
 
 
 def test_guided_exact_tends_to_the_mode_and_is_causal():
@@ -148,17 +148,17 @@ def test_guided_exact_tends_to_the_mode_and_is_causal():
 def test_planewave_reduced_within_1_percent_without_alternating_rows():
     for layout in ("yee", "staggered"):
         r = run_planewave(size=0.2, ppw=20, layout=layout)
-        assert r["error"] <= 0.01, layout  # measured 4.2e-3 / 4.3e-3
-        assert r["adjacent_line_difference"] <= 0.01, layout  # measured 5.5e-4 / 1.1e-3
+        assert r.error <= 0.01, layout  # measured 4.2e-3 / 4.3e-3
+        assert r.adjacent_line_difference <= 0.01, layout  # measured 5.5e-4 / 1.1e-3
 
 
 @pytest.mark.slow
 def test_pml_reflection_below_minus_60_db_and_a_weak_layer_is_detected():
     r = run_pml(cells=30)
-    assert r["reflection_normal_db"] <= -60  # measured -94.3 dB (sbp; direct -94.3)
-    assert r["reflection_oblique_db"] <= -60  # measured -88.7 dB (sbp and direct)
+    assert r.reflection_normal_db <= -60  # measured -94.3 dB (sbp; direct -94.3)
+    assert r.reflection_oblique_db <= -60  # measured -88.7 dB (sbp and direct)
     weak = run_pml(cells=30, pml_cells=2, reflection=0.3)
-    assert weak["reflection_normal_db"] > -40
+    assert weak.reflection_normal_db > -40
 
 
 def test_sigma_max_formula():
@@ -228,14 +228,14 @@ def test_particles_per_wavelength_for_one_percent_phase_error():
 @pytest.mark.slow
 def test_planewave_full_size_yee_within_1_percent():
     r = run_planewave(ppw=40, layout="yee")
-    assert r["error"] <= 0.01
-    assert r["adjacent_line_difference"] <= 0.02
+    assert r.error <= 0.01
+    assert r.adjacent_line_difference <= 0.02
 
 
 @pytest.mark.slow
 def test_pml_full_size():
     r = run_pml()
-    assert r["reflection_normal_db"] <= -60
+    assert r.reflection_normal_db <= -60
 
 
 @pytest.mark.slow
@@ -243,7 +243,7 @@ def test_source_truncated_line_excites_alternating_lines_on_the_staggered_layout
     # the set-up of [2]: the line source covers only the interior, its ends diffract
     st = run_planewave(size=0.2, ppw=20, layout="staggered", source_span="interior")
     yee = run_planewave(size=0.2, ppw=20, layout="yee", source_span="interior")
-    assert st["alternating_amplitude"] > 5 * yee["alternating_amplitude"]  # measured 3.5e-2 vs 4.1e-3
+    assert st.alternating_amplitude > 5 * yee.alternating_amplitude  # measured 3.5e-2 vs 4.1e-3
 
 
 def test_two_workers_give_identical_fields():
@@ -349,7 +349,7 @@ def test_materials_conductivity_damping_and_eps_mu_symmetry():
     amp = []
     for s in (lossless, lossy):
         s.set_initial(mode)
-        series = s.run(2000, probes=np.arange(len(e)))["probes"] @ mode
+        series = s.run(2000, probes=np.arange(len(e))).probes @ mode
         amp.append(np.abs(series[-400:]).max())
     expected = math.exp(-sigma * lossy.t / (2 * EPS0))
     assert amp[1] / amp[0] == pytest.approx(expected, rel=0.02)
@@ -358,11 +358,11 @@ def test_materials_conductivity_damping_and_eps_mu_symmetry():
 def test_line1d_with_the_source_wide_kernel_needs_a_source_region():
     single = run_line1d(h=3e-3)  # the h/dr = 1.81 of [2] with one driven particle
     region = run_line1d(h=3e-3, source_width=6e-3)  # exact outgoing wave imposed within 2h
-    assert single["error"] > 0.3  # measured 0.60: the lone particle radiates weakly
-    assert region["error"] < 0.05  # measured 0.038, the wide kernel's dispersion (v/c = 0.998)
+    assert single.error > 0.3  # measured 0.60: the lone particle radiates weakly
+    assert region.error < 0.05  # measured 0.038, the wide kernel's dispersion (v/c = 0.998)
 
 
 @pytest.mark.slow
 def test_planewave_on_a_jittered_layout_with_sbp_coupling():
     r = run_planewave(size=0.2, ppw=20, layout="jittered", coupling="sbp", h_ratio=0.8)
-    assert r["error"] <= 0.05  # measured 4.1e-2 (Yee lattice: 4.2e-3); "direct" is refused on this layout
+    assert r.error <= 0.05  # measured 4.1e-2 (Yee lattice: 4.2e-3); "direct" is refused on this layout

@@ -11,8 +11,10 @@ Kronecker-delta system), :mod:`.scattering` (plane-wave scattering by PEC, diele
 coated cylinders: exact Bessel series and SPEM cases), :mod:`.tez` (TEz: Hz, Ex, Ey),
 :mod:`.cases` / :mod:`.cases2d` (helpers in
 :mod:`._casekit`; :mod:`.cases` imports :mod:`.cases2d`, not the reverse) (the
-validation cases of the thesis [2] with exact references), :mod:`.analysis` (null modes and
-dispersion), :mod:`.cli` (``manifold-sph spem CASE``).
+validation cases of the thesis [2] with exact references), :mod:`.results` (what ``run`` and
+the cases return: :class:`RunResult`, :class:`CaseResult` and one subclass per case, frozen
+dataclasses with named fields), :mod:`.analysis` (null modes and dispersion), :mod:`.cli`
+(``manifold-sph spem CASE``).
 
 Examples
 --------
@@ -22,9 +24,9 @@ Examples
 >>> s = TMzSolver(lay)
 >>> a = 0.1
 >>> s.set_initial(np.sin(np.pi * lay.e[:, 0] / a) * np.sin(np.pi * lay.e[:, 1] / a))
->>> out = s.run(100)
->>> bool(np.abs(s.e_field).max() <= 1.0)
-True
+>>> out = s.run(100, probes=[0, 5])
+>>> out.probes.shape, bool(np.abs(s.e_field).max() <= 1.0)
+((100, 2), True)
 """
 
 from .constants import C0, EPS0, ETA0, MU0
@@ -36,6 +38,8 @@ from .pml import PML, sigma_max
 from .scattering import (SCATTERERS, ScatteringResult, mie_coefficients, run_scattering, scattered_field,
                          scattering_layout, total_field)
 from .tez import TEzCavityResult, TEzLayout, TEzSolver, run_tez_cavity, tez_cavity_frequency, tez_layout
+from .results import (CaseResult, CavityResult, FieldHistory, LineResult, PlanewaveResult, PMLResult, RunResult,
+                      WaveguideResult)
 from .solver import COUPLINGS, DEFAULT_COUPLING, DEFAULT_H_RATIO, Line1DSolver, TMzSolver, cfl_number, leapfrog_growth
 from .sources import GaussianPulse, Sinusoid, Source, line_source, point_source
 
@@ -49,6 +53,8 @@ __all__ = [
     "SCATTERERS", "ScatteringResult", "mie_coefficients", "run_scattering", "scattered_field", "scattering_layout",
     "total_field", "TEzCavityResult", "TEzLayout", "TEzSolver", "run_tez_cavity", "tez_cavity_frequency",
     "tez_layout",
+    "RunResult", "CaseResult", "LineResult", "CavityResult", "PlanewaveResult", "WaveguideResult", "PMLResult",
+    "FieldHistory",
     "COUPLINGS", "DEFAULT_COUPLING", "DEFAULT_H_RATIO", "Line1DSolver", "TMzSolver", "cfl_number", "leapfrog_growth",
     "GaussianPulse", "Sinusoid", "Source", "line_source", "point_source",
 ]

@@ -9,6 +9,7 @@ Both case modules import from here and :mod:`.cases` imports :mod:`.cases2d`
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 
@@ -16,6 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .._validation import check_int
+from .results import FieldHistory
 
 __all__ = ["relative_error"]
 
@@ -31,16 +33,14 @@ def relative_error(numerical: ArrayLike, exact: ArrayLike) -> float:
 
 
 def _timed(fn):
-    """Report the total wall time as "seconds" and the stepping time as "step_seconds"."""
+    """Report the total wall time as ``seconds`` (the case sets ``step_seconds``, the stepping alone)."""
     import functools
 
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
         t0 = time.perf_counter()
         out = fn(*args, **kwargs)
-        out["step_seconds"] = out["seconds"]
-        out["seconds"] = time.perf_counter() - t0
-        return out
+        return dataclasses.replace(out, seconds=time.perf_counter() - t0)
 
     return wrapper
 
@@ -51,11 +51,12 @@ def _every(steps, frames):
 
 
 def _fields(points, field, t, res, frames, exact=None):
-    """Private picture data (keys starting with "_" are dropped from JSON)."""
+    """The picture data of a case (:class:`.results.FieldHistory`), or None without ``frames``."""
     if not frames:
-        return {}
-    snaps = res["snapshots"] or [(t, field.copy())]
-    return {"_points": points, "_snapshots": snaps, "_exact": exact}
+        return None
+    if len(res.snapshots):
+        return FieldHistory(points, res.snapshot_times, res.snapshots, exact)
+    return FieldHistory(points, np.array([t]), field.copy()[None], exact)
 
 
 def _fitted(solver, t_end):

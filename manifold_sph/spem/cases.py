@@ -1,18 +1,20 @@
 """The validation cases of the thesis [2] (chapter 4; docs/method.md section 7) with exact references.
 
-Every ``run_*`` function returns a JSON-ready dict with at least ``case``,
-``particles``, ``steps``, ``seconds`` and ``error`` = mean |numerical -
-exact| / max |exact| over the case's evaluation points.
+Every ``run_*`` function returns a result dataclass (:mod:`.results`) with at
+least ``case``, ``particles``, ``steps``, ``seconds``, ``step_seconds``, ``dt``,
+``dr`` and ``error`` = mean |numerical - exact| / max |exact| over the case's
+evaluation points; ``to_dict()`` is its JSON-ready form.
 
 Examples
 --------
 >>> r = run_cavity(n_radial=10, periods=1.0)
->>> r["case"], r["error"] < 0.02  # measured 1.5e-2 (sbp, 10 spacings per radius)
+>>> r.case, r.error < 0.02  # measured 1.5e-2 (sbp, 10 spacings per radius)
 ('cavity', True)
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import TYPE_CHECKING, Any
 
@@ -25,6 +27,7 @@ from ._casekit import _every, _fields, _fit_dt, _fitted, _timed, relative_error
 from .cases2d import guided_exact, run_planewave, run_pml, run_waveguide
 from .constants import C0, EPS0, MU0
 from .layouts import disk_layout, line_layout
+from .results import CaseResult, CavityResult, LineResult
 from .solver import DEFAULT_COUPLING, DEFAULT_H_RATIO, Line1DSolver, TMzSolver
 from .sources import Sinusoid, Source, point_source
 
@@ -42,7 +45,7 @@ CASES = ("line1d", "cavity", "waveguide", "planewave", "pml")
 def run_line1d(*, freq: float = 1.8e9, length: float = math.pi, dr: float = 1.66e-3, h: float | None = None,
                t_end: float = 4.75e-9, kernel: str | Kernel | type[Kernel] = "cubic", form: str = "fpm", courant: float = 0.9,
                frames: int = 0,
-               source_width: float = 0.0, progress: bool = False) -> dict:
+               source_width: float = 0.0, progress: bool = False) -> LineResult:
     """1D line ([2] sec. 4.2): hard source ``sin(2 pi f t)`` at the centre of [0, L].
 
     Exact: ``Ex = sin(2 pi f (t - |z - zc|/c))`` where the wave has arrived
@@ -83,10 +86,10 @@ def run_line1d(*, freq: float = 1.8e9, length: float = math.pi, dr: float = 1.66
     tau = s.t - np.abs(z - zc) / C0
     exact = np.where(tau > 0, np.sin(2 * np.pi * freq * tau), 0.0)
     reached = np.abs(z - zc) < C0 * s.t
-    return {"case": "line1d", "particles": int(len(e) + len(hp)), "steps": steps, "seconds": res["seconds"],
-            "error": relative_error(s.ex[reached], exact[reached]), "dt": dt, "h": h, "dr": dr,
-            "particles_per_wavelength": C0 / freq / dr, "courant": s.courant,
-            **_fields(e, s.e_field, s.t, res, frames, exact)}
+    return LineResult(case="line1d", particles=int(len(e) + len(hp)), steps=steps, seconds=res.seconds,
+                      step_seconds=res.seconds, error=relative_error(s.ex[reached], exact[reached]), dt=dt, dr=dr,
+                      h=h, particles_per_wavelength=C0 / freq / dr, courant=s.courant,
+                      fields=_fields(e, s.e_field, s.t, res, frames, exact))
 
 
 # ----------------------------------------------------------------------------- cavity
@@ -132,7 +135,7 @@ def run_cavity(*, r0: float = 0.1, eps_r: float = 10.0, n_radial: int = 40, peri
                layout: str = "yee", form: str = "fpm", kernel: str | Kernel | type[Kernel] = "cubic",
                h_ratio: float = DEFAULT_H_RATIO,
                courant: float = 0.9, coupling: str = DEFAULT_COUPLING, spectrum_periods: float = 0.0, frames: int = 0,
-               sbp_layers: int | None = None, progress: bool = False) -> dict:
+               sbp_layers: int | None = None, progress: bool = False) -> CavityResult:
     """Circular PEC cavity ([2] sec. 4.3), ``Ez(0) = 1 - r^2/r0^2``, compared with the Bessel series.
 
     ``dr = r0 / n_radial``. The error is taken over every E particle after
@@ -160,20 +163,21 @@ def run_cavity(*, r0: float = 0.1, eps_r: float = 10.0, n_radial: int = 40, peri
     centre = int(np.argmin(r))
     res = s.run(steps, probes=[centre], snapshot_every=_every(steps, frames), progress=progress)
     exact = cavity_exact(r, s.t, r0, eps_r)
-    out = {"case": "cavity", "particles": lay.n_particles, "steps": steps, "seconds": res["seconds"],
-           "error": relative_error(s.e_field, exact), "dt": dt, "dr": dr, "layout": layout, "form": form,
-           "r0": r0, "eps_r": eps_r, "f1_exact": f1, **_fields(lay.e, s.e_field, s.t, res, frames, exact)}
+    out = CavityResult(case="cavity", particles=lay.n_particles, steps=steps, seconds=res.seconds,
+                       step_seconds=res.seconds, error=relative_error(s.e_field, exact), dt=dt, dr=dr, layout=layout,
+                       form=form, r0=r0, eps_r=eps_r, f1_exact=f1,
+                       fields=_fields(lay.e, s.e_field, s.t, res, frames, exact))
     if spectrum_periods > 0:
         more = int(round(spectrum_periods * T1 / dt))
         res2 = s.run(more, probes=[centre], progress=progress)
-        sig = np.r_[res["probes"][:, 0], res2["probes"][:, 0]]
+        sig = np.r_[res.probes[:, 0], res2.probes[:, 0]]
         fm = peak_frequency(sig, dt, fmin=0.3 * f1)
-        out.update(f1_measured=fm, f1_error=abs(fm - f1) / f1, steps=steps + more,
-                   seconds=res["seconds"] + res2["seconds"])
+        out = dataclasses.replace(out, f1_measured=fm, f1_error=abs(fm - f1) / f1, steps=steps + more,
+                                  seconds=res.seconds + res2.seconds, step_seconds=res.seconds + res2.seconds)
     return out
 
 
-def run_case(case: str, **kwargs: Any) -> dict:
+def run_case(case: str, **kwargs: Any) -> CaseResult:
     """Run a case by name (see :data:`CASES`)."""
     check_in("case", case, CASES)
     fn = {"line1d": run_line1d, "cavity": run_cavity, "waveguide": run_waveguide, "planewave": run_planewave,

@@ -10,7 +10,7 @@ emulates.
 Examples
 --------
 >>> r = run_planewave(size=0.1, freq=3.6e9, ppw=20, pml_cells=8)
->>> r["case"], r["error"] < 0.05
+>>> r.case, r.error < 0.05
 ('planewave', True)
 """
 
@@ -28,6 +28,7 @@ from ._casekit import _every, _fields, _fitted, _timed, relative_error
 from .constants import C0
 from .layouts import Layout, make_layout
 from .pml import PML
+from .results import PlanewaveResult, PMLResult, WaveguideResult
 from .solver import DEFAULT_COUPLING, DEFAULT_H_RATIO, TMzSolver
 from .sources import GaussianPulse, Sinusoid, Source, point_source
 
@@ -140,7 +141,7 @@ def run_planewave(*, size: float = 0.5, freq: float = 3.6e9, ppw: float = 40.0, 
                   layout: str = "yee", form: str = "fpm", kernel: str | Kernel | type[Kernel] = "cubic", h_ratio: float = DEFAULT_H_RATIO,
                   courant: float = 0.9, coupling: str = DEFAULT_COUPLING, travel: float = 0.8, ramp: float = 2.0,
                   seed: int | np.random.Generator | None = 0,
-                  source_span: str = "full", frames: int = 0, progress: bool = False) -> dict:
+                  source_span: str = "full", frames: int = 0, progress: bool = False) -> PlanewaveResult:
     """Free-space plane wave in a ``size`` square with PML on all sides ([2] sec. 4.5).
 
     A hard line source (a ramped sinusoid) on the band of E particles within
@@ -188,18 +189,17 @@ def run_planewave(*, size: float = 0.5, freq: float = 3.6e9, ppw: float = 40.0, 
     res = s.run(steps, snapshot_every=_every(steps, frames), progress=progress)
     inside = (e[:, 0] > 0) & (e[:, 0] < size) & (e[:, 1] > ys + 0.5 * dr) & (e[:, 1] < size) & ~lay.e_fixed
     exact = wave(s.t - (e[inside, 1] - ys) / C0)
-    out = {"case": "planewave", "particles": lay.n_particles, "steps": steps, "seconds": res["seconds"],
-           "error": relative_error(s.e_field[inside], exact), "dt": dt, "dr": dr, "layout": lay.name,
-           "form": form, "ppw": C0 / freq / dr, "pml_cells": pml_cells}
     # the PEC walls behind the side layers perturb the grazing wave (a layer cannot absorb
     # grazing incidence): also report the error away from the sides
     centre = (e[inside, 0] > 0.1 * size) & (e[inside, 0] < 0.9 * size)
-    out["error_centre"] = relative_error(s.e_field[inside][centre], exact[centre])
-    if layout in ("yee", "staggered"):
-        out["adjacent_line_difference"] = adjacent_line_difference(e, s.e_field, dr, axis=0, mask=inside)
-        out["alternating_amplitude"] = alternating_amplitude(e, s.e_field, dr, mask=inside)
-    out.update(_fields(e, s.e_field, s.t, res, frames))
-    return out
+    lattice = layout in ("yee", "staggered")
+    return PlanewaveResult(
+        case="planewave", particles=lay.n_particles, steps=steps, seconds=res.seconds, step_seconds=res.seconds,
+        error=relative_error(s.e_field[inside], exact), dt=dt, dr=dr, layout=lay.name, form=form,
+        ppw=C0 / freq / dr, pml_cells=pml_cells, error_centre=relative_error(s.e_field[inside][centre], exact[centre]),
+        adjacent_line_difference=adjacent_line_difference(e, s.e_field, dr, axis=0, mask=inside) if lattice else None,
+        alternating_amplitude=alternating_amplitude(e, s.e_field, dr, mask=inside) if lattice else None,
+        fields=_fields(e, s.e_field, s.t, res, frames))
 
 
 @_timed
@@ -208,7 +208,7 @@ def run_waveguide(*, width: float = 0.5, length: float = 0.4, pml_thickness: flo
                   layout: str = "yee", form: str = "fpm", kernel: str | Kernel | type[Kernel] = "cubic",
                   h_ratio: float = DEFAULT_H_RATIO,
                   courant: float = 0.9, coupling: str = DEFAULT_COUPLING, ramp: float = 0.0, frames: int = 0,
-                  progress: bool = False) -> dict:
+                  progress: bool = False) -> WaveguideResult:
     """Parallel-plate waveguide ([2] sec. 4.4): PEC plates x = 0 and x = ``width``, TM1 source at y = 0.
 
     The E particles of the row y = 0 are driven with
@@ -253,16 +253,16 @@ def run_waveguide(*, width: float = 0.5, length: float = 0.4, pml_thickness: flo
     on_line = (np.abs(e[:, 0] - xs) < tol) & (e[:, 1] <= length + tol)
     y = e[on_line, 1]
     exact = np.sin(np.pi * xs / width) * guided_exact(wave, y, s.t, cutoff=fc)
-    return {"case": "waveguide", "particles": lay.n_particles, "steps": steps, "seconds": res["seconds"],
-            "error": relative_error(s.e_field[on_line], exact), "dt": dt, "dr": dr, "layout": layout,
-            "form": form, "freq": freq, "f_cutoff": fc, "line_x": float(xs), "ppw": C0 / freq / dr,
-            "pml_cells": npml, **_fields(e, s.e_field, s.t, res, frames)}
+    return WaveguideResult(case="waveguide", particles=lay.n_particles, steps=steps, seconds=res.seconds,
+                           step_seconds=res.seconds, error=relative_error(s.e_field[on_line], exact), dt=dt, dr=dr,
+                           layout=layout, form=form, freq=freq, f_cutoff=fc, line_x=float(xs), ppw=C0 / freq / dr,
+                           pml_cells=npml, fields=_fields(e, s.e_field, s.t, res, frames))
 
 
 @_timed
 def run_pml(*, cells: int = 60, pml_cells: int = 10, order: int = 3, reflection: float = 1e-6,
             layout: str = "yee", form: str = "fpm", kernel: str | Kernel | type[Kernel] = "cubic", h_ratio: float = DEFAULT_H_RATIO,
-            courant: float = 0.9, coupling: str = DEFAULT_COUPLING, dr: float = 1e-3, progress: bool = False) -> dict:
+            courant: float = 0.9, coupling: str = DEFAULT_COUPLING, dr: float = 1e-3, progress: bool = False) -> PMLResult:
     """PML reflection: a pulse in a ``cells`` square with PML, against a reference run without echo.
 
     A soft point source (differentiated-Gaussian-like modulated pulse, about
@@ -291,7 +291,7 @@ def run_pml(*, cells: int = 60, pml_cells: int = 10, order: int = 3, reflection:
     # reference: the shortest echo path source -> wall -> probe (>= half + 2 margin cells) exceeds c t_end
     margin = int(math.ceil(max(0.0, C0 * t_end / dr - half) / 2)) + 4
     results = {}
-    out = {"case": "pml", "steps": 0, "seconds": 0.0}
+    total_steps, seconds, particles = 0, 0.0, {}
     for name, bounds, p in (("test", pml.outer_bounds(), pml),
                             ("reference", (-margin * dr, L + margin * dr, -margin * dr, L + margin * dr), None)):
         lay = make_layout(layout, bounds, dr)
@@ -304,13 +304,10 @@ def run_pml(*, cells: int = 60, pml_cells: int = 10, order: int = 3, reflection:
             s.set_dt(dt)
         idx = [int(np.argmin(((lay.e - q) ** 2).sum(1))) for q in probes_xy]
         res = s.run(steps, probes=idx, progress=progress)
-        results[name] = res["probes"]
-        out["steps"] += steps
-        out["seconds"] += res["seconds"]
-        if name == "test":
-            out["particles"] = lay.n_particles
-        else:
-            out["reference_particles"] = lay.n_particles
+        results[name] = res.probes
+        total_steps += steps
+        seconds += res.seconds
+        particles[name] = lay.n_particles
     diff = np.abs(results["test"] - results["reference"]).max(axis=0)
     ref = np.abs(results["reference"]).max(axis=0)
     # A probe the pulse never reaches in the reference (the staggered layout's
@@ -318,7 +315,8 @@ def run_pml(*, cells: int = 60, pml_cells: int = 10, order: int = 3, reflection:
     ok = ref > 1e-9 * np.abs(results["reference"]).max()
     rel = np.where(ok, diff / np.where(ok, ref, 1.0), np.nan)
     db = [float(20 * np.log10(v)) if np.isfinite(v) else None for v in rel]
-    out.update(reflection_normal_db=db[0], reflection_oblique_db=db[1],
-               error=float(rel[0]) if np.isfinite(rel[0]) else None, pml_cells=pml_cells, order=order,
-               target_reflection=reflection, layout=layout)
-    return out
+    return PMLResult(case="pml", particles=particles["test"], steps=total_steps, seconds=seconds,
+                     step_seconds=seconds, error=float(rel[0]) if np.isfinite(rel[0]) else None, dt=dt, dr=dr,
+                     reference_particles=particles["reference"], reflection_normal_db=db[0],
+                     reflection_oblique_db=db[1], pml_cells=pml_cells, order=order, target_reflection=reflection,
+                     layout=layout)

@@ -127,14 +127,12 @@ def _pictures(result, args):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    pts = result["_points"]
-    snaps = result["_snapshots"]
-    vmax = max(float(abs(f).max()) for _, f in snaps) or 1.0
+    pts, times, snaps = result.fields.points, result.fields.times, result.fields.snapshots
+    vmax = float(abs(snaps).max()) or 1.0
     if args.png:
         fig, ax = plt.subplots(figsize=(5, 4.5))
-        t, f = snaps[-1]
-        _draw(ax, pts, f, vmax)
-        ax.set_title(f"{result['case']}: E at t = {t * 1e9:.3f} ns")
+        _draw(ax, pts, snaps[-1], vmax)
+        ax.set_title(f"{result.case}: E at t = {times[-1] * 1e9:.3f} ns")
         fig.savefig(args.png, dpi=110, bbox_inches="tight")
         plt.close(fig)
     if args.gif:
@@ -144,9 +142,8 @@ def _pictures(result, args):
 
         def frame(k):
             ax.clear()
-            t, f = snaps[k]
-            _draw(ax, pts, f, vmax)
-            ax.set_title(f"{result['case']}: E at t = {t * 1e9:.3f} ns")
+            _draw(ax, pts, snaps[k], vmax)
+            ax.set_title(f"{result.case}: E at t = {times[k] * 1e9:.3f} ns")
 
         FuncAnimation(fig, frame, frames=len(snaps)).save(args.gif, writer=PillowWriter(fps=8))
         plt.close(fig)
@@ -168,7 +165,7 @@ def run(args: argparse.Namespace) -> int:
         return 2
     if args.png or args.gif:
         _pictures(result, args)
-    public = {k: v for k, v in result.items() if not k.startswith("_")}
+    public = result.to_dict()
     if args.json:
         print(json.dumps(public))
     else:

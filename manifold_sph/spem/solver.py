@@ -42,6 +42,7 @@ from .constants import C0, EPS0, MU0
 from .layouts import Layout
 from .operators import SBP_LAYERS, cross_gradient, sbp_pair
 from .pml import PML
+from .results import RunResult
 from .sources import Source
 
 if TYPE_CHECKING:
@@ -135,7 +136,7 @@ class _Leapfrog:
     """Shared run loop: probes, snapshots, progress."""
 
     def run(self, steps: int | None = None, *, t_end: float | None = None, probes: ArrayLike | None = None,
-            snapshot_every: int | None = None, progress: bool = False) -> dict:
+            snapshot_every: int | None = None, progress: bool = False) -> RunResult:
         """Advance ``steps`` steps (or up to time ``t_end``), recording probes and snapshots.
 
         Parameters
@@ -152,9 +153,9 @@ class _Leapfrog:
 
         Returns
         -------
-        dict
-            ``times`` (steps,), ``probes`` (steps, P), ``snapshots`` list of
-            (time, field), ``seconds`` wall time.
+        RunResult
+            ``times`` (steps,), ``probes`` (steps, P), ``snapshots`` (S, n_e) at
+            ``snapshot_times`` (S,), ``seconds`` wall time.
         """
         if (steps is None) == (t_end is None):
             raise ValueError("give exactly one of steps and t_end")
@@ -183,7 +184,9 @@ class _Leapfrog:
                 series[n] = self.e_field[probes]
             if snapshot_every and (n + 1) % snapshot_every == 0:
                 snaps.append((self.t, self.e_field.copy()))
-        return {"times": times, "probes": series, "snapshots": snaps, "seconds": _time.perf_counter() - t0}
+        seconds = _time.perf_counter() - t0
+        return RunResult(times, series, np.array([f for _, f in snaps]).reshape(len(snaps), self.n_e),
+                         np.array([t for t, _ in snaps], dtype=np.float64), seconds)
 
 
 class TMzSolver(_Leapfrog):

@@ -47,7 +47,7 @@ from .._validation import as_field, as_points, check_bool, check_in, check_int, 
 
 if TYPE_CHECKING:  # no run-time imports: pyvista and the operator stack load only when used
     from ..operators import OperatorSet
-    from ..pde import Snapshots
+    from ..pde import Solution
     from ..pointcloud import PointCloud
 
 __all__ = [
@@ -756,7 +756,7 @@ def render_comparison(
 
 def animate(
     points: ArrayLike | PointCloud | OperatorSet,
-    snapshots: ArrayLike | Snapshots,
+    snapshots: ArrayLike | Solution,
     filename: str | os.PathLike[str],
     *,
     times: ArrayLike | None = None,
@@ -784,7 +784,7 @@ def animate(
     ----------
     points : array_like (N, 3) or (N, 2), PointCloud, Surface or Domain2D
     snapshots : array_like, shape (S, N), or an object with ``.snapshots`` (and ``.times``)
-        E.g. the result of :func:`manifold_sph.pde.heat` with ``every=``.
+        E.g. the :class:`~manifold_sph.pde.Solution` of :func:`manifold_sph.pde.heat` or :func:`~manifold_sph.pde.wave`.
     filename : str or path
         ``.gif`` or ``.mp4``, written frame by frame by pyvista's ``open_gif`` /
         ``open_movie`` (imageio); MP4 needs ``imageio-ffmpeg`` (the ``video`` extra:
