@@ -55,6 +55,9 @@ __all__ = [
     "filter_count",
     "filter_fill",
     "frames_rows",
+    "grid_rows",
+    "grid_scatter",
+    "grid_sort",
     "moment_rows",
     "msph_rows",
     "ncsph_rows",
@@ -146,6 +149,150 @@ def filter_fill(lo, hi, idx, keep, indptr, indices):
             if keep[i, s]:
                 indices[_u(p)] = idx[i, s]
                 p += 1
+
+
+# ------------------------------------------------- grid (cell list) radius search
+@_jit
+def grid_sort(col, ncols, z, colptr, order):
+    """Counting sort of the points by column ``col`` (``ncols`` columns), each column then sorted by
+    ``z`` (insertion sort, stable): ``order`` the sorted point indices, ``colptr`` (ncols + 1) the
+    columns' bounds in it."""
+    n = col.size
+    colptr[:] = 0
+    for i in range(n):
+        colptr[col[i] + 1] += 1
+    for c in range(ncols):
+        colptr[c + 1] += colptr[c]
+    pos = colptr[:-1].copy()
+    for i in range(n):
+        c = col[i]
+        order[pos[c]] = i
+        pos[c] += 1
+    for c in range(ncols):
+        lo = colptr[c]
+        for s in range(lo + 1, colptr[c + 1]):
+            i = order[s]
+            zi = z[i]
+            t = s
+            while t > lo and z[order[t - 1]] > zi:
+                order[t] = order[t - 1]
+                t -= 1
+            order[t] = i
+
+
+@_jit
+def grid_rows(s0, s1, order, ps, ns, zs, ca, cb, n_a, n_b, colptr, cell, radii, threshold, use_normals, width,
+              counts, n_filtered):
+    """Radius search (``|p_i - p_j| < radii[i]``, distances as scipy's KD-tree computes them) with the
+    normal filter, for the points at sorted positions ``s0:s1`` (``order[s]`` the point; ``ps``, ``ns``,
+    ``zs``, ``ca``, ``cb`` the points, normals, sort coordinate and column coordinates in sorted
+    order; the candidates lie in the 3 x 3 neighbouring columns, within ``cell`` in ``z``).
+    Fills ``counts`` and ``n_filtered`` per point and returns ``(offsets, neighbours)``: the neighbours
+    of the point at ``s0 + k`` at ``offsets[k]:offsets[k + 1]``, sorted by squared distance (the point
+    itself first, ties by index); ``width`` the first guess of neighbours per point."""
+    m_rows = s1 - s0
+    offsets = np.zeros(m_rows + 1, dtype=np.int64)
+    cap = max(m_rows * width, 16)
+    out = np.empty(cap, dtype=np.int64)
+    dbuf = np.empty(64)
+    jbuf = np.empty(64, dtype=np.int64)
+    for s in range(s0, s1):
+        i = order[s]
+        r = radii[i]
+        r2 = r * r
+        r2_in = r2 * (1.0 - 1e-15)  # below: sqrt(d2) < r for sure; above r2_out: not
+        r2_out = r2 * (1.0 + 1e-15)
+        q0 = ps[s, 0]
+        q1 = ps[s, 1]
+        q2 = ps[s, 2]
+        zq = zs[s]
+        a = ca[s]
+        b = cb[s]
+        m = 0
+        f = 0
+        zlo = zq - cell
+        zhi = zq + cell
+        for da in range(-1, 2):
+            aa = a + da
+            if aa < 0 or aa >= n_a:
+                continue
+            for db in range(-1, 2):
+                bb = b + db
+                if bb < 0 or bb >= n_b:
+                    continue
+                c = aa * n_b + bb
+                lo = colptr[c]
+                end = colptr[c + 1]
+                hi = end
+                while lo < hi:  # first position with z >= zq - cell
+                    mid = (lo + hi) >> 1
+                    if zs[mid] < zlo:
+                        lo = mid + 1
+                    else:
+                        hi = mid
+                for t in range(lo, end):
+                    if zs[t] > zhi:
+                        break
+                    d0 = q0 - ps[t, 0]
+                    d1 = q1 - ps[t, 1]
+                    d2 = q2 - ps[t, 2]
+                    acc = 0.0
+                    acc += d0 * d0
+                    acc += d1 * d1
+                    acc += d2 * d2
+                    if acc >= r2_out:
+                        continue
+                    if acc > r2_in and not np.sqrt(acc) < r:
+                        continue
+                    if use_normals:
+                        dot = ns[s, 0] * ns[t, 0] + ns[s, 1] * ns[t, 1]
+                        dot += ns[s, 2] * ns[t, 2]
+                        if not dot > threshold:
+                            f += 1
+                            continue
+                    j = order[t]
+                    if m == dbuf.size:
+                        dnew = np.empty(2 * m)
+                        jnew = np.empty(2 * m, dtype=np.int64)
+                        dnew[:m] = dbuf
+                        jnew[:m] = jbuf
+                        dbuf = dnew
+                        jbuf = jnew
+                    # insertion by (not itself, squared distance, index)
+                    key = -1.0 if j == i else acc
+                    u = m
+                    while u > 0 and (dbuf[u - 1] > key or (dbuf[u - 1] == key and jbuf[u - 1] > j)):
+                        dbuf[u] = dbuf[u - 1]
+                        jbuf[u] = jbuf[u - 1]
+                        u -= 1
+                    dbuf[u] = key
+                    jbuf[u] = j
+                    m += 1
+        k = s - s0
+        p = offsets[k]
+        if p + m > cap:
+            cap = max(2 * cap, p + m)
+            grown = np.empty(cap, dtype=np.int64)
+            grown[:p] = out[:p]
+            out = grown
+        for u in range(m):
+            out[p + u] = jbuf[u]
+        offsets[k + 1] = p + m
+        counts[i] = m
+        n_filtered[i] = f
+    return offsets, out
+
+
+@_jit
+def grid_scatter(s0, s1, order, offsets, found, indptr, indices):
+    """Copy the neighbours of the points at sorted positions ``s0:s1`` (from :func:`grid_rows`) to their rows."""
+    for s in range(s0, s1):
+        i = order[s]
+        k = s - s0
+        p = indptr[i]
+        for u in range(offsets[k], offsets[k + 1]):
+            indices[p] = found[u]
+            p += 1
 
 
 # ----------------------------------------------------------------- frames

@@ -39,11 +39,11 @@ def test_ssor_area_solve_equals_the_direct_solution(monkeypatch, min_rows):
 
 
 def test_ssor_needs_a_quarter_of_the_jacobi_iterations(monkeypatch):
-    """Regression (time): 14 iterations against 53 with the Shepard preconditioner (Fibonacci, 6000)."""
+    """Regression (time): about 14 iterations against 50 with the Shepard preconditioner (Fibonacci, 4000)."""
     from manifold_sph import _sparse
 
     steps = _count_steps(monkeypatch)
-    A, d = _kernel_system(shapes.sphere(6000).points)
+    A, d = _kernel_system(shapes.sphere(4000).points)
     with threads.limit(1):  # one call of the step kernel per iteration
         area.bicgstab_ssor(A, np.ones(A.shape[0]), d, rtol=1e-15, maxiter=60)
         n_ssor = len(steps)
@@ -116,3 +116,61 @@ def test_numerical_area_elements_equal_the_jacobi_solve(monkeypatch, make):
     assert np.abs(new.dV - old.dV).max() < 1e-11 * np.abs(old.dV).max()
     Ln, Lo = new.laplacian_matrix(), old.laplacian_matrix()
     assert abs(Ln - Lo).max() < 1e-10 * abs(Lo).max()
+
+
+# ------------------------------------------------------------------ grid neighbour search
+def _both_searches(monkeypatch, points, normals=None, **kw):
+    from manifold_sph import neighbors
+
+    monkeypatch.setattr(neighbors, "GRID_MIN_POINTS", 10**12)
+    kd = neighbors.find_neighbors(points, normals, **kw)
+    monkeypatch.setattr(neighbors, "GRID_MIN_POINTS", 0)
+    calls = []
+    real = neighbors._grid_search
+    monkeypatch.setattr(neighbors, "_grid_search", lambda *a: calls.append(1) or real(*a))
+    grid = neighbors.find_neighbors(points, normals, **kw)
+    return kd, grid, calls
+
+
+@pytest.mark.parametrize("sampling", ["fibonacci", "random"])
+def test_grid_search_equals_the_kd_tree_search(monkeypatch, sampling):
+    from manifold_sph.neighbors import smoothing_length_for_count
+
+    c = shapes.sphere(20000, sampling=sampling, seed=1)
+    h = smoothing_length_for_count(c.points, 27, 3.0)
+    kd, grid, calls = _both_searches(monkeypatch, c.points, c.normals, h=h, support=3.0)
+    assert calls
+    np.testing.assert_array_equal(kd.indptr, grid.indptr)
+    np.testing.assert_array_equal(kd.indices, grid.indices)  # the same order: by distance (no ties here)
+    assert kd.indptr.dtype == grid.indptr.dtype and kd.indices.dtype == grid.indices.dtype
+    # a per-particle h within GRID_MAX_RADIUS_RATIO
+    hv = h * np.random.default_rng(0).uniform(0.8, 1.15, 20000)
+    kd, grid, _ = _both_searches(monkeypatch, c.points, c.normals, h=hv, support=3.0)
+    np.testing.assert_array_equal(kd.indptr, grid.indptr)
+    np.testing.assert_array_equal(kd.indices, grid.indices)
+
+
+def test_grid_search_normal_filter_duplicates_and_refusals(monkeypatch):
+    from manifold_sph import neighbors
+
+    rng = np.random.default_rng(2)
+    sheet = np.column_stack([rng.uniform(0, 1, 3000), rng.uniform(0, 1, 3000), np.zeros(3000)])
+    p = np.vstack([sheet, sheet[:1000] + [0.0, 0.0, 0.004], sheet[:5]])  # a second sheet facing down; 5 exact twins
+    nrm = np.zeros_like(p)
+    nrm[:, 2] = 1.0
+    nrm[3000:4000, 2] = -1.0
+    kd, grid, calls = _both_searches(monkeypatch, p, nrm, h=0.01, support=3.0, normal_threshold=0.2)
+    assert calls and grid.n_filtered == kd.n_filtered > 0
+    np.testing.assert_array_equal(kd.indptr, grid.indptr)
+    for i in range(p.shape[0]):  # the same sets; each row starts with the particle itself, then by distance
+        assert set(kd.neighbors_of(i)) == set(grid.neighbors_of(i))
+        row = grid.neighbors_of(i)
+        assert row[0] == i
+        d = np.linalg.norm(p[row] - p[i], axis=1)
+        assert np.all(np.diff(d[1:]) >= 0)
+    # where the grid does not apply, the KD-tree runs
+    r = np.full(p.shape[0], 0.03)
+    assert neighbors._grid_search(p, nrm, r * np.linspace(1, 2, p.shape[0]), 0.0, -1, np.int32) is None  # h varies 2x
+    blob = rng.standard_normal((6000, 3))  # a volume: columns of thousands of points
+    monkeypatch.setattr(neighbors, "GRID_MAX_COLUMN", 100)
+    assert neighbors._grid_search(blob, None, np.full(6000, 1.0), 0.0, -1, np.int32) is None
