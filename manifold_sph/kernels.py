@@ -35,7 +35,7 @@ import math
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy import integrate, special
+from scipy import special
 
 from ._validation import as_points, check_finite, check_in, check_int, check_positive
 
@@ -88,6 +88,8 @@ def _check_h(h: ArrayLike) -> float | np.ndarray:
 @functools.lru_cache(maxsize=None)
 def _radial_moment(cls: type, support: float, knots: tuple, d: int) -> float:
     """int_0^kappa R^(d-1) w(R) dR, integrated numerically piece by piece."""
+    from scipy import integrate  # deferred: scipy.integrate (and scipy.optimize with it) is slow to import
+
     kern = cls() if support is None else cls(support=support)
     edges = sorted({0.0, float(kern.support), *(float(k) for k in knots if 0.0 < k < kern.support)})
     total = 0.0

@@ -1,23 +1,56 @@
 """Shared test set-up: the off-screen rendering probe and the ``gl`` marker.
 
 Tests marked ``@pytest.mark.gl`` need off-screen OpenGL; the probe renders once per
-session in a child process with no DISPLAY (a GL crash must not take pytest down),
-and when it fails those tests are skipped with the probe's reason.
+test run in a child process with no DISPLAY (a GL crash must not take pytest down),
+and when it fails those tests are skipped with the probe's reason. Tests that check
+pictures only where rendering works take the ``gl`` fixture.
 """
 
 from __future__ import annotations
 
 import functools
+import json
 import os
 import subprocess
 import sys
+import tempfile
+from pathlib import Path
 
 import pytest
 
 
 @functools.lru_cache(maxsize=None)
 def gl_probe() -> tuple[bool, str]:
-    """``(available, reason)`` of off-screen rendering here, probed once in a child process."""
+    """``(available, reason)`` of off-screen rendering here, probed once per test run in a child process.
+
+    Under pytest-xdist the workers share one probe through a file named after the run
+    (``PYTEST_XDIST_TESTRUNUID``), taken under a lock: the first worker probes, the others read.
+    """
+    run = os.environ.get("PYTEST_XDIST_TESTRUNUID")
+    try:
+        import fcntl
+    except ImportError:  # no POSIX locks (Windows): every worker probes
+        run = None
+    if not run:
+        return _probe()
+    path = Path(tempfile.gettempdir()) / f"manifold-sph-gl-probe-{run}.json"
+    with open(path.with_suffix(".lock"), "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if path.exists():
+            ok, why = json.loads(path.read_text())
+            return bool(ok), str(why)
+        result = _probe()
+        path.write_text(json.dumps(result))
+    return result
+
+
+@pytest.fixture(scope="session")
+def gl() -> bool:
+    """Whether off-screen rendering works (tests that check pictures only when it does)."""
+    return gl_probe()[0]
+
+
+def _probe() -> tuple[bool, str]:
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
     code = "from manifold_sph.viz.render import rendering_available as r; ok, why = r(); print(ok, why)"
     try:

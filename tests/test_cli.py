@@ -44,28 +44,13 @@ def test_bad_sizes_exit_2(capsys):
 
 # --- demo, PDEs, render (issue 5) ------------------------------------------------------------
 
-import os  # noqa: E402
-import subprocess  # noqa: E402
-import sys  # noqa: E402
-
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 
-def _gl() -> bool:
-    env = {k: v for k, v in os.environ.items() if k != "DISPLAY"}
-    code = "from manifold_sph.viz.render import rendering_available as r; print(r()[0])"
-    try:
-        res = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
-    except subprocess.TimeoutExpired:
-        return False
-    return res.stdout.strip().endswith("True")
 
 
-_GL = _gl()
-
-
-def test_demo_writes_summary_and_pictures(tmp_path, capsys):
+def test_demo_writes_summary_and_pictures(tmp_path, capsys, gl):
     out = tmp_path / "demo"
     assert main(["demo", "--out", str(out), "--n", "1002", "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
@@ -80,7 +65,7 @@ def test_demo_writes_summary_and_pictures(tmp_path, capsys):
     assert "ncsph" in (out / "summary.txt").read_text()
     for name in ("boxplot_laplacian.png", "boxplot_gradient.png", "area_histogram.png"):
         assert (out / name).stat().st_size > 1000
-    if _GL:
+    if gl:  # the GL probe of conftest.py
         assert summary["pictures"] is True
         for name in ("laplacian_cspm.png", "gradient_cspm.png", "heat.gif", "wave.gif"):
             assert (out / name).stat().st_size > 1000
@@ -104,11 +89,11 @@ def test_heat_and_wave_against_exact_solutions(cmd, bound, capsys):
     assert 0 < out["l2_rel_error"] < bound
 
 
-def test_heat_pictures_and_maximum_principle(tmp_path, capsys):
+def test_heat_pictures_and_maximum_principle(tmp_path, capsys, gl):
     assert main(["heat", "--n", "600", "--steps", "10", "--dt", "0.002", "--out", str(tmp_path), "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert 0.0 <= out["min"] and out["max"] <= 1.0 + 1e-9  # hot spot diffuses, no new extrema
-    if _GL:
+    if gl:
         assert (tmp_path / "heat_final.png").exists() and (tmp_path / "heat.gif").exists()
 
 
@@ -118,7 +103,7 @@ def test_poisson(capsys):
     assert out["l2_rel_error"] < 0.05
 
 
-@pytest.mark.skipif(not _GL, reason="off-screen rendering is not available here")
+@pytest.mark.gl  # skipped by conftest.py without off-screen rendering
 def test_render_file(tmp_path, capsys):
     from manifold_sph.reference import shapes
     from manifold_sph.scans.io import write
@@ -258,7 +243,7 @@ def test_geometry_user_mistakes_exit_2(unit_sphere_file, tmp_path, capsys):
     assert exc.value.code == 2
 
 
-@pytest.mark.skipif(not _GL, reason="off-screen rendering is not available here")
+@pytest.mark.gl  # skipped by conftest.py without off-screen rendering
 @pytest.mark.parametrize("cmd", [["curvature"], ["geodesic", "--source", "0"]])
 def test_geometry_png_and_overwrite(unit_sphere_file, tmp_path, capsys, cmd):
     from PIL import Image

@@ -266,7 +266,8 @@ def test_bad_thread_and_jit_environment_warn_not_fail(monkeypatch):
     out = subprocess.run([sys.executable, "-c", "import manifold_sph"], env=env, capture_output=True, text=True,
                          timeout=120)
     assert out.returncode == 0, out.stderr
-    assert "MANIFOLD_SPH_NUM_THREADS" in out.stderr and "MANIFOLD_SPH_JIT" in out.stderr
+    assert "MANIFOLD_SPH_NUM_THREADS must be a positive integer, got 'abc'" in out.stderr
+    assert "MANIFOLD_SPH_JIT must be 0 or 1" in out.stderr and "'maybe'" in out.stderr
 
 
 # ------------------------------------------------------------------ unclear messages

@@ -315,6 +315,12 @@ def test_areas():
     s = Sausage()
     assert abs(ImplicitShape._numerical_area(s) - s.area) <= 1e-6 * s.area
     assert abs(DoubleTorus().area - 6.530907) <= 1e-5
+    # the stored default area is the procedure's result
+    from manifold_sph.reference.shapes import _KNOWN_AREAS
+
+    for key, area in _KNOWN_AREAS.items():
+        assert key == DoubleTorus()._key()
+        assert ImplicitShape._numerical_area(DoubleTorus()) == pytest.approx(area, rel=1e-12, abs=0)
 
 
 # ----------------------------------------------------------------------------
