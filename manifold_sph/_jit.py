@@ -55,6 +55,7 @@ __all__ = [
     "filter_count",
     "filter_fill",
     "frames_rows",
+    "grid_gather",
     "grid_rows",
     "grid_scatter",
     "grid_sort",
@@ -153,47 +154,74 @@ def filter_fill(lo, hi, idx, keep, indptr, indices):
 
 # ------------------------------------------------- grid (cell list) radius search
 @_jit
-def grid_sort(col, ncols, z, colptr, order):
-    """Counting sort of the points by column ``col`` (``ncols`` columns), each column then sorted by
-    ``z`` (insertion sort, stable): ``order`` the sorted point indices, ``colptr`` (ncols + 1) the
-    columns' bounds in it."""
-    n = col.size
+def grid_sort(pts, lo, cell, ax_a, ax_b, ax_z, n_a, n_b, max_column, colptr, order):
+    """Counting sort of the points by their column of cells (``ax_a``, ``ax_b``: cells of ``cell`` from
+    ``lo``), each column then sorted along ``ax_z`` (insertion sort, stable): ``order`` the sorted
+    point indices, ``colptr`` (n_a n_b + 1) the columns' bounds in it. Returns the largest column's
+    size; above ``max_column`` nothing is sorted."""
+    n = pts.shape[0]
+    ncols = n_a * n_b
+    col = np.empty(n, dtype=np.int64)
     colptr[:] = 0
     for i in range(n):
-        colptr[col[i] + 1] += 1
+        a = min(int((pts[i, ax_a] - lo[ax_a]) / cell), n_a - 1)
+        b = min(int((pts[i, ax_b] - lo[ax_b]) / cell), n_b - 1)
+        c = a * n_b + b
+        col[i] = c
+        colptr[c + 1] += 1
+    biggest = 0
     for c in range(ncols):
+        biggest = max(biggest, colptr[c + 1])
         colptr[c + 1] += colptr[c]
+    if biggest > max_column:
+        return biggest
     pos = colptr[:-1].copy()
     for i in range(n):
         c = col[i]
         order[pos[c]] = i
         pos[c] += 1
     for c in range(ncols):
-        lo = colptr[c]
-        for s in range(lo + 1, colptr[c + 1]):
+        first = colptr[c]
+        for s in range(first + 1, colptr[c + 1]):
             i = order[s]
-            zi = z[i]
+            zi = pts[i, ax_z]
             t = s
-            while t > lo and z[order[t - 1]] > zi:
+            while t > first and pts[order[t - 1], ax_z] > zi:
                 order[t] = order[t - 1]
                 t -= 1
             order[t] = i
+    return biggest
+
+
+@_jit
+def grid_gather(order, pts, normals, use_normals, lo, cell, ax_a, ax_b, ax_z, n_a, n_b, ps, ns, zs, ca, cb):
+    """The points, normals, sort coordinate and column coordinates in the sorted order of :func:`grid_sort`."""
+    for s in range(order.size):
+        i = order[s]
+        for d in range(3):
+            ps[s, d] = pts[i, d]
+            if use_normals:
+                ns[s, d] = normals[i, d]
+        zs[s] = pts[i, ax_z]
+        ca[s] = min(int((pts[i, ax_a] - lo[ax_a]) / cell), n_a - 1)
+        cb[s] = min(int((pts[i, ax_b] - lo[ax_b]) / cell), n_b - 1)
 
 
 @_jit
 def grid_rows(s0, s1, order, ps, ns, zs, ca, cb, n_a, n_b, colptr, cell, radii, threshold, use_normals, width,
-              counts, n_filtered):
+              counts, n_filtered, like):
     """Radius search (``|p_i - p_j| < radii[i]``, distances as scipy's KD-tree computes them) with the
     normal filter, for the points at sorted positions ``s0:s1`` (``order[s]`` the point; ``ps``, ``ns``,
     ``zs``, ``ca``, ``cb`` the points, normals, sort coordinate and column coordinates in sorted
     order; the candidates lie in the 3 x 3 neighbouring columns, within ``cell`` in ``z``).
     Fills ``counts`` and ``n_filtered`` per point and returns ``(offsets, neighbours)``: the neighbours
     of the point at ``s0 + k`` at ``offsets[k]:offsets[k + 1]``, sorted by squared distance (the point
-    itself first, ties by index); ``width`` the first guess of neighbours per point."""
+    itself first, ties by index; of the integer type of ``like``); ``width`` the first guess of
+    neighbours per point (the buffer grows by half when full and is trimmed at the end)."""
     m_rows = s1 - s0
     offsets = np.zeros(m_rows + 1, dtype=np.int64)
     cap = max(m_rows * width, 16)
-    out = np.empty(cap, dtype=np.int64)
+    out = np.empty(cap, dtype=like.dtype)
     dbuf = np.empty(64)
     jbuf = np.empty(64, dtype=np.int64)
     for s in range(s0, s1):
@@ -271,8 +299,8 @@ def grid_rows(s0, s1, order, ps, ns, zs, ca, cb, n_a, n_b, colptr, cell, radii, 
         k = s - s0
         p = offsets[k]
         if p + m > cap:
-            cap = max(2 * cap, p + m)
-            grown = np.empty(cap, dtype=np.int64)
+            cap = max(cap + cap // 2, p + m)
+            grown = np.empty(cap, dtype=like.dtype)
             grown[:p] = out[:p]
             out = grown
         for u in range(m):
@@ -280,6 +308,9 @@ def grid_rows(s0, s1, order, ps, ns, zs, ca, cb, n_a, n_b, colptr, cell, radii, 
         offsets[k + 1] = p + m
         counts[i] = m
         n_filtered[i] = f
+    used = offsets[m_rows]
+    if used < cap - cap // 8:
+        return offsets, out[:used].copy()
     return offsets, out
 
 

@@ -378,31 +378,29 @@ def _grid_search(pts, nr, radii, normal_threshold, workers, index_dtype):
     n_b = int(extent[ax_b] // cell) + 1
     if n_a * n_b > 4 * n + 1024:  # far-flung outliers: too many empty columns
         return None
-    ca = np.minimum(((pts[:, ax_a] - lo[ax_a]) / cell).astype(np.int64), n_a - 1)
-    cb = np.minimum(((pts[:, ax_b] - lo[ax_b]) / cell).astype(np.int64), n_b - 1)
-    col = ca * n_b + cb
-    if int(np.bincount(col, minlength=n_a * n_b).max()) > GRID_MAX_COLUMN:
-        return None
-    z = np.ascontiguousarray(pts[:, ax_z])
+    pts = np.ascontiguousarray(pts, dtype=np.float64)
     colptr = np.empty(n_a * n_b + 1, dtype=np.int64)
     order = np.empty(n, dtype=np.int64)
-    _jit.grid_sort(col, n_a * n_b, z, colptr, order)
-    del col
-    ps = pts[order]
-    zs = z[order]
-    ca, cb = ca[order], cb[order]
+    if _jit.grid_sort(pts, lo, cell, ax_a, ax_b, ax_z, n_a, n_b, GRID_MAX_COLUMN, colptr, order) > GRID_MAX_COLUMN:
+        return None
     use = nr is not None
-    ns = nr[order] if use else np.zeros((1, 3))
+    ps = np.empty((n, 3))
+    ns = np.empty((n, 3)) if use else np.zeros((1, 3))
+    zs = np.empty(n)
+    ca = np.empty(n, dtype=np.int64)
+    cb = np.empty(n, dtype=np.int64)
+    _jit.grid_gather(order, pts, np.ascontiguousarray(nr) if use else ns, use, lo, cell, ax_a, ax_b, ax_z, n_a, n_b,
+                     ps, ns, zs, ca, cb)
     counts = np.empty(n, dtype=np.int64)
     n_filtered = np.zeros(n, dtype=np.int64)
     starts = list(range(0, n, _GRID_ROWS))
     found = [None] * len(starts)
-    width = int(np.ceil(1.25 * np.pi * (rmax * n) ** 2 / max(extent[ax_a] * extent[ax_b], 1e-300) / n)) + 8
+    like = np.zeros(0, dtype=index_dtype if n < 2**31 - 1 else np.int64)  # the chunks' buffers: column indices
 
     def search(c):  # one pass: each chunk's neighbours in its own buffer, in sorted order
         s0, s1 = starts[c], min(starts[c] + _GRID_ROWS, n)
         found[c] = _jit.grid_rows(s0, s1, order, ps, ns, zs, ca, cb, n_a, n_b, colptr, cell, radii, normal_threshold,
-                                  use, min(max(width, 8), 256), counts, n_filtered)
+                                  use, 32, counts, n_filtered, like)
 
     run_chunks(search, len(starts), workers)
     del ps, ns, zs, ca, cb
