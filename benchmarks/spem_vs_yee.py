@@ -218,11 +218,11 @@ def _compare(spem, yee, label):
 
 def scattering_main(full=False, kinds=("pec", "dielectric", "coated"), layouts=("yee", "jittered")):
     """Plane-wave scattering by PEC, dielectric (eps_r 4) and coated cylinders, ka = 2 (issue 21 item 3)."""
-    head = (f"{'method':<26s} {'case':<10s} {'n_r':>4s} {'unknowns':>8s} {'error':>10s} {'ring':>10s} {'setup s':>8s} "
+    head = (f"{'method':<34s} {'case':<10s} {'n_r':>4s} {'unknowns':>8s} {'error':>10s} {'ring':>10s} {'setup s':>8s} "
             f"{'run s':>8s} {'steps':>6s} {'ns/u/st':>8s}")
 
     def line(r):
-        return (f"{r['method']:<26s} {r['case']:<10s} {r['n_radial']:>4d} {r['unknowns']:>8d} {r['error']:>10.3e} "
+        return (f"{r['method']:<34s} {r['case']:<10s} {r['n_radial']:>4d} {r['unknowns']:>8d} {r['error']:>10.3e} "
                 f"{r['ring_error']:>10.3e} {r['setup']:>8.2f} {r['run']:>8.2f} {r['steps']:>6d} "
                 f"{r['ns_per_unknown_step']:>8.1f}")
 
@@ -238,20 +238,26 @@ def scattering_main(full=False, kinds=("pec", "dielectric", "coated"), layouts=(
         for r in yee + avg:
             print(line(r), flush=True)
         spem = {}
-        # "auto": the whole operator corrected with a conductor, a band of 2 rings for the dielectric
-        configs = [(layout, "auto") for layout in layouts]
-        if kind != "dielectric":
-            configs.insert(1, ("yee", 2))
-        for layout, layers in configs:
-            sizes = {("yee", "auto"): (4, 8, 16), ("yee", 2): (8, 16, 24)}.get((layout, layers), (4, 8, 16) if full
-                                                                                else (4, 8))
-            rows = [run_spem_scattering(kind, n, periods=periods, layout=layout, sbp_layers=layers) for n in sizes]
+        # (layout, sbp_layers, h_ratio, sizes); "auto": the whole operator corrected with a conductor, a band of
+        # 2 rings for the dielectric
+        configs = [("yee", "auto", 0.7, (4, 8, 16))]
+        if kind == "pec":
+            configs.append(("yee", 2, 0.7, (8, 16, 24)))
+        if kind == "dielectric":
+            configs.append(("yee", "auto", 0.6, (4, 8, 16)))
+        if "jittered" in layouts:
+            configs.append(("jittered", "auto", 0.7, (4, 8, 16) if full else (4, 8)))
+        for layout, layers, h_ratio, sizes in configs:
+            rows = [run_spem_scattering(kind, n, periods=periods, layout=layout, sbp_layers=layers, h_ratio=h_ratio)
+                    for n in sizes]
             for r in rows:
-                r["method"] += "" if layers == "auto" else f" {layers} rings"
+                r["method"] += ("" if layers == "auto" else f" {layers} rings") + ("" if h_ratio == 0.7
+                                                                                  else f" h/dr {h_ratio}")
                 print(line(r), flush=True)
-            spem[layout, layers] = rows
-        for (layout, layers), rows in spem.items():
-            what = f"SPEM {layout}" + ("" if layers == "auto" else f" ({layers} rings)")
+            spem[layout, layers, h_ratio] = rows
+        for (layout, layers, h_ratio), rows in spem.items():
+            what = f"SPEM {layout}" + ("" if layers == "auto" else f" ({layers} rings)") + (
+                "" if h_ratio == 0.7 else f" (h/dr {h_ratio})")
             print(f"{kind}, {what} against the staircased Yee:")
             _compare(rows, yee, "Yee")
             if avg:
