@@ -174,3 +174,37 @@ def test_grid_search_normal_filter_duplicates_and_refusals(monkeypatch):
     blob = rng.standard_normal((6000, 3))  # a volume: columns of thousands of points
     monkeypatch.setattr(neighbors, "GRID_MAX_COLUMN", 100)
     assert neighbors._grid_search(blob, None, np.full(6000, 1.0), 0.0, -1, np.int32) is None
+
+
+def test_merged_near_duplicate_system_equals_the_sparse_product(monkeypatch):
+    """The merged system (representatives' rows, columns moved to their group) is built by relabelling
+    the columns instead of ``A[rep] @ P``: the same matrix once repeated entries are summed, and the
+    same area elements (the solve converges on the Fibonacci sphere with one near-twin)."""
+    from scipy.sparse.csgraph import connected_components
+
+    c = shapes.sphere(3000)
+    p = c.points
+    t = np.cross(p[0], [0.0, 0.0, 1.0])
+    q = p[0] + 1e-6 * t / np.linalg.norm(t)
+    P = np.vstack([p, q / np.linalg.norm(q)])
+    seen = []
+    real = area._solve_partition_of_unity
+    monkeypatch.setattr(area, "_solve_partition_of_unity", lambda B, **k: seen.append(B.copy()) or real(B, **k))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        s = Surface(P, P.copy())
+    assert s.area.n_merged == 1 and not s.area.fell_back
+    A = area.kernel_matrix(s.neighborhood, s._xy, s.kernel)
+    close = area.near_duplicate_pairs(s.neighborhood, s._xy)
+    rows = np.searchsorted(s.neighborhood.indptr, close, side="right") - 1
+    n = P.shape[0]
+    ncl, label = connected_components(sp.coo_matrix((np.ones(close.size), (rows, s.neighborhood.indices[close])), shape=(n, n)))
+    rep = np.full(ncl, n)
+    np.minimum.at(rep, label, np.arange(n))
+    ref = (A[rep] @ sp.csr_matrix((np.ones(n), (np.arange(n), label)), shape=(n, ncl))).tocsr()
+    B = seen[0].tocsr()
+    B.sum_duplicates()
+    assert abs(B - ref).max() <= 1e-15 * abs(ref).max()
+    dVc = spla.spsolve(sp.csc_matrix(ref), np.ones(ncl))
+    size = np.bincount(label)
+    assert np.abs(s.dV - (dVc / size)[label]).max() < 1e-11 * np.abs(s.dV).max()
