@@ -60,7 +60,7 @@ from scipy.special import h1vp, hankel1, jv, jvp, yv, yvp
 
 from .._validation import as_points, check_in, check_int, check_positive
 from .constants import C0
-from .layouts import Layout, jitter, yee_layout
+from .layouts import Layout, _supported, jitter, yee_layout
 from .pml import PML
 from .solver import COUPLINGS, DEFAULT_COUPLING, DEFAULT_H_RATIO, TMzSolver
 from .sources import Source
@@ -284,11 +284,14 @@ def scattering_layout(kind: str, radius: float, dr: float, half_width: float, *,
     if wall_r is None:
         return Layout(lay.e, lay.hx, lay.hy, dr, f"cylinder-{lay.name}", lay.e_fixed, lay.bounds)
     ring = _ring(wall_r, wall_spacing * dr)
-    keep = np.hypot(lay.e[:, 0], lay.e[:, 1]) >= wall_r + wall_margin * dr
-    e = np.vstack([lay.e[keep], ring])
-    fixed = np.r_[lay.e_fixed[keep], np.ones(len(ring), bool)]
+    r_e = np.hypot(lay.e[:, 0], lay.e[:, 1])
+    keep = r_e >= wall_r + wall_margin * dr
     hx = lay.hx[np.hypot(lay.hx[:, 0], lay.hx[:, 1]) > wall_r]
     hy = lay.hy[np.hypot(lay.hy[:, 0], lay.hy[:, 1]) > wall_r]
+    near = np.flatnonzero(keep & (r_e < wall_r + dr))  # E particles whose H neighbours the wall cuts off: dropped
+    keep[near] = _supported(lay.e, ((hy, 0), (hx, 1)), dr, near)
+    e = np.vstack([lay.e[keep], ring])
+    fixed = np.r_[lay.e_fixed[keep], np.ones(len(ring), bool)]
     return Layout(e, hx, hy, dr, f"cylinder-{lay.name}", fixed, lay.bounds)
 
 
