@@ -1,7 +1,6 @@
 """Tests of manifold_sph.reference.sampling and of the samplings of the shapes."""
 
 import math
-import time
 
 import numpy as np
 import pytest
@@ -195,14 +194,11 @@ def test_seed_accepts_generator_and_none():
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(SHAPES))
-def test_poisson_timing_large(name):
-    shape = SHAPES[name]
-    _ = shape.area
-    shape.sample(100, "random")  # warm caches (meshes)
-    t0 = time.perf_counter()
-    p = shape.sample(131072, "poisson", seed=0).points
-    elapsed = time.perf_counter() - t0
-    assert len(p) == 131072 and elapsed < 10.0
+def test_poisson_large(name):
+    """131,072 Poisson-disk points on every shape are as regular as the small samples (no timed
+    assertion: sampling time is a benchmark's business)."""
+    p = SHAPES[name].sample(131072, "poisson", seed=0).points
+    assert len(p) == 131072
     assert nearest_neighbor_cv(p) < 0.1
 
 
