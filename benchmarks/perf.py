@@ -4,6 +4,7 @@
     python benchmarks/perf.py --sizes 10000,100000,1000000 --repeat 3 --json perf.json --peers
     python benchmarks/perf.py --ratios --sizes 10000,131072,1000000,4000000   # issue 22: ratios, RSS
     python benchmarks/perf.py --ratios --sampling random --sizes 131072,1000000
+    python benchmarks/perf.py --stages --sizes 131072,1000000 --repeat 3    # where the build's seconds go
 
 Unit sphere, Fibonacci points (``manifold_sph.reference.shapes.sphere``), exact normals,
 f = cos(xz - sin y). Every speed figure stands next to the relative L2 error of
@@ -548,6 +549,96 @@ def ratio_table(sizes, repeat: int, sampling: str = "fibonacci") -> list[dict]:
     return rows
 
 
+#: The build's stages as ``(label, module, function)``: each is timed (wall and process CPU) where the
+#: pipeline calls it. Indented labels are parts of the one above.
+STAGES = (
+    ("KD-tree build", "surface", "build_tree"),
+    ("h (smoothing length)", "operators", "smoothing_length_for_count"),
+    ("neighbours", "surface", "find_neighbors"),
+    ("  grid search", "neighbors", "_grid_search"),
+    ("frames", "surface", "tangent_frames"),
+    ("area elements", "operators", "area_elements"),
+    ("  kernel matrix", "area", "kernel_matrix"),
+    ("  near-duplicate pairs", "area", "near_duplicate_pairs"),
+    ("  solve (block SSOR)", "area", "_solve_partition_of_unity"),
+    ("assembly (weights)", "operators", "assemble"),
+)
+
+
+def stage_table(sizes, repeat: int, sampling: str = "fibonacci") -> list[dict]:
+    """Per-stage seconds of ``Surface(p, n)`` (default and ``area="shepard"``) as fractions of the bare
+    KD-tree query of :func:`ratio_child`, wall and process CPU time (all threads), median of ``repeat``
+    runs, in this process after a warm-up. CPU time is the steadier figure on a shared machine."""
+    import functools
+    import importlib
+
+    from manifold_sph.neighbors import smoothing_length_for_count
+
+    wall, cpu = {}, {}
+    originals = []
+    for label, mod_name, fn_name in STAGES:
+        mod = importlib.import_module(f"manifold_sph.{mod_name}")
+        fn = getattr(mod, fn_name)
+        originals.append((mod, fn_name, fn))
+
+        @functools.wraps(fn)
+        def timed_stage(*a, _fn=fn, _label=label, **k):
+            t0, c0 = time.perf_counter(), time.process_time()
+            try:
+                return _fn(*a, **k)
+            finally:
+                wall[_label] = wall.get(_label, 0.0) + time.perf_counter() - t0
+                cpu[_label] = cpu.get(_label, 0.0) + time.process_time() - c0
+
+        setattr(mod, fn_name, timed_stage)
+    rows = []
+    try:
+        quiet(lambda: Surface(shapes.sphere(2000)))()  # numba's cache loaded
+        print(f"cores {os.cpu_count()}, load average at start {' '.join(f'{x:.2f}' for x in os.getloadavg())}; {sampling} "
+              f"points, exact normals; median of {repeat} runs; each stage as a fraction of the bare query (wall | CPU)")
+        for n in sizes:
+            c = shapes.sphere(n) if sampling == "fibonacci" else shapes.sphere(n, sampling="random", seed=0)
+            p, nn = c.points.copy(), c.normals.copy()
+            del c
+            h = float(smoothing_length_for_count(p, 27))
+            for mode in ("default", "shepard"):
+                runs = []
+                for _ in range(repeat):
+                    gc.collect()
+                    t0, c0 = time.perf_counter(), time.process_time()
+                    cKDTree(p).query(p, k=40, distance_upper_bound=3 * h, workers=-1)
+                    q = (time.perf_counter() - t0, time.process_time() - c0)
+                    gc.collect()
+                    wall.clear()
+                    cpu.clear()
+                    t0, c0 = time.perf_counter(), time.process_time()
+                    quiet(lambda: Surface(p, nn) if mode == "default" else Surface(p, nn, area="shepard"))()
+                    b = (time.perf_counter() - t0, time.process_time() - c0)
+                    runs.append((q, b, dict(wall), dict(cpu)))
+                med = lambda f: float(np.median([f(r) for r in runs]))  # noqa: E731
+                qw, qc = med(lambda r: r[0][0]), med(lambda r: r[0][1])
+                bw, bc = med(lambda r: r[1][0]), med(lambda r: r[1][1])
+                print(f"\nN = {n}, {mode}: query {qw:.3f} s (CPU {qc:.3f} s), build {bw:.3f} s (CPU {bc:.3f} s): "
+                      f"ratio {med(lambda r: r[1][0] / r[0][0]):.2f} wall, {med(lambda r: r[1][1] / r[0][1]):.2f} CPU")
+                row = {"n": n, "mode": mode, "sampling": sampling, "query_s": qw, "query_cpu_s": qc, "build_s": bw,
+                       "build_cpu_s": bc, "stages": {}}
+                for label, _, _ in STAGES:
+                    if not any(label in r[2] for r in runs):
+                        continue
+                    sw = med(lambda r: r[2].get(label, 0.0) / r[0][0])
+                    sc = med(lambda r: r[3].get(label, 0.0) / r[0][1])
+                    print(f"  {label:<26} {sw:>6.2f} | {sc:>5.2f}")
+                    row["stages"][label.strip()] = {"wall_q": sw, "cpu_q": sc}
+                rest_w = med(lambda r: (r[1][0] - sum(v for k, v in r[2].items() if not k.startswith(" "))) / r[0][0])
+                rest_c = med(lambda r: (r[1][1] - sum(v for k, v in r[3].items() if not k.startswith(" "))) / r[0][1])
+                print(f"  {'rest (checks, set-up)':<26} {rest_w:>6.2f} | {rest_c:>5.2f}")
+                rows.append(row)
+    finally:
+        for mod, fn_name, fn in originals:
+            setattr(mod, fn_name, fn)
+    return rows
+
+
 def main(argv=None):
     if argv is None and len(sys.argv) == 3 and sys.argv[1] == "--ratio-child":
         n, mode, repeat, sampling = sys.argv[2].split(",")
@@ -567,9 +658,18 @@ def main(argv=None):
                     help="only issue 22's table: builds as ratios of the bare KD-tree query, peak RSS per million "
                          "points, scaling exponent (each row in a fresh process)")
     ap.add_argument("--sampling", choices=("fibonacci", "random"), default="fibonacci",
-                    help="--ratios on Fibonacci (near-uniform) or uniformly random sphere points")
+                    help="--ratios and --stages on Fibonacci (near-uniform) or uniformly random sphere points")
+    ap.add_argument("--stages", action="store_true",
+                    help="per-stage seconds of the default and Shepard builds as fractions of the bare KD-tree query "
+                         "(wall and CPU), in this process")
     args = ap.parse_args(argv)
     sizes = [int(float(x)) for x in args.sizes.split(",") if x]
+    if args.stages:
+        rows = stage_table(sizes, args.repeat, args.sampling)
+        if args.json:
+            with open(args.json, "w") as fh:
+                json.dump(rows, fh, indent=1)
+        return
     if args.ratios:
         rows = ratio_table(sizes, args.repeat, args.sampling)
         if args.json:
