@@ -95,7 +95,9 @@ def test_spem_run_returns_a_run_result():
 
 @pytest.fixture(scope="module")
 def cavity():
-    return run_case("cavity", n_radial=4, periods=0.2, frames=2)
+    # frames=1: one snapshot, at the last step (with frames=2 the last snapshot falls on the last step only
+    # when the step count is even: 5 steps since the cavity's denser wall, issue 21)
+    return run_case("cavity", n_radial=4, periods=0.2, frames=1)
 
 
 def test_spem_cases_return_named_fields_and_json(cavity):
