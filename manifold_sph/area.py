@@ -24,7 +24,7 @@ from ._sparse import bicgstab_csr
 from ._validation import check_positive
 from .kernels import Kernel, QuinticSpline
 from .frames import PairOffsets, offsets_of_rows
-from .neighbors import Neighborhood
+from .neighbors import Neighborhood, release_freed_memory
 from .threads import get_num_threads, in_chunk, pool, run_chunks
 
 __all__ = ["AREA_METHODS", "AreaElements", "area_elements", "check_area_method", "kernel_matrix", "kernel_values"]
@@ -240,6 +240,7 @@ def _numerical(A: sp.csr_matrix, nb: Neighborhood, xy: np.ndarray | PairOffsets,
         dV = 1.0 / np.asarray(A.sum(axis=1)).ravel()
     if fell_back or close.size:  # merged groups: the residual of the full system
         residual = float(np.abs(A @ dV - 1.0).max())
+    release_freed_memory()  # the solver's copy of the matrix and its vectors, before the assembly's peak
     return AreaElements(dV=dV, method="numerical", n_negative=int((dV < 0).sum()), residual=residual,
                         n_merged=n_merged, fell_back=fell_back)
 
