@@ -13,6 +13,11 @@ Then the normal error (mean angle) against resolution on the Fibonacci sphere, a
 Poisson-disk sphere and a Poisson-disk torus, with the fitted order, for the default
 (jet, degree 2), degree 3 and 4 and ``method="pca"``.
 
+Last, thin and anisotropically sampled synthetic clouds with exact normals (a torus tube
+5 points around, a sphere sampled on latitude rings 6x denser along them): median angle,
+particles more than 30 degrees off and pointing inward, with the consensus of step 7
+(module notes of manifold_sph.scans.normals) and without it.
+
 Run: ``python benchmarks/normals.py`` (about a minute on 2 cores; ``--quick`` skips
 Igea and the largest analytic clouds).
 """
@@ -102,7 +107,46 @@ def orders(quick=False):
             print(f"{name:18s} {label:18s} {' '.join(f'{e:.2e}' for e in err):>40s} {slope:6.2f}", flush=True)
 
 
+def thin_torus(nu=150, nv=5, R=1.0, r=0.05, jitter=0.3, seed=0):
+    """A torus tube sampled ``nv`` points around on a staggered, jittered grid, and its normals."""
+    rng = np.random.default_rng(seed)
+    u = (np.arange(nu)[:, None] + jitter * (rng.random((nu, nv)) - 0.5)) * 2 * np.pi / nu
+    v = (np.arange(nv)[None, :] + jitter * (rng.random((nu, nv)) - 0.5) + 0.5 * (np.arange(nu)[:, None] % 2)) * 2 * np.pi / nv
+    u, v = u.ravel(), v.ravel()
+    n = np.c_[np.cos(u) * np.cos(v), np.sin(u) * np.cos(v), np.sin(v)]
+    return np.c_[R * np.cos(u), R * np.sin(u), 0 * u] + r * n, n
+
+
+def ring_sphere(rows=12, per_ring=80, seed=0):
+    """The unit sphere sampled on latitude rings (per_ring points each), and its normals."""
+    rng = np.random.default_rng(seed)
+    th = (np.arange(rows) + 0.5) / rows * np.pi
+    T, Ph = np.meshgrid(th, np.arange(per_ring) * 2 * np.pi / per_ring, indexing="ij")
+    Ph = Ph + 0.1 * rng.random(Ph.shape)
+    n = np.c_[(np.sin(T) * np.cos(Ph)).ravel(), (np.sin(T) * np.sin(Ph)).ravel(), np.cos(T).ravel()]
+    return n.copy(), n
+
+
+def synthetic():
+    from manifold_sph.scans import normals as mod
+
+    cases = [(f"thin torus seed {s}", thin_torus(seed=s)) for s in range(3)]
+    cases += [(f"ring sphere seed {s}", ring_sphere(seed=s)) for s in range(3)]
+    print(f"\n{'cloud':20s} {'points':>7s} {'step 7':>7s} {'median':>7s} {'>30deg':>7s} {'inward':>7s}")
+    original = mod._consensus
+    for name, (p, exact) in cases:
+        for label, fn in (("on", original), ("off", lambda pts, nb, n, fixed=None: (n, None))):
+            mod._consensus = fn
+            try:
+                d = np.einsum("ij,ij->i", estimate_normals(p), exact)
+            finally:
+                mod._consensus = original
+            ang = np.degrees(np.arccos(np.clip(np.abs(d), 0.0, 1.0)))
+            print(f"{name:20s} {len(p):7d} {label:>7s} {np.median(ang):6.2f}d {int((ang > 30).sum()):7d} {int((d < 0).sum()):7d}", flush=True)
+
+
 if __name__ == "__main__":
     quick = "--quick" in sys.argv
     model_table(MODELS + SCANS[: 1 if quick else 2])
     orders(quick)
+    synthetic()

@@ -202,6 +202,73 @@ def test_cube_normals_are_not_averaged_across_edges():
     assert np.mean(d3[edge] < 5) > 0.95  # measured 0.99: degree 3 (k = 20) keeps to one face
 
 
+# ----------------------------------------------------------------------------- thin and anisotropic parts
+def _thin_torus(nu=150, nv=5, R=1.0, r=0.05, jitter=0.3, seed=0):
+    """A torus tube sampled a few points around (``nv``) on a staggered, jittered grid, and its normals."""
+    rng = np.random.default_rng(seed)
+    u = (np.arange(nu)[:, None] + jitter * (rng.random((nu, nv)) - 0.5)) * 2 * np.pi / nu
+    v = (np.arange(nv)[None, :] + jitter * (rng.random((nu, nv)) - 0.5) + 0.5 * (np.arange(nu)[:, None] % 2)) * 2 * np.pi / nv
+    u, v = u.ravel(), v.ravel()
+    n = np.c_[np.cos(u) * np.cos(v), np.sin(u) * np.cos(v), np.sin(v)]
+    return np.c_[R * np.cos(u), R * np.sin(u), 0 * u] + r * n, n
+
+
+def _ring_sphere(rows=12, per_ring=80, seed=0):
+    """The unit sphere sampled on latitude rings, 6x denser along the rings than across them."""
+    rng = np.random.default_rng(seed)
+    th = (np.arange(rows) + 0.5) / rows * np.pi
+    T, Ph = np.meshgrid(th, np.arange(per_ring) * 2 * np.pi / per_ring, indexing="ij")
+    Ph = Ph + 0.1 * rng.random(Ph.shape)
+    n = np.c_[(np.sin(T) * np.cos(Ph)).ravel(), (np.sin(T) * np.sin(Ph)).ravel(), np.cos(T).ravel()]
+    return n.copy(), n
+
+
+def _without_consensus(monkeypatch):
+    from manifold_sph.scans import normals as mod
+
+    monkeypatch.setattr(mod, "_consensus", lambda pts, neighbors, normals, fixed=None: (normals, None))
+
+
+def _unsigned_angles(n, exact):
+    return np.degrees(np.arccos(np.clip(np.abs(dots(n, exact)), 0, 1)))
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_thin_tube_directions_by_consensus(seed, monkeypatch):
+    # a tube 5 points around: the 12 nearest reach across it and along it, the fits there
+    # disagree with the 8- and 20-point ones; the consensus (module notes, step 7) picks the
+    # candidate the neighbours' reflected normals agree with. Measured (seeds 0, 1): median
+    # 6.8 / 7.7 deg, none > 30 deg; without it 10.8 / 11.3 deg and 55 / 44 particles > 30 deg
+    p, exact = _thin_torus(seed=seed)
+    n = estimate_normals(p)
+    ang = _unsigned_angles(n, exact)
+    assert (ang > 30).sum() <= 2 and np.median(ang) < 8.5, ((ang > 30).sum(), np.median(ang))
+    assert dots(n, exact).min() > 0  # all outward
+    _without_consensus(monkeypatch)
+    old = _unsigned_angles(estimate_normals(p), exact)
+    assert (old > 30).sum() > 30 and np.median(old) > 10  # the test can tell
+
+
+def test_ring_sampled_sphere_directions_by_consensus(monkeypatch):
+    # rows of points along latitude rings (the teapot's sampling): measured median 0.68 deg
+    # and 10 normals > 30 deg off (without the consensus 2.24 deg and 37). The SIGNS are not
+    # checked: the orientation puts a third of this cloud inward either way (open problem)
+    p, exact = _ring_sphere()
+    ang = _unsigned_angles(estimate_normals(p), exact)
+    assert (ang > 30).sum() <= 15 and np.median(ang) < 1.0, ((ang > 30).sum(), np.median(ang))
+    _without_consensus(monkeypatch)
+    old = _unsigned_angles(estimate_normals(p), exact)
+    assert (old > 30).sum() >= 30 and np.median(old) > 2.0
+
+
+def test_consensus_leaves_well_sampled_surfaces_alone(monkeypatch):
+    # every normal agrees with the 8- and 20-point fits: nothing is undetermined, nothing changes
+    c = shapes.torus(3000)
+    with_c = estimate_normals(c.points, degree=3)
+    _without_consensus(monkeypatch)
+    np.testing.assert_array_equal(estimate_normals(c.points, degree=3), with_c)
+
+
 # ----------------------------------------------------------------------------- test models
 MODELS = Path(__file__).resolve().parents[2] / "shared" / "data" / "models"
 
@@ -227,34 +294,39 @@ def _mesh_reference(name):
 
 
 @pytest.mark.parametrize(
-    "name, max_wrong, max_median",
+    "name, max_wrong, max_median, max_off",
     [
-        # closed: share pointing inward (%), median angle (deg); measured 2.9, 0.03, 0, 1.1 and
-        # 6.9, 2.1, 3.1, 1.3 (MST+PCA before: 13.9, 2.4, 0, 11.0 % and 9.7, 4.4, 6.4, 3.1 deg)
-        ("cow.obj", 3.5, 7.5),
-        ("homer.obj", 0.1, 2.4),
-        ("rocker-arm.obj", 0.05, 3.3),
-        ("cheburashka.obj", 1.5, 1.5),
-        # open or several shells: share disagreeing in sign with the mesh; measured 13.6, 2.7, 0
-        # and 2.7, 11.6, 0 deg (before: 10.8, 3.0, 0 % and 6.3, 13.1, 0 deg)
-        ("teapot.obj", 15.0, 3.0),
-        ("beetle.obj", 3.5, 12.5),
-        ("alligator.obj", 0.0, 0.01),
+        # closed: share pointing inward (%), median angle (deg), particles > 30 deg off; measured
+        # 2.7, 0.03, 0.01, 1.1 %, 6.2, 2.2, 3.2, 1.3 deg and 238, 22, 18, 205 (before the consensus
+        # of step 7: 3.0, 0.02, 0, 1.1 %, 6.4, 2.2, 3.2, 1.3 deg and 341, 34, 20, 206; MST+PCA:
+        # 13.9, 2.4, 0, 11.0 % and 9.7, 4.4, 6.4, 3.1 deg)
+        ("cow.obj", 3.0, 6.5, 250),
+        ("homer.obj", 0.1, 2.3, 25),
+        ("rocker-arm.obj", 0.05, 3.3, 20),
+        ("cheburashka.obj", 1.2, 1.4, 215),
+        # open or several shells: share disagreeing in sign with the mesh; measured 11.3, 3.1, 0 %,
+        # 2.6, 10.4, 0 deg and 663, 186, 0 (before step 7: 13.1, 3.1, 0 %, 2.7, 11.6, 0 deg and
+        # 845, 235, 0; MST+PCA: 10.8, 3.0, 0 % and 6.3, 13.1, 0 deg)
+        ("teapot.obj", 12.5, 2.8, 700),
+        ("beetle.obj", 3.5, 11.0, 195),
+        ("alligator.obj", 0.0, 0.01, 0),
     ],
 )
-def test_models_orientation_and_angle(name, max_wrong, max_median):
+def test_models_orientation_and_angle(name, max_wrong, max_median, max_off):
     P, ref = _mesh_reference(name)
     n = estimate_normals(P)
     d = dots(n, ref)
+    ang = np.degrees(np.arccos(np.clip(np.abs(d), 0, 1)))
     assert 100 * np.mean(d < 0) <= max_wrong
-    assert np.median(np.degrees(np.arccos(np.clip(np.abs(d), 0, 1)))) <= max_median
+    assert np.median(ang) <= max_median
+    assert (ang > 30).sum() <= max_off
 
 
-@pytest.mark.parametrize("name, max_median", [("cow.obj", 6.8), ("teapot.obj", 3.7)])
+@pytest.mark.parametrize("name, max_median", [("cow.obj", 6.6), ("teapot.obj", 3.4)])
 def test_high_degree_normals_guarded_on_coarse_models(name, max_median):
     # degree 4 (k = 30) unguarded reaches across thin parts: median 9.0 deg on the cow and
-    # 12.3 on the teapot (degree 3); guarded (module notes, step 6) measured 6.5 and 3.3,
-    # close to the default degree 2 (6.4 and 2.7)
+    # 12.3 on the teapot (degree 3); guarded (module notes, step 6) measured 6.5 and 3.4,
+    # with the consensus of step 7 6.3 and 3.1 (default degree 2: 6.2 and 2.6)
     P, ref = _mesh_reference(name)
     d = dots(estimate_normals(P, degree=4), ref)
     assert np.median(np.degrees(np.arccos(np.clip(np.abs(d), 0, 1)))) <= max_median
@@ -282,15 +354,18 @@ def _lap_error(cloud):
     return operator_errors(cloud, "xyz", ["msph4"])[0]["lap_l2"]
 
 
-@pytest.mark.parametrize("name, min_flagged, max_false", [("cow.obj", 0.85, 0.22), ("teapot.obj", 0.65, 0.2)])
+@pytest.mark.parametrize("name, min_flagged, max_false", [("cow.obj", 0.85, 0.24), ("teapot.obj", 0.58, 0.24)])
 def test_confidence_flags_doubtful_particles_on_a_model(name, min_flagged, max_false):
     """Normals more than 30 degrees off or pointing inward get a confidence below 0.5."""
     P, ref = _mesh_reference(name)
     n, conf = estimate_normals(P, return_confidence=True)
     doubtful = dots(n, ref) < np.cos(np.radians(30))
     flagged, false = np.mean(conf[doubtful] < 0.5), np.mean(conf[~doubtful] < 0.5)
-    # measured with the scale term: cow 0.92 and 0.18, teapot 0.70 and 0.15 (without it
-    # 0.31 and 0.08 of the doubtful normals were flagged: thin parts looked confident)
+    # measured with the scale term: cow 0.89 and 0.21, teapot 0.61 and 0.21 (without it
+    # 0.31 and 0.08 of the doubtful normals were flagged: thin parts looked confident). The
+    # consensus of step 7 repairs flagged normals only and leaves them flagged: the same 28 and
+    # 269 doubtful normals are missed as before it (then 0.92 / 0.18 and 0.69 / 0.15 of 351 and
+    # 871 doubtful; now of 253 and 697)
     assert flagged >= min_flagged and false <= max_false, (flagged, false)
 
 
