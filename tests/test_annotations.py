@@ -65,8 +65,10 @@ MODULES = [
     "manifold_sph.spem.operators",
     "manifold_sph.spem.pml",
     "manifold_sph.spem.results",
+    "manifold_sph.spem.scattering",
     "manifold_sph.spem.solver",
     "manifold_sph.spem.sources",
+    "manifold_sph.spem.tez",
 ]
 
 # module-level dunders that are part of a module's interface (PEP 562)

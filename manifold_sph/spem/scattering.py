@@ -51,6 +51,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -219,7 +220,8 @@ def total_field(points: ArrayLike, kind: str, *, freq: float, radius: float, eps
 
 
 # ----------------------------------------------------------------------------- layouts and materials
-def cell_fraction(points: ArrayLike, dr: float, inside, n_sub: int = 8) -> np.ndarray:
+def cell_fraction(points: ArrayLike, dr: float, inside: Callable[[np.ndarray, np.ndarray], ArrayLike],
+                  n_sub: int = 8) -> np.ndarray:
     """Fraction of the square cell of side ``dr`` around each point where ``inside(x, y)`` holds.
 
     ``n_sub`` x ``n_sub`` midpoint samples per cell (subcell averaging of a
