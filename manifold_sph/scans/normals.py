@@ -19,7 +19,13 @@ and 7 with ``refine=True``, the default):
    ``|n_j . R n_i|``. Unlike Hoppe's ``|n_i . n_j|`` this is right across thin
    parts (opposite sides of a thin sheet are reflections of each other) and across
    symmetric creases. Signs are propagated over the maximum-confidence spanning
-   tree by pointer jumping (no loop over particles).
+   tree by pointer jumping (no loop over particles). Where the k-NN graph falls
+   apart (clouds sampled much more densely along lines than across them: scan lines,
+   the rings of a surface of revolution), each particle with another component among
+   its 30 nearest is also joined to the nearest such particle, and small components
+   with none to their nearest outside particle, so that bands of lines are oriented as
+   one surface (a latitude-ring-sampled sphere without its polar caps: 80-160 of 800
+   normals inward before, none after; tests/test_normals.py).
 4. **Global check with the generalised winding number** (Barill et al. 2018; the
    idea of Xu et al. 2023). For outward normals the winding number
    ``w(q) = sum_j a_j n_j . (p_j - q) / (4 pi |p_j - q|^3)`` of the oriented cloud
@@ -156,6 +162,9 @@ _MIN_PATCH = 8
 _MAX_PROBES = 6000  # particles probed by the winding number (all of them up to this many)
 _PROBE_OFFSET = 1.0  # probe distance over the local spacing (0.5: noisy clouds flip, measured)
 _ROUNDS = 3
+_BRIDGE_K = 30  # nearest neighbours searched for an edge to another k-NN component
+_BRIDGE_MAX_SIZE = 4096  # components up to this size with no such neighbour are searched further
+_BRIDGE_MAX_LONELY = 256  # at most this many of them (isolated clumps of a scan are few)
 _SCALE_K = (8, 20)  # neighbourhoods of the scale term of the confidence (a plane, a quadric)
 _SCALE_COS = (np.cos(np.radians(30.0)), np.cos(np.radians(10.0)))  # its 0 and 1
 _GUARD_DEGREES = 3.0  # a degree-3/4 normal within this angle of the degree-2 one is kept, or
@@ -547,8 +556,58 @@ def _tree_signs(n_nodes: int, mst: sp.csr_matrix, roots: np.ndarray, edge_sign_f
 def _graph_edges(pts, nrm, neighbors):
     """Undirected k-NN edges ``(a, b)`` with the reflection-predicted sign agreement ``s`` and length."""
     N, k = neighbors.shape
-    rows = np.repeat(np.arange(N, dtype=np.int64), k)
-    cols = neighbors.ravel().astype(np.int64)
+    return _pair_edges(pts, nrm, np.repeat(np.arange(N, dtype=np.int64), k), neighbors.ravel().astype(np.int64))
+
+
+def _orientation_graph(pts, nrm, neighbors):
+    """Edges of the orientation graph and the components of the k-NN graph alone.
+
+    The k-NN graph of a cloud sampled much more densely along lines than across them
+    (scan lines, the rings of a surface of revolution) falls apart into bands of lines;
+    oriented separately, a band has no winding-number evidence of its own (a third of a
+    ring-sampled sphere pointed inward). Each particle with another component among its
+    ``_BRIDGE_K`` nearest therefore also gets an edge to the nearest such particle; the
+    spanning forest then carries the sign across where the reflection rule is confident,
+    and the patch check still separates what it is not confident about.
+    """
+    N = pts.shape[0]
+    ko = min(_ORIENT_K, neighbors.shape[1])
+    a, b, s, length = _graph_edges(pts, nrm, neighbors[:, :ko])
+    n_comp, comps = csgraph.connected_components(sp.coo_matrix((np.ones(a.size), (a, b)), shape=(N, N)), directed=False)
+    comps = comps.astype(np.int64)
+    if n_comp > 1:
+        tree = cKDTree(pts)
+        _, idx = _knn(pts, min(_BRIDGE_K, N), tree)
+        other = comps[idx] != comps[:, None]
+        rows = np.flatnonzero(other.any(axis=1))
+        cols = idx[rows, other[rows].argmax(axis=1)].astype(np.int64)
+        # small components with no other one among their particles' nearest (a tight ring
+        # at a pole): the nearest particle outside, searched from a few of their particles
+        size = np.bincount(comps, minlength=n_comp)
+        lonely = np.setdiff1d(np.flatnonzero(size <= _BRIDGE_MAX_SIZE), comps[rows])
+        extra_r, extra_c = [rows], [cols]
+        for c in lonely[:_BRIDGE_MAX_LONELY]:  # a loop over components, each one batched query
+            members = np.flatnonzero(comps == c)
+            src = members[np.linspace(0, members.size - 1, min(members.size, 16)).astype(np.int64)]
+            dist_c, idx_c = tree.query(pts[src], k=min(int(size[c]) + 1, N))
+            out = comps[idx_c] != c
+            ok = out.any(axis=1)
+            if ok.any():
+                first = out.argmax(axis=1)
+                best = np.argmin(np.where(ok, dist_c[np.arange(src.size), first], np.inf))
+                extra_r.append(src[best : best + 1])
+                extra_c.append(idx_c[best : best + 1, first[best]].astype(np.int64))
+        rows, cols = np.concatenate(extra_r), np.concatenate(extra_c)
+        if rows.size:
+            N_rows = np.repeat(np.arange(N, dtype=np.int64), ko)
+            a, b, s, length = _pair_edges(pts, nrm, np.concatenate([N_rows, rows]),
+                                          np.concatenate([neighbors[:, :ko].ravel().astype(np.int64), cols]))
+    return a, b, s, length, comps
+
+
+def _pair_edges(pts, nrm, rows, cols):
+    """Undirected edges of the pairs ``(rows, cols)``, unique and sorted by key, with ``s`` and length."""
+    N = pts.shape[0]
     off = rows != cols
     a, b = np.minimum(rows[off], cols[off]), np.maximum(rows[off], cols[off])
     key = np.unique(a * N + b)
@@ -648,8 +707,8 @@ def _outward(pts, nrm, neighbors, distances):
     """
     N = pts.shape[0]
     ko = min(_ORIENT_K, neighbors.shape[1])
-    a, b, s, length = _graph_edges(pts, nrm, neighbors[:, :ko])
-    sign, comps, ta, tb, tconf = _spanning_forest(N, a, b, s, length)
+    a, b, s, length, comps = _orientation_graph(pts, nrm, neighbors)
+    sign, _, ta, tb, tconf = _spanning_forest(N, a, b, s, length)
     n = nrm * sign[:, None]
     n_comp = int(comps.max()) + 1 if N else 0
     # area and probe offset per particle from the local spacing
@@ -723,9 +782,8 @@ def _outward(pts, nrm, neighbors, distances):
 
 def _consistent(pts, nrm, neighbors):
     N = pts.shape[0]
-    ko = min(_ORIENT_K, neighbors.shape[1])
-    a, b, s, length = _graph_edges(pts, nrm, neighbors[:, :ko])
-    sign, comps, *_ = _spanning_forest(N, a, b, s, length)
+    a, b, s, length, comps = _orientation_graph(pts, nrm, neighbors)
+    sign, *_ = _spanning_forest(N, a, b, s, length)
     return nrm * sign[:, None], comps
 
 
