@@ -50,9 +50,8 @@ import pytest  # noqa: E402
 
 
 
-def test_demo_writes_summary_and_pictures(tmp_path, capsys, gl):
-    out = tmp_path / "demo"
-    assert main(["demo", "--out", str(out), "--n", "1002", "--json"]) == 0
+def _demo(out, capsys, *options):
+    assert main(["demo", "--out", str(out), "--n", "1002", "--json", *options]) == 0
     summary = json.loads(capsys.readouterr().out)
     rows = {r["scheme"]: r for r in summary["rows"]}
     assert set(rows) == {"standard", "cspm", "msph", "ncsph"}
@@ -65,14 +64,29 @@ def test_demo_writes_summary_and_pictures(tmp_path, capsys, gl):
     assert "ncsph" in (out / "summary.txt").read_text()
     for name in ("boxplot_laplacian.png", "boxplot_gradient.png", "area_histogram.png"):
         assert (out / name).stat().st_size > 1000
-    if gl:  # the GL probe of conftest.py
-        assert summary["pictures"] is True
-        for name in ("laplacian_cspm.png", "gradient_cspm.png", "heat.gif", "wave.gif"):
-            assert (out / name).stat().st_size > 1000
+    return summary
+
+
+def test_demo_writes_summary_and_plots(tmp_path, capsys):
+    """The main job without its 3D pictures (their renderers are tested in test_render.py; the
+    whole job with its 46 rendered GIF frames is the slow test below)."""
+    out = tmp_path / "demo"
+    _demo(out, capsys, "--no-render")
+    assert not (out / "heat.gif").exists()
     # a second run refuses to overwrite, in one line, exit code 2
     assert main(["demo", "--out", str(out), "--n", "1002", "--no-render"]) == 2
     err = capsys.readouterr().err
     assert "pass --overwrite to replace" in err and err.count("\n") == 1
+
+
+@pytest.mark.slow
+@pytest.mark.gl  # skipped by conftest.py without off-screen rendering
+def test_demo_writes_summary_and_pictures(tmp_path, capsys):
+    out = tmp_path / "demo"
+    summary = _demo(out, capsys)
+    assert summary["pictures"] is True
+    for name in ("laplacian_cspm.png", "gradient_cspm.png", "heat.gif", "wave.gif"):
+        assert (out / name).stat().st_size > 1000
 
 
 @pytest.mark.parametrize(
