@@ -352,7 +352,7 @@ def _ssor_bounds(n: int) -> np.ndarray:
 
 
 def bicgstab_ssor(A: sp.csr_matrix, b: np.ndarray, x0: np.ndarray, rtol: float, maxiter: int,
-                  stall_window: int | None = None, order: np.ndarray | None = None):
+                  stall_window: int | None = None, order: np.ndarray | None = None) -> tuple[np.ndarray, int]:
     """BiCGSTAB on ``(D + L)^-1 A (D + U)^-1 y = (D + L)^-1 b``, ``x = (D + U)^-1 y``: block-SSOR
     (symmetric Gauss-Seidel) preconditioning applied by Eisenstat's trick, each operator
     application two compiled passes that read every matrix entry once, blocks on threads.
