@@ -103,7 +103,7 @@ from manifold_sph.reference.errors import error_summary
 from manifold_sph.frames import check_frames, project_neighborhood, tangent_frames
 from manifold_sph.reference.functions import cos_xz_sin_y
 from manifold_sph.kernels import get_kernel
-from manifold_sph.neighbors import H_SAMPLE, find_neighbors, smoothing_length_for_count
+from manifold_sph.neighbors import GRID_MIN_POINTS, H_SAMPLE, find_neighbors, smoothing_length_for_count
 from manifold_sph.pde import heat
 from manifold_sph.schemes import get_scheme
 
@@ -478,7 +478,9 @@ def targets(results):
 
 def warm_up():
     """Build every timed scheme once on a small cloud: numba's kernels are compiled (first run on
-    a machine) or loaded from its cache here, not inside a timed step."""
+    a machine) or loaded from its cache here, not inside a timed step (the grid neighbour search's
+    kernels with the first cloud, of its minimum size)."""
+    quiet(lambda: Surface(shapes.sphere(GRID_MIN_POINTS)))()
     cloud = shapes.sphere(2000)
     for name in SCHEMES:
         quiet(lambda name=name: Surface(cloud, scheme=name))()
@@ -499,7 +501,8 @@ def ratio_child(n: int, mode: str, repeat: int, sampling: str = "fibonacci") -> 
     c = shapes.sphere(n) if sampling == "fibonacci" else shapes.sphere(n, sampling="random", seed=0)
     p, nn = c.points.copy(), c.normals.copy()
     del c
-    quiet(lambda: Surface(shapes.sphere(2000)))()  # numba's cache loaded
+    warm = shapes.sphere(GRID_MIN_POINTS)  # numba's cache loaded, the grid search's kernels too
+    quiet(lambda: Surface(warm))()
     h = float(smoothing_length_for_count(p, 27))  # msph's default count
     rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     times = []
@@ -595,7 +598,7 @@ def stage_table(sizes, repeat: int, sampling: str = "fibonacci") -> list[dict]:
         setattr(mod, fn_name, timed_stage)
     rows = []
     try:
-        quiet(lambda: Surface(shapes.sphere(2000)))()  # numba's cache loaded
+        quiet(lambda: Surface(shapes.sphere(GRID_MIN_POINTS)))()  # numba's cache loaded, the grid search's kernels too
         print(f"cores {os.cpu_count()}, load average at start {' '.join(f'{x:.2f}' for x in os.getloadavg())}; {sampling} "
               f"points, exact normals; median of {repeat} runs; each stage as a fraction of the bare query (wall | CPU)")
         for n in sizes:
