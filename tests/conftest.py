@@ -13,27 +13,39 @@ import json
 import os
 import subprocess
 import sys
-import tempfile
-from pathlib import Path
 
 import pytest
+
+
+_CONFIG = None  # pytest's config, kept by pytest_configure for the probe's shared folder
+
+
+def pytest_configure(config):
+    global _CONFIG
+    _CONFIG = config
 
 
 @functools.lru_cache(maxsize=None)
 def gl_probe() -> tuple[bool, str]:
     """``(available, reason)`` of off-screen rendering here, probed once per test run in a child process.
 
-    Under pytest-xdist the workers share one probe through a file named after the run
-    (``PYTEST_XDIST_TESTRUNUID``), taken under a lock: the first worker probes, the others read.
+    Under pytest-xdist the workers share one probe through a file in the run's temporary root
+    (the parent of the workers' ``basetemp``, removed with pytest's old temporary folders),
+    named after the run (``PYTEST_XDIST_TESTRUNUID``) and taken under a lock: the first worker
+    probes, the others read.
     """
     run = os.environ.get("PYTEST_XDIST_TESTRUNUID")
     try:
         import fcntl
     except ImportError:  # no POSIX locks (Windows): every worker probes
         run = None
-    if not run:
+    if not run or _CONFIG is None or not hasattr(_CONFIG, "workerinput"):
         return _probe()
-    path = Path(tempfile.gettempdir()) / f"manifold-sph-gl-probe-{run}.json"
+    try:
+        root = _CONFIG._tmp_path_factory.getbasetemp().parent
+    except Exception:  # noqa: BLE001 - no shared folder: this worker probes alone
+        return _probe()
+    path = root / f"manifold-sph-gl-probe-{run}.json"
     with open(path.with_suffix(".lock"), "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
         if path.exists():
