@@ -8,7 +8,7 @@ evaluation points; ``to_dict()`` is its JSON-ready form.
 Examples
 --------
 >>> r = run_cavity(n_radial=10, periods=1.0)
->>> r.case, r.error < 0.02  # measured 1.5e-2 (sbp, 10 spacings per radius)
+>>> r.case, r.error < 0.02  # measured 1.2e-2 (sbp, 10 spacings per radius)
 ('cavity', True)
 """
 
