@@ -107,31 +107,12 @@ def orders(quick=False):
             print(f"{name:18s} {label:18s} {' '.join(f'{e:.2e}' for e in err):>40s} {slope:6.2f}", flush=True)
 
 
-def thin_torus(nu=150, nv=5, R=1.0, r=0.05, jitter=0.3, seed=0):
-    """A torus tube sampled ``nv`` points around on a staggered, jittered grid, and its normals."""
-    rng = np.random.default_rng(seed)
-    u = (np.arange(nu)[:, None] + jitter * (rng.random((nu, nv)) - 0.5)) * 2 * np.pi / nu
-    v = (np.arange(nv)[None, :] + jitter * (rng.random((nu, nv)) - 0.5) + 0.5 * (np.arange(nu)[:, None] % 2)) * 2 * np.pi / nv
-    u, v = u.ravel(), v.ravel()
-    n = np.c_[np.cos(u) * np.cos(v), np.sin(u) * np.cos(v), np.sin(v)]
-    return np.c_[R * np.cos(u), R * np.sin(u), 0 * u] + r * n, n
-
-
-def ring_sphere(rows=12, per_ring=80, seed=0):
-    """The unit sphere sampled on latitude rings (per_ring points each), and its normals."""
-    rng = np.random.default_rng(seed)
-    th = (np.arange(rows) + 0.5) / rows * np.pi
-    T, Ph = np.meshgrid(th, np.arange(per_ring) * 2 * np.pi / per_ring, indexing="ij")
-    Ph = Ph + 0.1 * rng.random(Ph.shape)
-    n = np.c_[(np.sin(T) * np.cos(Ph)).ravel(), (np.sin(T) * np.sin(Ph)).ravel(), np.cos(T).ravel()]
-    return n.copy(), n
-
-
 def synthetic():
     from manifold_sph.scans import normals as mod
 
-    cases = [(f"thin torus seed {s}", thin_torus(seed=s)) for s in range(3)]
-    cases += [(f"ring sphere seed {s}", ring_sphere(seed=s)) for s in range(3)]
+    clouds = [(f"thin torus seed {s}", shapes.thin_torus(seed=s)) for s in range(3)]
+    clouds += [(f"ring sphere seed {s}", shapes.ring_sphere(seed=s)) for s in range(3)]
+    cases = [(name, (c.points, c.normals)) for name, c in clouds]
     print(f"\n{'cloud':20s} {'points':>7s} {'step 7':>7s} {'median':>7s} {'>30deg':>7s} {'inward':>7s}")
     original = mod._consensus
     for name, (p, exact) in cases:

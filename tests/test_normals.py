@@ -203,24 +203,16 @@ def test_cube_normals_are_not_averaged_across_edges():
 
 
 # ----------------------------------------------------------------------------- thin and anisotropic parts
-def _thin_torus(nu=150, nv=5, R=1.0, r=0.05, jitter=0.3, seed=0):
-    """A torus tube sampled a few points around (``nv``) on a staggered, jittered grid, and its normals."""
-    rng = np.random.default_rng(seed)
-    u = (np.arange(nu)[:, None] + jitter * (rng.random((nu, nv)) - 0.5)) * 2 * np.pi / nu
-    v = (np.arange(nv)[None, :] + jitter * (rng.random((nu, nv)) - 0.5) + 0.5 * (np.arange(nu)[:, None] % 2)) * 2 * np.pi / nv
-    u, v = u.ravel(), v.ravel()
-    n = np.c_[np.cos(u) * np.cos(v), np.sin(u) * np.cos(v), np.sin(v)]
-    return np.c_[R * np.cos(u), R * np.sin(u), 0 * u] + r * n, n
+def _thin_torus(seed=0):
+    """A torus tube (R = 1, r = 0.05) sampled 5 points around, and its exact normals."""
+    c = shapes.thin_torus(seed=seed)
+    return c.points, c.normals
 
 
-def _ring_sphere(rows=12, per_ring=80, seed=0):
-    """The unit sphere sampled on latitude rings, 6x denser along the rings than across them."""
-    rng = np.random.default_rng(seed)
-    th = (np.arange(rows) + 0.5) / rows * np.pi
-    T, Ph = np.meshgrid(th, np.arange(per_ring) * 2 * np.pi / per_ring, indexing="ij")
-    Ph = Ph + 0.1 * rng.random(Ph.shape)
-    n = np.c_[(np.sin(T) * np.cos(Ph)).ravel(), (np.sin(T) * np.sin(Ph)).ravel(), np.cos(T).ravel()]
-    return n.copy(), n
+def _ring_sphere(seed=0):
+    """The unit sphere on 12 latitude rings of 80 points (6x denser along than across), and its normals."""
+    c = shapes.ring_sphere(seed=seed)
+    return c.points, c.normals
 
 
 def _without_consensus(monkeypatch):

@@ -43,6 +43,8 @@ __all__ = [
     "double_torus",
     "sausage",
     "square",
+    "thin_torus",
+    "ring_sphere",
     "SHAPES",
 ]
 
@@ -1131,3 +1133,75 @@ def sausage(
     (300, 'sausage')
     """
     return Sausage(arc_radius, tube_radius, theta0, power).sample(n, sampling, seed=seed, density_ratio=density_ratio)
+
+
+# ----------------------------------------------------------------------------
+# hostile samplings: what real scans and meshes deliver (thin parts, scan lines)
+# ----------------------------------------------------------------------------
+def thin_torus(
+    around: int = 5,
+    along: int = 150,
+    R: float = 1.0,
+    r: float = 0.05,
+    jitter: float = 0.3,
+    seed: int | np.random.Generator | None = 0,
+) -> PointCloud:
+    """A thin torus tube sampled only ``around`` points around (a tail, a handle, a cable).
+
+    ``along`` rings of ``around`` points on a staggered grid (alternate rings turned by half a
+    step), each point jittered by ``jitter`` grid steps in both directions; exact normals.
+    Normal estimators that fit the whole neighbourhood reach across such a tube.
+
+    Examples
+    --------
+    >>> cloud = thin_torus(seed=1)
+    >>> len(cloud), cloud.geometry.name
+    (750, 'torus')
+    """
+    around = check_int("around", around, minimum=3)
+    along = check_int("along", along, minimum=3)
+    R, r = check_positive("R", R), check_positive("r", r)
+    if r >= R:
+        raise ValueError(f"r must be smaller than R for a ring torus, got r={r} and R={R}")
+    jitter = float(check_finite("jitter", np.asarray(jitter, dtype=np.float64)))
+    if not 0.0 <= jitter < 1.0:
+        raise ValueError(f"jitter must be in [0, 1), got {jitter}")
+    rng = _sampling._rng(seed)
+    i = np.arange(along)[:, None]
+    u = (i + jitter * (rng.random((along, around)) - 0.5)) * 2 * np.pi / along
+    v = (np.arange(around)[None, :] + jitter * (rng.random((along, around)) - 0.5) + 0.5 * (i % 2)) * 2 * np.pi / around
+    u, v = u.ravel(), v.ravel()
+    n = np.c_[np.cos(u) * np.cos(v), np.sin(u) * np.cos(v), np.sin(v)]
+    return PointCloud(np.c_[R * np.cos(u), R * np.sin(u), 0 * u] + r * n, n, geometry=Torus(R, r))
+
+
+def ring_sphere(
+    rings: int = 12,
+    per_ring: int = 80,
+    jitter: float = 0.1,
+    seed: int | np.random.Generator | None = 0,
+) -> PointCloud:
+    """The unit sphere sampled on ``rings`` latitude rings of ``per_ring`` points (scan lines).
+
+    Rings at polar angles ``(j + 1/2) pi / rings``; points at equal longitudes, each shifted by
+    up to ``jitter`` radians. With the defaults the points are about 6 times denser along the
+    rings than across them at the equator, and the k-nearest-neighbour graph falls apart into
+    bands of rings; the polar caps inside the first and last rings are empty.
+
+    Examples
+    --------
+    >>> cloud = ring_sphere()
+    >>> len(cloud), cloud.geometry.name
+    (960, 'sphere')
+    """
+    rings = check_int("rings", rings, minimum=2)
+    per_ring = check_int("per_ring", per_ring, minimum=3)
+    jitter = float(check_finite("jitter", np.asarray(jitter, dtype=np.float64)))
+    if not 0.0 <= jitter < 2 * np.pi:
+        raise ValueError(f"jitter must be in [0, 2 pi) radians, got {jitter}")
+    rng = _sampling._rng(seed)
+    th = (np.arange(rings) + 0.5) / rings * np.pi
+    T, Ph = np.meshgrid(th, np.arange(per_ring) * 2 * np.pi / per_ring, indexing="ij")
+    Ph = Ph + jitter * rng.random(Ph.shape)
+    n = np.c_[(np.sin(T) * np.cos(Ph)).ravel(), (np.sin(T) * np.sin(Ph)).ravel(), np.cos(T).ravel()]
+    return PointCloud(n, n, geometry=Sphere(1.0))
