@@ -201,9 +201,12 @@ def _scale_confidence(pts: np.ndarray, neighbors: np.ndarray, normals: np.ndarra
 
     ``before``: the agreement before the consensus of step 7 (a normal chosen there stays
     as doubtful as the one it replaced: the points did not determine it)."""
-    agree = _scale_agreement(pts, neighbors, normals)
-    if before is not None:
-        agree = np.minimum(agree, before)
+    if before is None:
+        agree = _scale_agreement(pts, neighbors, normals)
+    else:  # only the particles step 7 reconsidered can have changed: refit those alone
+        rows = np.flatnonzero(before < np.cos(np.radians(_CONSENSUS_DEGREES)))
+        agree = before.copy()
+        agree[rows] = np.minimum(before[rows], _scale_agreement(pts, neighbors, normals, rows))
     lo, hi = _SCALE_COS
     return np.clip((agree - lo) / (hi - lo), 0.0, 1.0)
 
@@ -349,15 +352,17 @@ def _high_order(pts, neighbors, base, base_residual, degree, refine):
     return np.where((close | one_sided)[:, None], hi, base), one_sided
 
 
-def _scale_agreement(pts, neighbors, normals):
-    """``min |n . n'|`` over a plane fitted to the 8 nearest and a quadric to the 20 nearest."""
-    agree = np.ones(pts.shape[0])
+def _scale_agreement(pts, neighbors, normals, rows=None):
+    """``min |n . n'|`` over a plane fitted to the 8 nearest and a quadric to the 20 nearest
+    (of every particle, or of ``rows`` only)."""
+    rows = np.arange(pts.shape[0]) if rows is None else rows
+    agree = np.ones(rows.size)
     for k, degree in zip(_SCALE_K, (1, 2)):
         k = min(k, neighbors.shape[1])
         if k < _n_coefficients(degree) + 2:
             continue
-        other = _jet_fit(pts, neighbors[:, :k], normals, degree)
-        agree = np.minimum(agree, np.abs(np.einsum("ij,ij->i", other, normals)))
+        other = _jet_fit(pts, neighbors[rows, :k], normals[rows], degree, centers=pts[rows])
+        agree = np.minimum(agree, np.abs(np.einsum("ij,ij->i", other, normals[rows])))
     return agree
 
 
