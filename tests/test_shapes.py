@@ -441,3 +441,49 @@ def test_bad_operator_input():
         DoubleTorus().project(x, maxiter=0)
     with pytest.raises(ValueError, match="tol must be a finite positive number"):
         DoubleTorus().project(x, tol=-1.0)
+
+
+def test_hostile_samplings_lie_on_their_shapes_and_are_seeded():
+    from manifold_sph.reference.shapes import ring_sphere, thin_torus
+
+    for cloud in (thin_torus(seed=3), ring_sphere(seed=3)):
+        assert np.abs(cloud.geometry.phi(cloud.points)).max() < 1e-12
+        np.testing.assert_allclose(np.einsum("ij,ij->i", cloud.normals, cloud.geometry.normal(cloud.points)), 1.0, atol=1e-12)
+    assert np.array_equal(thin_torus(seed=3).points, thin_torus(seed=3).points)
+    assert not np.array_equal(ring_sphere(seed=3).points, ring_sphere(seed=4).points)
+
+
+@pytest.mark.parametrize(
+    "kwargs, exc, match",
+    [
+        ({"around": 2}, ValueError, "around must be at least 3"),
+        ({"along": 1.5}, TypeError, "along"),
+        ({"r": 2.0}, ValueError, "r must be smaller than R"),
+        ({"R": -1.0}, ValueError, "R must be"),
+        ({"jitter": float("nan")}, ValueError, "jitter must be finite"),
+        ({"jitter": 1.0}, ValueError, r"jitter must be in \[0, 1\)"),
+        ({"seed": -1}, ValueError, "seed must be non-negative"),
+    ],
+)
+def test_thin_torus_bad_input(kwargs, exc, match):
+    from manifold_sph.reference.shapes import thin_torus
+
+    with pytest.raises(exc, match=match):
+        thin_torus(**kwargs)
+
+
+@pytest.mark.parametrize(
+    "kwargs, exc, match",
+    [
+        ({"rings": 1}, ValueError, "rings must be at least 2"),
+        ({"per_ring": "80"}, TypeError, "per_ring"),
+        ({"jitter": float("inf")}, ValueError, "jitter must be finite"),
+        ({"jitter": -0.1}, ValueError, r"jitter must be in \[0, 2 pi\)"),
+        ({"seed": "x"}, TypeError, "seed must be an int"),
+    ],
+)
+def test_ring_sphere_bad_input(kwargs, exc, match):
+    from manifold_sph.reference.shapes import ring_sphere
+
+    with pytest.raises(exc, match=match):
+        ring_sphere(**kwargs)

@@ -604,8 +604,8 @@ def _orientation_graph(pts, nrm, neighbors):
                 extra_c.append(idx_c[best : best + 1, first[best]].astype(np.int64))
         rows, cols = np.concatenate(extra_r), np.concatenate(extra_c)
         if rows.size:
-            N_rows = np.repeat(np.arange(N, dtype=np.int64), ko)
-            a, b, s, length = _pair_edges(pts, nrm, np.concatenate([N_rows, rows]),
+            knn_rows = np.repeat(np.arange(N, dtype=np.int64), ko)
+            a, b, s, length = _pair_edges(pts, nrm, np.concatenate([knn_rows, rows]),
                                           np.concatenate([neighbors[:, :ko].ravel().astype(np.int64), cols]))
     return a, b, s, length, comps
 
