@@ -150,7 +150,7 @@ DEFAULT_K = 16
 
 #: Default neighbours (itself included) of the jet fit, by degree: about twice the
 #: number of coefficients (chosen by measurement on the test models and on spheres/tori).
-DEFAULT_JET_K = {1: 10, 2: 12, 3: 20, 4: 30}
+DEFAULT_JET_K = {1: 10, 2: 16, 3: 20, 4: 30}
 
 _PCA_K = 10  # neighbours of the first PCA normal (smaller is better on coarse models, measured)
 _REFIT_DOT = 0.7  # neighbours kept by the refit: n_i . n_j above this (0.8 and 3 iterations: better
@@ -174,6 +174,15 @@ _CONSENSUS_CANDIDATES = ((8, 1), (12, 2), (16, 2), (24, 2), (16, 1), (24, 1), (8
 _CONSENSUS_K = 12  # neighbours (itself included) whose reflected normals vote
 _CONSENSUS_PRIOR = 0.05  # bonus of the current normal (of a mean |cos| in [0, 1])
 _CONSENSUS_ROUNDS = 5
+_JET_WEIGHT = 4.0  # base jet fits weigh neighbour j by exp(-a (r_j / r_k)^2), r_k the farthest (measured)
+
+
+def _distance_weights(pts, neighbors, alpha=None):
+    """Gaussian weights ``exp(-alpha (r_j / r_max)^2)`` of the neighbours of every row (scale-free)."""
+    alpha = _JET_WEIGHT if alpha is None else alpha
+    r2 = np.einsum("nki,nki->nk", pts[neighbors] - pts[neighbors[:, :1]], pts[neighbors] - pts[neighbors[:, :1]])
+    rmax = r2.max(axis=1, keepdims=True)
+    return np.exp(-alpha * r2 / np.where(rmax > 0, rmax, 1.0))
 
 
 def _knn(points: np.ndarray, k: int, tree: cKDTree | None = None):
@@ -315,7 +324,7 @@ def _jet_fit(pts: np.ndarray, neighbors: np.ndarray, frame: np.ndarray, degree, 
     return out
 
 
-def _refit(pts, neighbors, normals, degree, iterations=None, threshold=None, residual=None):
+def _refit(pts, neighbors, normals, degree, iterations=None, threshold=None, residual=None, weights=None):
     """Refit with only the neighbours whose oriented normal agrees (``n_i . n_j > threshold``)."""
     iterations = _REFIT_ITERATIONS if iterations is None else iterations
     threshold = _REFIT_DOT if threshold is None else threshold
@@ -327,7 +336,7 @@ def _refit(pts, neighbors, normals, degree, iterations=None, threshold=None, res
         w[:, 0] = 1.0  # the particle itself (first neighbour)
         count = w.sum(axis=1)
         deg = np.where(count >= need, degree, np.where(count >= 5, 1, 0))
-        n = _jet_fit(pts, neighbors, n, deg, w, residual=residual)
+        n = _jet_fit(pts, neighbors, n, deg, w if weights is None else w * weights, residual=residual)
     return n
 
 
@@ -957,6 +966,7 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: str | A
         k = _check_k(min(DEFAULT_K, N) if k is None else k, N)
     else:
         degree = _check_degree(2 if degree is None else degree)
+        weighted = k is None  # an explicit k (e.g. a larger one for noise) is fitted with uniform weights
         if k is None:
             k = DEFAULT_JET_K[degree]
             if k > N:
@@ -976,13 +986,14 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: str | A
         base_deg, kb = (degree, k) if degree <= 2 else (2, min(k, DEFAULT_JET_K[2]))
         w, v = _covariance(pts, idx[:, : min(k, _PCA_K)])
         base_res = np.zeros(N)
-        nrm = _jet_fit(pts, idx[:, :kb], v[:, :, 0], base_deg, residual=base_res)
+        base_w = _distance_weights(pts, idx[:, :kb]) if _JET_WEIGHT and weighted else None
+        nrm = _jet_fit(pts, idx[:, :kb], v[:, :, 0], base_deg, weights=base_w, residual=base_res)
     conf = _shape_confidence(w)
     before = None
     nrm, _, oconf = _orient(pts, nrm, idx, dist, orient)
     if method == "jet":
         if refine:
-            nrm = _refit(pts, idx[:, :kb], nrm, base_deg, residual=base_res)
+            nrm = _refit(pts, idx[:, :kb], nrm, base_deg, residual=base_res, weights=base_w)
         one_sided = None
         if degree > 2:
             nrm, one_sided = _high_order(pts, idx[:, :k], nrm, base_res, degree, refine)
