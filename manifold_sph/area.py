@@ -189,6 +189,38 @@ def area_elements(
     return AreaElements(dV=dV, method=method, n_negative=int((dV < 0).sum()), residual=residual)
 
 
+class _Merged:
+    """The kernel system of merged near-duplicates without a copy: ``B = A[rep]`` with each column
+    ``j`` moved to ``label[j]`` (shape (len(rep), len(rep))), read through the two maps. Its products and
+    row sums are those of the copied matrix, bit for bit (same entries, same order in every row)."""
+
+    def __init__(self, A: sp.csr_matrix, rep: np.ndarray, label: np.ndarray) -> None:
+        self.A, self.rep, self.label = A, np.asarray(rep, dtype=np.int64), np.asarray(label, dtype=np.int64)
+        self.shape = (self.rep.size, self.rep.size)
+
+    def __matmul__(self, x: np.ndarray) -> np.ndarray:
+        return (self.A @ x[self.label])[self.rep]
+
+    def row_sums(self) -> np.ndarray:
+        return np.asarray(self.A.sum(axis=1)).ravel()[self.rep]
+
+    def csr(self) -> sp.csr_matrix:
+        """The merged matrix copied (the direct solve and the fallback iteration)."""
+        B = self.A[self.rep]
+        np.take(self.label.astype(B.indices.dtype), B.indices, out=B.indices)
+        B = sp.csr_matrix((B.data, B.indices, B.indptr), shape=self.shape, copy=False)
+        B.has_sorted_indices = False
+        return B
+
+
+def _row_sums(A) -> np.ndarray:
+    return A.row_sums() if isinstance(A, _Merged) else np.asarray(A.sum(axis=1)).ravel()
+
+
+def _as_csr(A) -> sp.csr_matrix:
+    return A.csr() if isinstance(A, _Merged) else A
+
+
 def _numerical(A: sp.csr_matrix, nb: Neighborhood, xy: np.ndarray | PairOffsets, columns: np.ndarray | None) -> AreaElements:
     """Solve ``A dV = 1``, near-duplicates merged into one unknown; Shepard if the solve fails."""
     n = A.shape[0]
@@ -206,11 +238,10 @@ def _numerical(A: sp.csr_matrix, nb: Neighborhood, xy: np.ndarray | PairOffsets,
         np.minimum.at(rep, label, np.arange(n))  # the first particle of each group stands for it
         # the merged system: the representatives' rows, each column moved to its group's unknown (entries
         # of one group in a row are left unsummed: every solver step sums them; a sparse product did
-        # the same at 13x the cost of the iteration on a million random points)
-        B = A[rep]
-        np.take(label.astype(B.indices.dtype, copy=False), B.indices, out=B.indices)
-        B = sp.csr_matrix((B.data, B.indices, B.indptr), shape=(ncl, ncl), copy=False)
-        B.has_sorted_indices = False
+        # the same at 13x the cost of the iteration on a million random points). Not copied: the solver
+        # reads A's entries through the row and column maps (a copy was 12 bytes an entry, 320 MB per
+        # million random points, at the build's peak)
+        B = _Merged(A, rep, label)
         key = _sweep_key(xy)
         order = None if key is None else np.argsort(key[rep], kind="stable")
         dVc, _, budget = _solve_partition_of_unity(B, order=order)
@@ -268,7 +299,7 @@ STALL_WINDOW = 30
 LU_MAX_ROWS = 10_000
 
 
-def _solve_partition_of_unity(A: sp.csr_matrix, rtol: float = 1e-15, order: np.ndarray | None = None):
+def _solve_partition_of_unity(A: sp.csr_matrix | _Merged, rtol: float = 1e-15, order: np.ndarray | None = None):
     """Solve ``A dV = 1``: BiCGSTAB started from the Shepard elements, to a relative residual of
     ``rtol``, preconditioned by block SSOR (:func:`bicgstab_ssor`; the Shepard (row-sum) one when
     the compiled kernels are off or a diagonal entry is not positive); sparse LU if the iteration
@@ -280,28 +311,31 @@ def _solve_partition_of_unity(A: sp.csr_matrix, rtol: float = 1e-15, order: np.n
     showed as 2e-8 differences (measured, planar ncsph), for ~25 % fewer iterations."""
     n = A.shape[0]
     ones = np.ones(n)
-    rowsum = np.asarray(A.sum(axis=1)).ravel()
+    rowsum = _row_sums(A)
     budget = SSOR_MAXITER if _jit.ENABLED else NUMERICAL_MAXITER
     if np.all(rowsum > 0):
         dinv = 1.0 / rowsum
         info = -12
         if _jit.ENABLED:  # block SSOR: 3-4x fewer iterations than the Shepard (Jacobi) preconditioner, same cost each
             budget = SSOR_MAXITER
+            found: dict = {}
             dV, info = bicgstab_ssor(A, ones, dinv, rtol=rtol, maxiter=SSOR_MAXITER, stall_window=SSOR_STALL_WINDOW,
-                                     order=order)
+                                     order=order, _found=found)
         if info == -12:
             budget = NUMERICAL_MAXITER
-            dV, info = bicgstab_csr(A, ones, dinv, dinv, rtol=rtol, maxiter=NUMERICAL_MAXITER,  # fused, threaded passes
-                                    stall_window=STALL_WINDOW)
+            found = {}
+            dV, info = bicgstab_csr(_as_csr(A), ones, dinv, dinv, rtol=rtol,  # fused, threaded passes
+                                    maxiter=NUMERICAL_MAXITER, stall_window=STALL_WINDOW)
         if info == 0 and np.all(np.isfinite(dV)):
-            residual = float(np.abs(A @ dV - 1.0).max())
+            # max |A dV - 1|, from the solver's last true residual when it measured it (the same numbers)
+            residual = found["residual"] if "residual" in found else float(np.abs(A @ dV - 1.0).max())
             if residual < 1e-9:
                 return dV, residual, budget
     if n > LU_MAX_ROWS:  # a sparse LU of a kernel matrix this large takes minutes and gigabytes
         return None, np.inf, budget
     with np.errstate(all="ignore"):
         try:
-            C = sp.csc_matrix(A)
+            C = sp.csc_matrix(_as_csr(A))
             C.sum_duplicates()  # merged near-duplicates leave repeated entries
             dV = spla.spsolve(C, ones)
         except RuntimeError:  # exactly singular
@@ -352,7 +386,8 @@ def _ssor_bounds(n: int) -> np.ndarray:
 
 
 def bicgstab_ssor(A: sp.csr_matrix, b: np.ndarray, x0: np.ndarray, rtol: float, maxiter: int,
-                  stall_window: int | None = None, order: np.ndarray | None = None) -> tuple[np.ndarray, int]:
+                  stall_window: int | None = None, order: np.ndarray | None = None,
+                  _found: dict | None = None) -> tuple[np.ndarray, int]:
     """BiCGSTAB on ``(D + L)^-1 A (D + U)^-1 y = (D + L)^-1 b``, ``x = (D + U)^-1 y``: block-SSOR
     (symmetric Gauss-Seidel) preconditioning applied by Eisenstat's trick, each operator
     application two compiled passes that read every matrix entry once, blocks on threads.
@@ -364,9 +399,14 @@ def bicgstab_ssor(A: sp.csr_matrix, b: np.ndarray, x0: np.ndarray, rtol: float, 
     when the preconditioned one gets there), after ``maxiter`` iterations, or when the
     smallest preconditioned residual is not 10x below the one ``stall_window`` iterations
     earlier. Returns ``(x, info)`` as :func:`manifold_sph._sparse.bicgstab_csr`
-    (``info = -12``: a diagonal entry is not positive, nothing solved).
+    (``info = -12``: a diagonal entry is not positive, nothing solved). ``A`` may be a merged
+    system (``_Merged``): read through its maps, never copied. ``_found`` (internal) receives
+    ``"residual"``, ``max |b - A x|`` of the converged ``x``.
     """
     n = A.shape[0]
+    rows_of, cols_of = (A.rep, A.label) if isinstance(A, _Merged) else (None, None)
+    A_in = A
+    A = A.A if rows_of is not None else A
     indptr = A.indptr
     bounds = _ssor_bounds(n)
     n_blocks = bounds.size - 1
@@ -386,9 +426,13 @@ def bicgstab_ssor(A: sp.csr_matrix, b: np.ndarray, x0: np.ndarray, rtol: float, 
 
     indices = A.indices
     data = np.ascontiguousarray(A.data, dtype=np.float64)
-    perm = np.arange(n, dtype=np.int64) if order is None else np.asarray(order, dtype=np.int64)
+    sweep = np.arange(n, dtype=np.int64) if order is None else np.asarray(order, dtype=np.int64)
     iperm = np.empty(n, dtype=np.int64)
-    iperm[perm] = np.arange(n, dtype=np.int64)
+    iperm[sweep] = np.arange(n, dtype=np.int64)
+    perm = sweep
+    if rows_of is not None:  # A's rows and columns of the merged system, in the sweep order
+        perm = rows_of[sweep]
+        iperm = iperm[cols_of]
     n_upper = np.empty(n, dtype=np.int64)
     n_rest = np.empty(n, dtype=np.int64)
     diag = np.empty(n)
@@ -406,9 +450,9 @@ def bicgstab_ssor(A: sp.csr_matrix, b: np.ndarray, x0: np.ndarray, rtol: float, 
     run(_jit.ssor_fill, perm, iperm, indptr, indices, data, ptr_u, idx_u, dat_u, ptr_r, idx_r, dat_r)
     upper = (ptr_u, idx_u, dat_u, diag)
     rest = (ptr_r, idx_r, dat_r, diag)
-    del iperm
+    del iperm, perm
     b_in = np.ascontiguousarray(b, dtype=np.float64)
-    b = b_in[perm]  # the solve runs on the permuted unknowns
+    b = b_in[sweep]  # the solve runs on the permuted unknowns
     zeros = np.zeros(n)
     t = np.zeros(n)
     w = np.empty(n)
@@ -417,13 +461,13 @@ def bicgstab_ssor(A: sp.csr_matrix, b: np.ndarray, x0: np.ndarray, rtol: float, 
         x = np.empty(n)
         run(_jit.ssor_backward, *upper, 0, y, y, y, 0.0, 0.0, x)
         out = np.empty(n)
-        out[perm] = x
+        out[sweep] = x
         return out
 
-    def true_residual_norm(x):
-        r = A @ x
+    def true_residual(x):
+        r = A_in @ x
         np.subtract(b_in, r, out=r)
-        return float(np.sqrt(np.einsum("i,i->", r, r)))
+        return r
 
     bnorm = float(np.sqrt(np.einsum("i,i->", b, b)))
     bhat = np.empty(n)
@@ -431,10 +475,8 @@ def bicgstab_ssor(A: sp.csr_matrix, b: np.ndarray, x0: np.ndarray, rtol: float, 
     del bhat
     x = np.array(x0, dtype=np.float64)
     y = np.empty(n)
-    run(_jit.ssor_upper_times, *upper, x[perm], y)  # y0 = (D + U) x0
-    r0 = A @ x
-    np.subtract(b_in, r0, out=r0)
-    r0 = r0[perm]
+    run(_jit.ssor_upper_times, *upper, x[sweep], y)  # y0 = (D + U) x0
+    r0 = true_residual(x)[sweep]
     r = np.empty(n)
     rr = run(_jit.ssor_forward, *rest, r0, zeros, w, r, r0)[0]  # r = (D + L)^-1 (b - A x0)
     del r0
@@ -449,16 +491,23 @@ def bicgstab_ssor(A: sp.csr_matrix, b: np.ndarray, x0: np.ndarray, rtol: float, 
     rho_prev = alpha = omega = beta = 1.0
     best = np.full(max(int(maxiter), 1), np.inf)
 
-    def converged(yv):  # the preconditioned residual is small: is the true one?
+    done = {}
+
+    def converged(yv):  # the preconditioned residual is small: is the true one? (x kept when it is)
         nonlocal target
-        if true_residual_norm(unprecondition(yv)) < atol:
+        xv = unprecondition(yv)
+        r = true_residual(xv)
+        if float(np.sqrt(np.einsum("i,i->", r, r))) < atol:
+            done["x"] = xv
+            if _found is not None:
+                _found["residual"] = float(np.abs(r).max())
             return True
         target *= 0.1  # not yet: go on
         return False
 
     for it in range(maxiter):
         if np.sqrt(rr) < target and converged(y):
-            return unprecondition(y), 0
+            return done["x"], 0
         best[it] = min(np.sqrt(rr), best[it - 1] if it else np.inf)
         if stall_window and it >= stall_window and best[it] > 0.1 * best[it - stall_window]:
             return unprecondition(y), max(int(maxiter), 1)
@@ -477,7 +526,7 @@ def bicgstab_ssor(A: sp.csr_matrix, b: np.ndarray, x0: np.ndarray, rtol: float, 
         if np.sqrt(ss) < target:
             y_half = y + alpha * p
             if converged(y_half):
-                return unprecondition(y_half), 0
+                return done["x"], 0
             del y_half
         tt, ts = run(_jit.ssor_forward, *rest, r, t, w, tv, r)  # tv = Ahat s
         omega = ts / tt if tt > 0.0 else 0.0

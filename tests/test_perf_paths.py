@@ -189,7 +189,7 @@ def test_merged_near_duplicate_system_equals_the_sparse_product(monkeypatch):
     P = np.vstack([p, q / np.linalg.norm(q)])
     seen = []
     real = area._solve_partition_of_unity
-    monkeypatch.setattr(area, "_solve_partition_of_unity", lambda B, **k: seen.append(B.copy()) or real(B, **k))
+    monkeypatch.setattr(area, "_solve_partition_of_unity", lambda B, **k: seen.append(B) or real(B, **k))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         s = Surface(P, P.copy())
@@ -202,7 +202,17 @@ def test_merged_near_duplicate_system_equals_the_sparse_product(monkeypatch):
     rep = np.full(ncl, n)
     np.minimum.at(rep, label, np.arange(n))
     ref = (A[rep] @ sp.csr_matrix((np.ones(n), (np.arange(n), label)), shape=(n, ncl))).tocsr()
-    B = seen[0].tocsr()
+    merged = seen[0]
+    assert isinstance(merged, area._Merged)  # read through the maps, not copied
+    B = merged.csr()
+    x = np.random.default_rng(0).normal(size=ncl)
+    np.testing.assert_array_equal(merged @ x, B @ x)  # the copy's products and row sums, bit for bit
+    np.testing.assert_array_equal(merged.row_sums(), np.asarray(B.sum(axis=1)).ravel())
+    d = 1.0 / merged.row_sums()
+    x1, info1 = area.bicgstab_ssor(merged, np.ones(ncl), d, rtol=1e-15, maxiter=60)
+    x2, info2 = area.bicgstab_ssor(B.copy(), np.ones(ncl), d, rtol=1e-15, maxiter=60)
+    assert info1 == info2 == 0
+    np.testing.assert_array_equal(x1, x2)  # the solve through the maps is the solve of the copy
     B.sum_duplicates()
     assert abs(B - ref).max() <= 1e-15 * abs(ref).max()
     dVc = spla.spsolve(sp.csc_matrix(ref), np.ones(ncl))
