@@ -174,6 +174,7 @@ _CONSENSUS_CANDIDATES = ((8, 1), (12, 2), (16, 2), (24, 2), (16, 1), (24, 1), (8
 _CONSENSUS_K = 12  # neighbours (itself included) whose reflected normals vote
 _CONSENSUS_PRIOR = 0.05  # bonus of the current normal (of a mean |cos| in [0, 1])
 _CONSENSUS_ROUNDS = 5
+_CALIBRATE = True
 _JET_WEIGHT = 4.0  # base jet fits weigh neighbour j by exp(-a (r_j / r_k)^2), r_k the farthest (measured)
 
 
@@ -735,8 +736,17 @@ def _outward(pts, nrm, neighbors, distances):
         probes = np.arange(N)
     else:
         probes = np.sort(np.random.default_rng(0).choice(N, _MAX_PROBES, replace=False))
-    omega = area[probes] * (N / probes.size)
     delta = _PROBE_OFFSET * h[probes]
+    if _CALIBRATE:
+        # the jump w_in - w_out across the particle is its local dipole density over the true
+        # one (the far field cancels in the difference, whatever its orientation): rescale the areas
+        q = np.vstack([pts[probes] - delta[:, None] * n[probes], pts[probes] + delta[:, None] * n[probes]])
+        W = _winding_numbers(q, pts, n, area, 0.2 * h, np.zeros(N, dtype=np.int64), 1)[:, 0]
+        jump = np.abs(W[: probes.size] - W[probes.size :])
+        near = cKDTree(pts[probes]).query(pts, k=1, workers=get_num_threads())[1] if probes.size < N else np.arange(N)
+        jump = np.median(np.clip(jump, 0.25, 4.0)[near][neighbors[:, :ko]], axis=1)
+        area = area / jump
+    omega = area[probes] * (N / probes.size)
     flag = np.zeros(N, dtype=bool)
     D = np.ones(probes.size)
     S = np.ones(probes.size)
