@@ -136,19 +136,22 @@ def test_local_and_statistical_methods_and_errors(sphere):
         remove_outliers(p, k=2)
 
 
-# measured (seed 0): % of a noise-free model removed, share of 1 % injected uniform outliers caught
-# (issue 16's targets: <= 0.1 % removed, met; >= 95 % caught, NOT met: uniform outliers of a
-# coarse model often land within two local spacings of the surface, and the alligator is
-# planar, so its outliers lie in its own plane). Statistical rule: cow 1.41 %, homer 0.15 %,
+# measured (seed 0): % of a noise-free model removed, share of 1 % injected uniform outliers caught,
+# share caught of those farther from the vertices than one neighbourhood radius (``python
+# tests/test_cleaning.py`` prints them, and the catch rate by distance to the mesh in local spacings).
+# Issue 16's targets: <= 0.1 % removed, met; >= 95 % caught, met on homer and Igea only: the
+# misses lie within about 0.3 local spacings of the surface (undetectable against a sample), or
+# have another stray point among their nearest neighbours (pairs, clumps), and the alligator is
+# planar, so its outliers lie in its own plane. Statistical rule: cow 1.41 %, homer 0.15 %,
 # rocker-arm 1.05 %, cheburashka 2.26 %, teapot 0 % removed; the beetle lost 0.7 % with ratio=3.
-MODEL_LIMITS = {
-    "cow": (0.1, 0.6),  # 0.069 %, 0.66 (before issue 16: 0.48)
-    "homer": (0.0, 0.7),  # 0 %, 0.80 (0.70)
-    "rocker-arm": (0.0, 0.6),  # 0 %, 0.67 (0.58)
-    "cheburashka": (0.02, 0.75),  # 0.015 %, 0.82 (0.75)
-    "teapot": (0.0, 0.7),  # 0 %, 0.75 (0.69)
-    "beetle": (0.0, 0.5),  # 0 % (0.70 %), 0.64 (0.27)
-    "alligator": (0.0, 0.15),  # 0 %, 0.19 (0.19)
+MODEL_LIMITS = {  # (max % removed, min caught, min caught beyond one radius)
+    "cow": (0.1, 0.8, 0.95),  # 0.069 %, 0.83 (before the leave-one-out fit: 0.66; before issue 16: 0.48), 1.0
+    "homer": (0.0, 0.95, 0.95),  # 0 %, 0.97 (0.80, 0.70), 1.0
+    "rocker-arm": (0.03, 0.78, 0.92),  # 0.020 %, 0.80 (0.67, 0.58), 0.94
+    "cheburashka": (0.05, 0.88, 0.95),  # 0.030 %, 0.91 (0.82, 0.75), 0.96
+    "teapot": (0.04, 0.9, 0.95),  # 0.031 %, 0.94 (0.75, 0.69), 0.96
+    "beetle": (0.0, 0.6, 0.95),  # 0 % (0.70 %), 0.64 (0.64, 0.27), 1.0
+    "alligator": (0.0, 0.15, 0.7),  # 0 %, 0.19 (0.19, 0.19), 0.75
 }
 
 
@@ -166,28 +169,105 @@ def test_models_lose_almost_nothing(name):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ManifoldSPHWarning)  # the meshes repeat seam vertices: merged, said
         p = read(path, duplicates="merge").points
-    max_removed, min_caught = MODEL_LIMITS[name]
+    max_removed, min_caught, min_far = MODEL_LIMITS[name]
     r = clean(p)
     assert 100 * r.n_removed / len(p) <= max_removed + 1e-9, r.report  # target <= 0.1 %
     q, m = _inject(p)
     r = clean(q)
+    caught = ~r.keep_mask[-m:]
     assert 100 * (~r.keep_mask[:-m]).mean() <= 0.1
-    assert (~r.keep_mask[-m:]).mean() >= min_caught  # the 95 % target is not met (see remove_outliers)
+    assert caught.mean() >= min_caught  # the 95 % target is met on homer only (see remove_outliers)
+    assert caught[_beyond_one_radius(p, q[-m:])].mean() >= min_far
 
 
-@pytest.mark.parametrize("noise", [0.0, 0.5, 1.0])
+def _beyond_one_radius(p, q):
+    """Outliers farther from the vertices than the nearest one's mean distance to its 16 neighbours."""
+    from scipy.spatial import cKDTree
+
+    tree = cKDTree(p)
+    d, j = tree.query(q)
+    return d > tree.query(p[j], 17)[0][:, 1:].mean(axis=1)
+
+
+NOISY_FLOORS = {0.0: (0.95, 0.95), 0.2: (0.95, 0.95), 0.5: (0.75, 0.95), 1.0: (0.5, 0.7)}
+
+
+@pytest.mark.parametrize("noise", sorted(NOISY_FLOORS))
 def test_noisy_sphere_keeps_its_samples_and_loses_far_outliers(noise):
     """Gaussian noise of up to one spacing is not mistaken for outliers (measured: none removed up to
     0.5, 2 of 8000 at 1.0; without the noise guard of the joint tests 17 and 183); of 80 uniform
-    outliers in the bounding box, those more than 3 spacings off the sphere are caught."""
+    outliers in the bounding box, those more than 1 and 3 spacings off the sphere are caught
+    (measured 0.99 / 0.98 noise-free, 0.99 / 0.98 at 0.1 spacing of noise, 0.97 / 1.0 at 0.2,
+    0.93 / 1.0 at 0.3, 0.81 / 1.0 at 0.5, 0.55 / 0.76 at 1.0: an outlier within a few noise
+    levels of the surface looks like a sample)."""
     c = shapes.sphere(8000, sampling="poisson", seed=1)
     h = np.sqrt(4 * np.pi / 8000)
     p = c.points + np.random.default_rng(0).normal(scale=noise * h, size=c.points.shape)
     q = np.random.default_rng(1).uniform(-1, 1, (80, 3))
     r = clean(np.vstack([p, q]))
     assert r.keep_mask[:-80].mean() >= 0.999
-    far = np.abs(np.linalg.norm(q, axis=1) - 1) > 3 * h
-    assert (~r.keep_mask[-80:])[far].mean() >= (0.95 if noise < 1 else 0.7)  # measured 0.98-1.0; 0.76 at 1.0
+    d = np.abs(np.linalg.norm(q, axis=1) - 1) / h
+    caught = ~r.keep_mask[-80:]
+    near_floor, far_floor = NOISY_FLOORS[noise]
+    assert caught[d > 1].mean() >= near_floor and caught[d > 3].mean() >= far_floor
+
+
+def _separated(p, spacing, m, seed):
+    """``m`` samples at least 6 local spacings apart, in a seeded random order."""
+    chosen = []
+    for i in np.random.default_rng(seed).permutation(len(p)):
+        if all(np.linalg.norm(p[i] - p[j]) > 6 * spacing[i] for j in chosen):
+            chosen.append(i)
+            if len(chosen) == m:
+                break
+    return np.array(chosen)
+
+
+@pytest.mark.parametrize("sampling", ["poisson", "variable", "random"])
+def test_single_outliers_a_fraction_of_a_spacing_off_the_surface(sampling):
+    """Exact answers: 40 stray points, each alone, a given number of local spacings (mean distance
+    to the 3 nearest samples) off a noise-free torus along the normal, alternately out and in.
+    From 0.3 spacings on every one is caught by the leave-one-out fit on the Poisson and
+    variable-density tori (measured: 34/34 and 35/35 from 0.3 to 2 spacings; 10 and 22 at 0.2,
+    none at 0.1: the threshold is 0.2 spacings), on the random sphere (clumpy) 31/40 at 0.3,
+    38/40 at 0.5, all from 1; and no sample is removed. (4 spacings inwards, the stray points
+    of the 2000-point torus gather near the axis of its tube and shield each other: 26/34.)"""
+    from scipy.spatial import cKDTree
+
+    c = shapes.sphere(2000, sampling="random", seed=1) if sampling == "random" else shapes.torus(2000, sampling=sampling, seed=3)
+    p, nrm = c.points, c.normals
+    spacing = cKDTree(p).query(p, 4)[0][:, 1:].mean(axis=1)
+    idx = _separated(p, spacing, 40, 0)
+    sign = np.where(np.arange(len(idx)) % 2, 1.0, -1.0)
+    assert remove_outliers(p).n_removed == 0
+    random = sampling == "random"
+    for d, floor in ((0.3, 0.75 if random else 1.0), (0.5, 0.95 if random else 1.0), (2.0, 1.0)):
+        q = p[idx] + (d * spacing[idx] * sign)[:, None] * nrm[idx]
+        r = remove_outliers(np.vstack([p, q]))
+        assert r.keep_mask[: len(p)].all(), d
+        assert (~r.keep_mask[len(p) :]).mean() >= floor, (d, (~r.keep_mask[len(p) :]).mean())
+    q = p[idx] + (0.1 * spacing[idx] * sign)[:, None] * nrm[idx]  # below the threshold: kept
+    assert remove_outliers(np.vstack([p, q])).keep_mask.all()
+    with pytest.raises(ValueError, match="fit_offset must be a finite positive number"):
+        remove_outliers(p, fit_offset=-0.1)
+    assert remove_outliers(np.vstack([p, p[idx] + (spacing[idx])[:, None] * nrm[idx]]), fit_offset=None).n_removed < 40
+
+
+def test_thin_plate_keeps_both_sheets():
+    """Two sheets two spacings apart (a thin part): no sample is removed, and a stray point midway,
+    one spacing from both, is not caught (documented limitation: its neighbours lie on both
+    sheets, so no surface fits them)."""
+    g = np.linspace(0, 1, 40)
+    x, y = np.meshgrid(g, g)
+    h = g[1]
+    top = np.c_[x.ravel(), y.ravel(), np.full(x.size, 2 * h)]
+    bottom = np.c_[x.ravel() + h / 2, y.ravel() + h / 2, np.zeros(x.size)]
+    p = np.vstack([top, bottom])
+    p[:, :2] += np.random.default_rng(1).uniform(-0.2, 0.2, (len(p), 2)) * h
+    assert remove_outliers(p).n_removed == 0
+    q = np.c_[np.random.default_rng(2).uniform(0.2, 0.8, (10, 2)), np.full(10, h)]
+    r = remove_outliers(np.vstack([p, q]))
+    assert r.keep_mask[: len(p)].all()
 
 
 def test_far_outliers_of_a_dense_cloud_are_caught():
@@ -210,9 +290,20 @@ def test_far_outliers_of_a_dense_cloud_are_caught():
 if __name__ == "__main__":  # the table behind MODEL_LIMITS: python tests/test_cleaning.py
     import sys
 
+    from scipy.spatial import cKDTree
+
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
     from normals import MODELS, SCANS, mesh_reference  # benchmarks/normals.py
 
+    try:  # exact distance to the mesh, when libigl is installed (else: to the nearest vertex)
+        import igl
+
+        from manifold_sph.scans.io import read_mesh
+    except ImportError:
+        igl = None
+    bins = (0, 0.25, 0.5, 1, 2, np.inf)
+    print("outliers caught by distance to the surface in local spacings (mean distance of the nearest vertex "
+          "to its 3 nearest): " + ", ".join(f"[{a:g}, {b:g})" for a, b in zip(bins[:-1], bins[1:])))
     for path in MODELS + SCANS:
         if not path.is_file():
             continue
@@ -220,13 +311,14 @@ if __name__ == "__main__":  # the table behind MODEL_LIMITS: python tests/test_c
         r = clean(p)
         q, m = _inject(p)
         caught = ~clean(q).keep_mask[-m:]
-        # outliers farther from the vertices than one neighbourhood radius (the nearest vertex's
-        # mean distance to its 16 neighbours)
-        from scipy.spatial import cKDTree
-
+        far = _beyond_one_radius(p, q[-m:])
         tree = cKDTree(p)
         d, j = tree.query(q[-m:])
-        radius = tree.query(p[j], 17)[0][:, 1:].mean(axis=1)
-        far = d > radius
+        if igl is not None:
+            V, F = read_mesh(str(path))
+            d = np.sqrt(igl.point_mesh_squared_distance(q[-m:], V.astype(float), F.astype(np.int64))[0])
+        d = d / tree.query(p[j], 4)[0][:, 1:].mean(axis=1)
+        by = " ".join(f"{int(caught[(d >= a) & (d < b)].sum())}/{int(((d >= a) & (d < b)).sum())}" for a, b in zip(bins[:-1], bins[1:]))
         print(f"{path.stem:15s} {len(p):7d} points  removed {100 * r.n_removed / len(p):.3f} %  outliers caught "
-              f"{100 * caught.mean():5.1f} % of {m}, {100 * caught[far].mean():5.1f} % of the {int(far.sum())} beyond one neighbourhood radius")
+              f"{100 * caught.mean():5.1f} % of {m}, {100 * caught[far].mean():5.1f} % of the {int(far.sum())} beyond one "
+              f"neighbourhood radius; by distance {by}")
