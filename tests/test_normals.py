@@ -399,7 +399,7 @@ def _lap_error(cloud):
     return operator_errors(cloud, "xyz", ["msph4"])[0]["lap_l2"]
 
 
-@pytest.mark.parametrize("name, min_flagged, max_false", [("cow.obj", 0.85, 0.24), ("teapot.obj", 0.58, 0.24)])
+@pytest.mark.parametrize("name, min_flagged, max_false", [("cow.obj", 0.83, 0.23), ("teapot.obj", 0.53, 0.26)])
 def test_confidence_flags_doubtful_particles_on_a_model(name, min_flagged, max_false):
     """Normals more than 30 degrees off or pointing inward get a confidence below 0.5."""
     P, ref = _mesh_reference(name)
@@ -410,7 +410,9 @@ def test_confidence_flags_doubtful_particles_on_a_model(name, min_flagged, max_f
     # 0.31 and 0.08 of the doubtful normals were flagged: thin parts looked confident). The
     # consensus of step 7 repairs flagged normals only and leaves them flagged: the same 28 and
     # 269 doubtful normals are missed as before it (then 0.92 / 0.18 and 0.69 / 0.15 of 351 and
-    # 871 doubtful; now of 253 and 697)
+    # 871 doubtful; then of 253 and 697). With the row normals of step 2b (module notes) the
+    # teapot has 158 doubtful normals (its lip and meridian rows repaired), of which 0.56 are
+    # flagged (69 missed), and 0.24 of the others; the cow 0.86 and 0.20 of 229 (32 missed)
     assert flagged >= min_flagged and false <= max_false, (flagged, false)
 
 

@@ -175,6 +175,8 @@ _CONSENSUS_K = 12  # neighbours (itself included) whose reflected normals vote
 _CONSENSUS_PRIOR = 0.05  # bonus of the current normal (of a mean |cos| in [0, 1])
 _CONSENSUS_ROUNDS = 5
 _CALIBRATE = True
+_ROW_K = 32  # step 2b: neighbours searched for points steeply above and below the fitted plane
+_ROW_STEEP = 2  # at least this many on each side
 _JET_WEIGHT = 4.0  # base jet fits weigh neighbour j by exp(-a (r_j / r_k)^2), r_k the farthest (measured)
 
 
@@ -437,6 +439,55 @@ def _consensus(pts, neighbors, normals, fixed=None):
     vote = np.einsum("rkj,rj->r", _reflected(pts, rows, nb, n[nb]) * w[..., None], n[rows])
     n[rows] *= np.where(vote < 0, -1.0, 1.0)[:, None]
     return n, agree
+
+
+def _steep(pts, neighbors, normals, rows=None):
+    """Counts of the neighbours more than 45 degrees above and below the tangent plane of ``normals``."""
+    rows = np.arange(pts.shape[0]) if rows is None else rows
+    L = pts[neighbors[rows]] - pts[rows][:, None, :]
+    z = np.einsum("nki,ni->nk", L, normals[rows])
+    rho2 = np.einsum("nki,nki->nk", L, L) - z * z
+    steep = z * z > np.maximum(rho2, 0.0)
+    return (steep & (z > 0)).sum(axis=1), (steep & (z < 0)).sum(axis=1), L, z, steep
+
+
+def _rows_across(pts, neighbors, normals):
+    """Step 2b: normals of particles whose tangent plane cuts through the cloud (module notes).
+
+    A fitted plane through a particle normally has the nearby points of the surface close
+    to it (heights of order ``kappa r^2``); points far above AND below it (more than 45
+    degrees, at least ``_ROW_STEEP`` on each side among the ``_ROW_K`` nearest) mean the
+    fit saw one row of a cloud sampled along planar curves (the meridian rows of a
+    surface of revolution, scan lines) and returned the plane of the row. The candidate
+    normal is perpendicular to the row (the line to the nearest neighbour) and to the
+    direction to the nearest steep point on each side (the adjacent rows); it replaces the
+    fit where it at least halves the smaller of the two steep counts.
+    Returns the normals and the mask of replaced ones.
+    """
+    N = pts.shape[0]
+    up, down, L, z, steep = _steep(pts, neighbors, normals)
+    rows = np.flatnonzero((up >= _ROW_STEEP) & (down >= _ROW_STEEP))
+    changed = np.zeros(N, dtype=bool)
+    if rows.size == 0:
+        return normals, changed
+    L, z, steep = L[rows], z[rows], steep[rows]
+    r2 = np.einsum("nki,nki->nk", L, L)
+    r = np.arange(rows.size)
+    e_up = L[r, np.where(steep & (z > 0), r2, np.inf).argmin(axis=1)]
+    e_dn = L[r, np.where(steep & (z < 0), r2, np.inf).argmin(axis=1)]
+    t = L[r, np.where(r2 > 0, r2, np.inf).argmin(axis=1)]  # the nearest neighbour: along the row
+    c1, c2 = _unit(np.cross(t, e_up)), _unit(np.cross(t, e_dn))
+    cand = _unit(c1 + c2 * np.where(np.einsum("ij,ij->i", c1, c2) < 0, -1.0, 1.0)[:, None])
+    ok = np.all(np.isfinite(cand), axis=1) & (np.linalg.norm(cand, axis=1) > 0.5)
+    trial = normals.copy()
+    trial[rows[ok]] = cand[ok]
+    cu, cd, *_ = _steep(pts, neighbors, trial, rows)
+    before = np.minimum(up[rows], down[rows])
+    accept = ok & (np.minimum(cu, cd) <= before // 2)
+    out = normals.copy()
+    out[rows[accept]] = cand[accept]
+    changed[rows[accept]] = True
+    return out, changed
 
 
 def _pca_rows(pts, neighbors):
@@ -984,7 +1035,7 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: str | A
         k = _check_k(k, N, degree)
     orient = _check_orient(orient)
     consensus = method == "jet" and bool(refine) and not (isinstance(orient, str) and orient == "none")
-    k_consensus = max(kc for kc, _ in _CONSENSUS_CANDIDATES) if consensus else 0
+    k_consensus = max(max(kc for kc, _ in _CONSENSUS_CANDIDATES), _ROW_K) if consensus else 0
     dist, idx = _knn(pts, min(max(k, _ORIENT_K, _SCALE_K[-1] if return_confidence else 0, k_consensus), N))
     refine = bool(refine) and not (isinstance(orient, str) and orient == "none")
     if method == "pca":
@@ -998,17 +1049,26 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: str | A
         base_res = np.zeros(N)
         base_w = _distance_weights(pts, idx[:, :kb]) if _JET_WEIGHT and weighted else None
         nrm = _jet_fit(pts, idx[:, :kb], v[:, :, 0], base_deg, weights=base_w, residual=base_res)
+        across = np.zeros(N, dtype=bool)
+        if refine and _ROW_STEEP and idx.shape[1] >= _ROW_K:
+            nrm, across = _rows_across(pts, idx[:, :_ROW_K], nrm)
     conf = _shape_confidence(w)
     before = None
     nrm, _, oconf = _orient(pts, nrm, idx, dist, orient)
     if method == "jet":
-        if refine:
-            nrm = _refit(pts, idx[:, :kb], nrm, base_deg, residual=base_res, weights=base_w)
+        if refine:  # the normals of step 2b are kept (their neighbours lie on their own row)
+            nrm = np.where(across[:, None], nrm, _refit(pts, idx[:, :kb], nrm, base_deg, residual=base_res, weights=base_w))
         one_sided = None
         if degree > 2:
-            nrm, one_sided = _high_order(pts, idx[:, :k], nrm, base_res, degree, refine)
+            hi, one_sided = _high_order(pts, idx[:, :k], nrm, base_res, degree, refine)
+            nrm = np.where(across[:, None], nrm, hi)
         if consensus:
             nrm, before = _consensus(pts, idx, nrm, one_sided)
     if not return_confidence:
         return nrm
-    return nrm, conf * oconf * _scale_confidence(pts, idx, nrm, before)
+    scale = _scale_confidence(pts, idx, nrm, before)
+    if method == "jet" and across.any():  # step 2b: the row normals disagree with the nearest points'
+        rows = np.flatnonzero(across)  # fits by construction; trusted where no point lies steeply on both sides
+        up, down, *_ = _steep(pts, idx[:, :_ROW_K], nrm, rows)
+        scale[rows[np.minimum(up, down) == 0]] = 1.0
+    return nrm, conf * oconf * scale
