@@ -177,6 +177,9 @@ _CONSENSUS_ROUNDS = 5
 _CALIBRATE = True
 _ROW_K = 32  # step 2b: neighbours searched for points steeply above and below the fitted plane
 _ROW_STEEP = 2  # at least this many on each side
+_ROW_TAN = 1.0  # steep: height above the plane over the distance along it (1: 45 degrees)
+_ROW_LINE = 0.02  # particles whose 10 nearest have a middle PCA eigenvalue below this fraction of the largest
+_ROW_K_LINE = 96  # (on a line) are tested with this many
 _JET_WEIGHT = 4.0  # base jet fits weigh neighbour j by exp(-a (r_j / r_k)^2), r_k the farthest (measured)
 
 
@@ -442,35 +445,39 @@ def _consensus(pts, neighbors, normals, fixed=None):
 
 
 def _steep(pts, neighbors, normals, rows=None):
-    """Counts of the neighbours more than 45 degrees above and below the tangent plane of ``normals``."""
+    """Counts of the neighbours more than 45 degrees above and below the tangent plane of ``normals``.
+
+    ``neighbors``: (R, K) neighbour lists of ``rows`` (all particles when None)."""
     rows = np.arange(pts.shape[0]) if rows is None else rows
-    L = pts[neighbors[rows]] - pts[rows][:, None, :]
+    L = pts[neighbors] - pts[rows][:, None, :]
     z = np.einsum("nki,ni->nk", L, normals[rows])
     rho2 = np.einsum("nki,nki->nk", L, L) - z * z
-    steep = z * z > np.maximum(rho2, 0.0)
+    steep = z * z > _ROW_TAN**2 * np.maximum(rho2, 0.0)
     return (steep & (z > 0)).sum(axis=1), (steep & (z < 0)).sum(axis=1), L, z, steep
 
 
-def _rows_across(pts, neighbors, normals):
+def _rows_across(pts, neighbors, normals, rows=None):
     """Step 2b: normals of particles whose tangent plane cuts through the cloud (module notes).
 
     A fitted plane through a particle normally has the nearby points of the surface close
     to it (heights of order ``kappa r^2``); points far above AND below it (more than 45
-    degrees, at least ``_ROW_STEEP`` on each side among the ``_ROW_K`` nearest) mean the
-    fit saw one row of a cloud sampled along planar curves (the meridian rows of a
-    surface of revolution, scan lines) and returned the plane of the row. The candidate
-    normal is perpendicular to the row (the line to the nearest neighbour) and to the
-    direction to the nearest steep point on each side (the adjacent rows); it replaces the
-    fit where it at least halves the smaller of the two steep counts.
-    Returns the normals and the mask of replaced ones.
+    degrees, at least ``_ROW_STEEP`` on each side among the neighbours) mean the fit saw one
+    row of a cloud sampled along planar curves (the meridian rows of a surface of
+    revolution, scan lines) and returned the plane of the row. The candidate normal is
+    perpendicular to the row (the line to the nearest neighbour) and to the direction to
+    the nearest steep point on each side (the adjacent rows); it replaces the fit where it
+    at least halves the smaller of the two steep counts. ``neighbors``: (R, K) lists of
+    ``rows`` (all particles when None). Returns the normals and the mask of replaced ones.
     """
     N = pts.shape[0]
-    up, down, L, z, steep = _steep(pts, neighbors, normals)
-    rows = np.flatnonzero((up >= _ROW_STEEP) & (down >= _ROW_STEEP))
+    rows = np.arange(N) if rows is None else rows
+    up, down, L, z, steep = _steep(pts, neighbors, normals, rows)
+    sel = np.flatnonzero((up >= _ROW_STEEP) & (down >= _ROW_STEEP))
     changed = np.zeros(N, dtype=bool)
-    if rows.size == 0:
+    if sel.size == 0:
         return normals, changed
-    L, z, steep = L[rows], z[rows], steep[rows]
+    L, z, steep, nb = L[sel], z[sel], steep[sel], neighbors[sel]
+    rows = rows[sel]
     r2 = np.einsum("nki,nki->nk", L, L)
     r = np.arange(rows.size)
     e_up = L[r, np.where(steep & (z > 0), r2, np.inf).argmin(axis=1)]
@@ -481,13 +488,27 @@ def _rows_across(pts, neighbors, normals):
     ok = np.all(np.isfinite(cand), axis=1) & (np.linalg.norm(cand, axis=1) > 0.5)
     trial = normals.copy()
     trial[rows[ok]] = cand[ok]
-    cu, cd, *_ = _steep(pts, neighbors, trial, rows)
-    before = np.minimum(up[rows], down[rows])
+    cu, cd, *_ = _steep(pts, nb, trial, rows)
+    before = np.minimum(up[sel], down[sel])
     accept = ok & (np.minimum(cu, cd) <= before // 2)
     out = normals.copy()
     out[rows[accept]] = cand[accept]
     changed[rows[accept]] = True
     return out, changed
+
+
+def _rows_step(pts, idx, normals, w, tree=None):
+    """Step 2b on every particle with its ``_ROW_K`` nearest, and on the particles whose 10 nearest
+    lie on a line (rows denser than that) with their ``_ROW_K_LINE`` nearest."""
+    N = pts.shape[0]
+    out, across = _rows_across(pts, idx[:, :_ROW_K], normals)
+    line = np.flatnonzero(~across & (w[:, 1] < _ROW_LINE * w[:, 2]))
+    if line.size and N > _ROW_K:
+        tree = cKDTree(pts) if tree is None else tree
+        nb = tree.query(pts[line], k=min(_ROW_K_LINE, N), workers=get_num_threads())[1]
+        out, more = _rows_across(pts, nb, out, line)
+        across |= more
+    return out, across
 
 
 def _pca_rows(pts, neighbors):
@@ -1051,7 +1072,7 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: str | A
         nrm = _jet_fit(pts, idx[:, :kb], v[:, :, 0], base_deg, weights=base_w, residual=base_res)
         across = np.zeros(N, dtype=bool)
         if refine and _ROW_STEEP and idx.shape[1] >= _ROW_K:
-            nrm, across = _rows_across(pts, idx[:, :_ROW_K], nrm)
+            nrm, across = _rows_step(pts, idx, nrm, w)
     conf = _shape_confidence(w)
     before = None
     nrm, _, oconf = _orient(pts, nrm, idx, dist, orient)
@@ -1069,6 +1090,6 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: str | A
     scale = _scale_confidence(pts, idx, nrm, before)
     if method == "jet" and across.any():  # step 2b: the row normals disagree with the nearest points'
         rows = np.flatnonzero(across)  # fits by construction; trusted where no point lies steeply on both sides
-        up, down, *_ = _steep(pts, idx[:, :_ROW_K], nrm, rows)
+        up, down, *_ = _steep(pts, idx[rows, :_ROW_K], nrm, rows)
         scale[rows[np.minimum(up, down) == 0]] = 1.0
     return nrm, conf * oconf * scale
