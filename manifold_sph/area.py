@@ -38,17 +38,29 @@ def kernel_values(nb: Neighborhood, xy: np.ndarray | PairOffsets, kernel: Kernel
     ``xy`` is the (P, 2) array of pair offsets or a :class:`manifold_sph.frames.PairOffsets`
     (projected chunk by chunk, never whole).
     """
+    return _kernel_values(nb, xy, kernel)[0]
+
+
+def _kernel_values(nb, xy, kernel, near_columns=None):
+    """:func:`kernel_values`, and with ``near_columns`` (the (P,) columns, or None for ``nb.indices``:
+    pass ``False`` for neither) also :func:`near_duplicate_pairs` from the same projected offsets
+    (one projection pass instead of two): ``(vals, close or None)``."""
     n = nb.n_rows
     vals = np.empty(xy.shape[0])
     a = kernel.alpha(2)
     starts = list(range(0, n, _ROWS))
     compiled = _jit.ENABLED and type(kernel) is QuinticSpline
+    near = near_columns is not False
+    cols = (nb.indices if near_columns is None else np.asarray(near_columns)) if near else None
+    found = [None] * len(starts)
 
     def chunk(c):  # rows lo:hi, disjoint slices of ``vals``
         lo = starts[c]
         hi = min(lo + _ROWS, n)
         p0, p1 = nb.indptr[lo], nb.indptr[hi]
         xc = offsets_of_rows(xy, nb.indptr, lo, hi)
+        if near:
+            found[c] = _near_in_rows(nb, xc, cols, lo, hi, MERGE_TOL)
         if compiled:
             _jit.quintic_values(0, hi - lo, nb.indptr[lo : hi + 1] - p0, xc, nb.h[lo:hi], a, vals[p0:p1])
             return
@@ -57,7 +69,21 @@ def kernel_values(nb: Neighborhood, xy: np.ndarray | PairOffsets, kernel: Kernel
         vals[p0:p1] = kernel.profile(np.sqrt(x * x + y * y) / h) * (a / (h * h))
 
     run_chunks(chunk, len(starts))
-    return vals
+    if not near:
+        return vals, None
+    return vals, (np.concatenate(found) if found else np.zeros(0, dtype=np.int64))
+
+
+def _near_in_rows(nb, xc, cols, lo, hi, tol):
+    """Positions of the pairs ``i != j`` of rows ``lo:hi`` (offsets ``xc``) closer than ``tol h_i``."""
+    p0, p1 = nb.indptr[lo], nb.indptr[hi]
+    if _jit.ENABLED:
+        close = np.empty(p1 - p0, dtype=np.uint8)
+        _jit.near_pairs(0, hi - lo, nb.indptr[lo : hi + 1] - p0, xc, nb.h[lo:hi], cols[p0:p1], lo, tol, close)
+    else:
+        rows = np.repeat(np.arange(lo, hi), np.diff(nb.indptr[lo : hi + 1]))
+        close = (np.hypot(xc[:, 0], xc[:, 1]) < tol * nb.h[rows]) & (cols[p0:p1] != rows)
+    return p0 + np.flatnonzero(close)
 
 
 def near_duplicate_pairs(
@@ -70,15 +96,7 @@ def near_duplicate_pairs(
     found = []
     for lo in range(0, n, _ROWS):
         hi = min(lo + _ROWS, n)
-        p0, p1 = nb.indptr[lo], nb.indptr[hi]
-        xc = offsets_of_rows(xy, nb.indptr, lo, hi)
-        if _jit.ENABLED:
-            close = np.empty(p1 - p0, dtype=np.uint8)
-            _jit.near_pairs(0, hi - lo, nb.indptr[lo : hi + 1] - p0, xc, nb.h[lo:hi], cols[p0:p1], lo, tol, close)
-        else:
-            rows = np.repeat(np.arange(lo, hi), np.diff(nb.indptr[lo : hi + 1]))
-            close = (np.hypot(xc[:, 0], xc[:, 1]) < tol * nb.h[rows]) & (cols[p0:p1] != rows)
-        found.append(p0 + np.flatnonzero(close))
+        found.append(_near_in_rows(nb, offsets_of_rows(xy, nb.indptr, lo, hi), cols, lo, hi, tol))
     return np.concatenate(found) if found else np.zeros(0, dtype=np.int64)
 
 
@@ -90,12 +108,16 @@ def kernel_matrix(
     n_cols: int | None = None,
     *,
     _share: bool = False,
+    _near: list | None = None,
 ) -> sp.csr_matrix:
     """Sparse matrix of kernel values ``W_ij = W_{h_i}(x_ij)`` (d = 2) on the neighbour pairs.
 
     ``columns`` (P,) maps pairs to matrix columns (ghosts to their owners; duplicates are summed).
+    ``_near`` (internal): a list that receives :func:`near_duplicate_pairs`, found in the same pass.
     """
-    vals = kernel_values(nb, xy, kernel)
+    vals, close = _kernel_values(nb, xy, kernel, columns if _near is not None else False)
+    if _near is not None:
+        _near.append(close)
     n = nb.n_rows
     shape = (n, n if n_cols is None else n_cols)
     if columns is None:  # ``_share``: the matrix may use the neighbourhood's index arrays (internal use)
@@ -178,13 +200,14 @@ def area_elements(
     """
     n = nb.n_rows
     check_area_method(method, total_area)
-    A = kernel_matrix(nb, xy, kernel, columns=columns, n_cols=n, _share=True)  # A never leaves this function
+    near = [] if method == "numerical" else None  # the near-duplicate pairs found in the kernel values' pass
+    A = kernel_matrix(nb, xy, kernel, columns=columns, n_cols=n, _share=True, _near=near)  # A never leaves this function
     if method == "geometric":
         dV = np.full(n, float(total_area) / n)
     elif method == "shepard":
         dV = 1.0 / np.asarray(A.sum(axis=1)).ravel()
     else:
-        return _numerical(A, nb, xy, columns)
+        return _numerical(A, nb, xy, columns, close=near[0])
     residual = float(np.abs(A @ dV - 1.0).max())
     return AreaElements(dV=dV, method=method, n_negative=int((dV < 0).sum()), residual=residual)
 
@@ -221,11 +244,14 @@ def _as_csr(A) -> sp.csr_matrix:
     return A.csr() if isinstance(A, _Merged) else A
 
 
-def _numerical(A: sp.csr_matrix, nb: Neighborhood, xy: np.ndarray | PairOffsets, columns: np.ndarray | None) -> AreaElements:
-    """Solve ``A dV = 1``, near-duplicates merged into one unknown; Shepard if the solve fails."""
+def _numerical(A: sp.csr_matrix, nb: Neighborhood, xy: np.ndarray | PairOffsets, columns: np.ndarray | None,
+               close: np.ndarray | None = None) -> AreaElements:
+    """Solve ``A dV = 1``, near-duplicates merged into one unknown; Shepard if the solve fails.
+    ``close``: :func:`near_duplicate_pairs` when already found."""
     n = A.shape[0]
     cols = nb.indices if columns is None else np.asarray(columns)
-    close = near_duplicate_pairs(nb, xy, columns)
+    if close is None:
+        close = near_duplicate_pairs(nb, xy, columns)
     n_merged = 0
     if close.size:  # near-duplicates make the system (nearly) singular: one unknown per group
         from scipy.sparse.csgraph import connected_components
