@@ -251,7 +251,7 @@ MODELS = Path(__file__).resolve().parents[2] / "shared" / "data" / "models"
 
 def _mesh_reference(name):
     """Welded vertices, area-weighted vertex normals, mesh-boundary vertices (edges in one face),
-    and which of those are geometrically free (see :func:`_embedded`)."""
+    and which of those are geometrically free and open (see :func:`_boundary_kinds`)."""
     path = MODELS / f"{name}.obj"
     if not path.is_file():
         pytest.skip(f"{path} not found (the models live outside the repository)")
@@ -269,15 +269,48 @@ def _mesh_reference(name):
     ue, cnt = np.unique(e, axis=0, return_counts=True)
     ref = np.zeros(len(p), bool)
     ref[ue[cnt == 1].ravel()] = True
-    free = ref & ~_embedded(p, f, ue, ref)
-    return p, mesh_vertex_normals(p, f), ref, free
+    free, open_ = _boundary_kinds(p, f, ue, ref)
+    return p, mesh_vertex_normals(p, f), ref, free, open_
 
 
-def _embedded(p, f, edges, ref, rings=3):
-    """Mesh-boundary vertices inside another part of the surface: the generalised winding number of
-    the faces more than ``rings`` edges away exceeds 0.95 there (the teapot's handle ends and spout
-    base: 1.07-1.13; its lid and body rims 0.56-0.80 and spout tip 0.74; the beetle's loops, an
-    open surface, below 0.4). Such a mesh boundary is no geometric boundary of the point cloud."""
+def _point_triangle_distance(q, a, b, c):
+    """Distance from the point q to each triangle (a, b, c) (rows), vectorised (Ericson, Real-Time
+    Collision Detection 5.1.5)."""
+    ab, ac, ap = b - a, c - a, q - a
+    bp, cp = q - b, q - c
+    dot = lambda x, y: np.einsum("ij,ij->i", x, y)  # noqa: E731
+    d1, d2, d3, d4, d5, d6 = dot(ab, ap), dot(ac, ap), dot(ab, bp), dot(ac, bp), dot(ab, cp), dot(ac, cp)
+    va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t_ab = d1 / (d1 - d3)
+        t_ac = d2 / (d2 - d6)
+        t_bc = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        den = va + vb + vc
+        v, w = vb / den, vc / den
+    inner = a + ab * v[:, None] + ac * w[:, None]
+    conds = [
+        (d1 <= 0) & (d2 <= 0),
+        (d3 >= 0) & (d4 <= d3),
+        (d6 >= 0) & (d5 <= d6),
+        (vc <= 0) & (d1 >= 0) & (d3 <= 0),
+        (vb <= 0) & (d2 >= 0) & (d6 <= 0),
+        (va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0),
+    ]
+    choices = [a, b, c, a + ab * t_ab[:, None], a + ac * t_ac[:, None], b + (c - b) * t_bc[:, None]]
+    closest = inner.copy()
+    for cond, choice in zip(reversed(conds), reversed(choices)):  # the first condition wins
+        closest[cond] = choice[cond]
+    return np.linalg.norm(q - closest, axis=1)
+
+
+def _boundary_kinds(p, f, edges, ref, rings=3, inside=0.95, narrow=0.75):
+    """Which mesh-boundary vertices the point cloud can show as boundary. The rest of the mesh, seen
+    from a boundary vertex, is its faces more than ``rings`` edges away. *Free*: the generalised
+    winding number of the rest is below ``inside`` there (the teapot's handle ends and spout base
+    end inside its body: 1.07-1.13; its rims and spout tip 0.56-0.80; an open surface such as the
+    beetle's or a plane's, below 0.4). *Open*: free, and the rest lies farther than ``narrow`` mean
+    edge lengths (a narrow slit, a rim resting on another, closes at the cloud's resolution: the
+    alligator's outline has notches 0.35-0.6 edges wide)."""
     import scipy.sparse as sp
 
     n = len(p)
@@ -286,50 +319,76 @@ def _embedded(p, f, edges, ref, rings=3):
     R = A
     for _ in range(rings - 1):
         R = ((R @ A) > 0).astype(np.int32)
+    length = np.linalg.norm(p[edges[:, 0]] - p[edges[:, 1]], axis=1)
+    mean_edge = np.bincount(edges.ravel(), np.repeat(length, 2), n) / np.maximum(np.bincount(edges.ravel(), minlength=n), 1)
     vs = np.flatnonzero(ref)
-    near = R[vs].toarray().astype(bool)  # (boundary vertices, n)
-    out = np.zeros(n, bool)
-    for row, v in enumerate(vs):
-        g = f[~near[row][f].any(axis=1)]
-        a, b, c = (p[g[:, i]] - p[v] for i in range(3))
-        la, lb, lc = (np.linalg.norm(x, axis=1) for x in (a, b, c))
-        num = np.einsum("ij,ij->i", a, np.cross(b, c))
-        den = la * lb * lc + np.einsum("ij,ij->i", a, b) * lc + np.einsum("ij,ij->i", b, c) * la + np.einsum("ij,ij->i", c, a) * lb
-        out[v] = abs(np.arctan2(num, den).sum() / (2 * np.pi)) > 0.95
-    return out
+    free = np.zeros(n, bool)
+    open_ = np.zeros(n, bool)
+    tri = p[f]  # (faces, 3 corners, 3)
+    for s0 in range(0, len(vs), 32):  # 32 boundary vertices against all faces at a time
+        v = vs[s0 : s0 + 32]
+        far = ~R[v].toarray().astype(bool)[:, f].any(axis=2)  # (32, faces): the rest of the mesh
+        a, b, c = (tri[None, :, i, :] - p[v][:, None, :] for i in range(3))
+        la, lb, lc = (np.linalg.norm(x, axis=2) for x in (a, b, c))
+        dot = lambda x, y: np.einsum("vfi,vfi->vf", x, y)  # noqa: E731
+        num = dot(a, np.cross(b, c))
+        den = la * lb * lc + dot(a, b) * lc + dot(b, c) * la + dot(c, a) * lb
+        winding = np.where(far, np.arctan2(num, den), 0.0).sum(axis=1) / (2 * np.pi)
+        free[v] = np.abs(winding) < inside
+    # distance to the rest of the mesh, over the faces whose centroid lies close enough to matter
+    from scipy.spatial import cKDTree
+
+    centroid = tri.mean(axis=1)
+    reach = np.linalg.norm(tri - centroid[:, None, :], axis=2).max()
+    lists = cKDTree(centroid).query_ball_point(p[vs], narrow * mean_edge[vs] + reach)
+    row = np.repeat(np.arange(len(vs)), [len(x) for x in lists])
+    face = np.concatenate([np.asarray(x, dtype=np.int64) for x in lists]) if len(row) else np.zeros(0, np.int64)
+    far = ~(R[vs].toarray().astype(bool)[row[:, None], f[face]].any(axis=1))
+    q = p[vs][row]
+    dist = _point_triangle_distance(q, tri[face, 0], tri[face, 1], tri[face, 2])
+    nearest = np.full(len(vs), np.inf)
+    np.minimum.at(nearest, row[far], dist[far])
+    open_[vs] = free[vs] & (nearest > narrow * mean_edge[vs])
+    return free, open_
 
 
-def _scores(p, rep, ref, free):
-    """Recall on the mesh boundary and on its free part, false-positive share, and the share of the
-    false positives within 2 local spacings (mean distance to the 6 nearest) of a mesh-boundary vertex."""
+def _scores(p, rep, ref, free, open_):
+    """Recall on the mesh boundary, on its free and on its open part, false-positive share, and the
+    share of the false positives within 2 local spacings (mean distance to the 6 nearest) of a
+    mesh-boundary vertex."""
     from scipy.spatial import cKDTree
 
     fp = rep.mask & ~ref
     spacing = cKDTree(p).query(p[fp], 7)[0][:, 1:].mean(axis=1)
     near = (cKDTree(p[ref]).query(p[fp])[0] <= 2 * spacing).mean() if fp.any() else 1.0
-    return rep.mask[ref].mean(), rep.mask[free].mean(), fp.sum() / max(rep.n_boundary, 1), near
+    return rep.mask[ref].mean(), rep.mask[free].mean(), rep.mask[open_].mean(), fp.sum() / max(rep.n_boundary, 1), near
 
 
-# measured (recall on all mesh-boundary vertices / on the geometrically free ones, false-positive
-# share of the flagged particles, pieces; python tests/test_boundary.py prints them). Teapot: 160
-# boundary vertices in 6 loops; the handle's two ends and the spout's base (60) end inside the body,
-# 53 of them more than 0.95 inside by winding number: free are the lid's rim, the body's rim, the
-# spout's tip and 7 handle-end vertices (107). Mesh normals 0.79 / 0.78 / 0.24 in 6 pieces,
-# oriented=True 0.89 / 0.93 / 0.25 in 4, estimated normals 0.57 / 0.71 / 0.41 in 7 (before issue
-# 16: 0.67 / 0.49 in 9 with mesh normals). Beetle (301 boundary vertices,
-# all free, 23 loops, many of 2-10 vertices, in 1148): 0.53 / 0.53 / 0.48 in 3 pieces, estimated
-# 0.54 / 0.45. The targets (>= 0.9, <= 0.1) are NOT met: both meshes are strongly anisotropic
+# measured (recall on all mesh-boundary vertices / on the free ones / on the open ones (see
+# _boundary_kinds), false-positive share of the flagged particles, pieces; ``python
+# tests/test_boundary.py`` prints them). Teapot: 160 boundary vertices in 6 loops; the handle's two
+# ends and the spout's base end inside the body (53 of their 60 vertices by winding number): 107
+# free (the lid's rim, the body's rim, the spout's tip, 7 handle-end vertices), of which only 22 are
+# open (the body's rim and the lid's lie 0.5 edge lengths apart, the spout's tip curls back).
+# Mesh normals 0.79 / 0.78 / 0.82, 0.24 in 6 pieces; oriented=True 0.89 / 0.93 / 0.91, 0.25 in 4;
+# estimated normals 0.57 / 0.71 / 0.59, 0.39 in 5 (before issue 16: 0.67 / 0.49 in 9 with mesh
+# normals). Beetle (301 boundary vertices, all free, 272 open, 23 loops, many of 2-10 vertices, in
+# 1148): 0.53 / 0.53 / 0.55, 0.48 in 3 pieces; estimated 0.54 / 0.54 / 0.56, 0.45. Alligator
+# (planar, 433 boundary vertices, 373 open: 60 lie in notches of the outline narrower than 0.75
+# edges, which a cloud cannot show): 0.80 / 0.80 / 0.93, 0.025 in 1 piece. The targets (>= 0.9,
+# <= 0.1) are NOT met on the teapot and the beetle: both meshes are strongly anisotropic
 # (edge-length ratio per vertex: median 2.9 / 4.7, 99th percentile 17 / 43: a particle's nearest
 # neighbours lie on one meridian); the false positives lie next to the boundary (90 % of the
-# beetle's and 75 % of the teapot's within 2 local spacings of a mesh-boundary vertex: the beetle's
-# boundary is a quarter of its vertices, with the next row a fraction of a spacing inside) or on
-# the curled lip of the spout; the body's rim is covered by the lid's, 0.1 apart at a spacing of
-# 0.17, unless the normals are oriented; the beetle's loops of 2-10 vertices are smaller than a
-# neighbourhood. The alligator (planar) gives 0.80 / 0.03 in 1 piece.
-# (Estimated normals come from scans/normals.py, which is being reworked: looser floors.)
-BOUNDARY_FLOORS = {  # min recall (all, free), max false positives; with estimated normals
-    "teapot": ((0.75, 0.75, 0.3), (0.5, 0.6, 0.5)),
-    "beetle": ((0.5, 0.5, 0.52), (0.45, 0.45, 0.6)),
+# beetle's and 75 % of the teapot's within 2 local spacings of a mesh-boundary vertex: the
+# beetle's boundary is a quarter of its vertices, with the next row a fraction of a spacing
+# inside) or on the curled lip of the spout; the beetle's missed open boundary vertices have
+# neighbours all round (median gap 98 degrees: its panels lie 1-2 spacings apart, and its loops
+# of 2-10 vertices are smaller than a neighbourhood). (Estimated normals come from
+# scans/normals.py, which is being reworked: looser floors.)
+BOUNDARY_FLOORS = {  # min recall (all, free, open), max false positives; with mesh / estimated normals
+    "teapot": ((0.75, 0.75, 0.8, 0.3), (0.5, 0.6, 0.5, 0.5)),
+    "beetle": ((0.5, 0.5, 0.5, 0.52), (0.45, 0.45, 0.45, 0.6)),
+    "alligator": ((0.75, 0.75, 0.9, 0.05), (0.75, 0.75, 0.9, 0.05)),
 }
 
 
@@ -337,21 +396,22 @@ BOUNDARY_FLOORS = {  # min recall (all, free), max false positives; with estimat
 def test_mesh_boundaries_of_open_models(name):
     import warnings
 
-    p, n, ref, free = _mesh_reference(name)
-    for normals, (lo, lo_free, hi) in zip((n, None), BOUNDARY_FLOORS[name]):
+    p, n, ref, free, open_ = _mesh_reference(name)
+    for normals, (lo, lo_free, lo_open, hi) in zip((n, None), BOUNDARY_FLOORS[name]):
         with warnings.catch_warnings():
             warnings.simplefilter("error")  # no NaN RuntimeWarning (the beetle raised one)
             rep = detect_boundary(p, normals)
         assert np.all(np.isfinite(rep.gap)) and np.all(np.isfinite(rep.offset))
-        recall, recall_free, false_pos, near = _scores(p, rep, ref, free)
-        assert recall >= lo and recall_free >= lo_free and false_pos <= hi, (recall, recall_free, false_pos, rep.n_loops)
+        recall, recall_free, recall_open, false_pos, near = _scores(p, rep, ref, free, open_)
+        assert recall >= lo and recall_free >= lo_free and recall_open >= lo_open and false_pos <= hi, (
+            recall, recall_free, recall_open, false_pos, rep.n_loops)
         assert rep.n_loops <= 10
         if normals is not None:
-            assert near >= 0.7  # measured 0.75 (teapot), 0.90 (beetle)
+            assert near >= 0.7  # measured 0.75 (teapot), 0.90 (beetle), 1.0 (alligator)
     if name == "teapot":  # consistently oriented mesh normals separate the lid from the rim
-        assert free.sum() == 107  # most of the handle's ends and the spout's base lie inside the body
+        assert free.sum() == 107 and open_.sum() == 22  # the handle's ends and the spout's base lie inside the body
         rep = detect_boundary(p, n, oriented=True)
-        recall, recall_free, false_pos, _ = _scores(p, rep, ref, free)
+        recall, recall_free, _, false_pos, _ = _scores(p, rep, ref, free, open_)
         assert recall >= 0.85 and recall_free >= 0.9 and false_pos <= 0.3
 
 
@@ -393,11 +453,12 @@ if __name__ == "__main__":  # the numbers behind BOUNDARY_FLOORS: python tests/t
 
     for name in ("teapot", "beetle", "alligator"):
         with mock.patch.object(pytest, "skip", side_effect=SystemExit):
-            p, n, ref, free = _mesh_reference(name)
+            p, n, ref, free, open_ = _mesh_reference(name)
         for label, normals, kw in (("mesh normals", n, {}), ("mesh, oriented", n, {"oriented": True}), ("estimated", None, {})):
             rep = detect_boundary(p, normals, **kw)
-            recall, recall_free, fp, near = _scores(p, rep, ref, free)
-            print(f"{name:10s} {label:15s} recall {recall:.3f} (free {recall_free:.3f} of {int(free.sum())})  false positives "
+            recall, recall_free, recall_open, fp, near = _scores(p, rep, ref, free, open_)
+            print(f"{name:10s} {label:15s} recall {recall:.3f} (free {recall_free:.3f} of {int(free.sum())}, open "
+                  f"{recall_open:.3f} of {int(open_.sum())})  false positives "
                   f"{fp:.3f} ({100 * near:.0f} % of them within 2 spacings of the mesh boundary)  pieces {rep.n_loops} "
                   f"({rep.n_boundary} flagged, {int(ref.sum())} mesh boundary vertices)")
     for sampling in ("poisson", "random", "variable"):
