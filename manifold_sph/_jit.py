@@ -59,6 +59,7 @@ __all__ = [
     "grid_rows",
     "grid_scatter",
     "grid_sort",
+    "grid_sort_columns",
     "moment_rows",
     "msph_rows",
     "ncsph_rows",
@@ -156,9 +157,9 @@ def filter_fill(lo, hi, idx, keep, indptr, indices):
 @_jit
 def grid_sort(pts, lo, cell, ax_a, ax_b, ax_z, n_a, n_b, max_column, colptr, order):
     """Counting sort of the points by their column of cells (``ax_a``, ``ax_b``: cells of ``cell`` from
-    ``lo``), each column then sorted along ``ax_z`` (insertion sort, stable): ``order`` the sorted
-    point indices, ``colptr`` (n_a n_b + 1) the columns' bounds in it. Returns the largest column's
-    size; above ``max_column`` nothing is sorted."""
+    ``lo``): ``order`` the point indices column by column (each column in index order; sort them along
+    ``ax_z`` with :func:`grid_sort_columns`), ``colptr`` (n_a n_b + 1) the columns' bounds in it.
+    Returns the largest column's size; above ``max_column`` nothing is placed."""
     n = pts.shape[0]
     ncols = n_a * n_b
     col = np.empty(n, dtype=np.int64)
@@ -180,7 +181,13 @@ def grid_sort(pts, lo, cell, ax_a, ax_b, ax_z, n_a, n_b, max_column, colptr, ord
         c = col[i]
         order[pos[c]] = i
         pos[c] += 1
-    for c in range(ncols):
+    return biggest
+
+
+@_jit
+def grid_sort_columns(c0, c1, pts, ax_z, colptr, order):
+    """Sort the columns ``c0:c1`` of :func:`grid_sort` along ``ax_z`` (insertion sort, stable)."""
+    for c in range(c0, c1):
         first = colptr[c]
         for s in range(first + 1, colptr[c + 1]):
             i = order[s]
@@ -190,13 +197,13 @@ def grid_sort(pts, lo, cell, ax_a, ax_b, ax_z, n_a, n_b, max_column, colptr, ord
                 order[t] = order[t - 1]
                 t -= 1
             order[t] = i
-    return biggest
 
 
 @_jit
-def grid_gather(order, pts, normals, use_normals, lo, cell, ax_a, ax_b, ax_z, n_a, n_b, ps, ns, zs, ca, cb):
-    """The points, normals, sort coordinate and column coordinates in the sorted order of :func:`grid_sort`."""
-    for s in range(order.size):
+def grid_gather(s0, s1, order, pts, normals, use_normals, lo, cell, ax_a, ax_b, ax_z, n_a, n_b, ps, ns, zs, ca, cb):
+    """The points, normals, sort coordinate and column coordinates at the sorted positions ``s0:s1``
+    (the order of :func:`grid_sort`)."""
+    for s in range(s0, s1):
         i = order[s]
         for d in range(3):
             ps[s, d] = pts[i, d]

@@ -297,7 +297,7 @@ def _numerical(A: sp.csr_matrix, nb: Neighborhood, xy: np.ndarray | PairOffsets,
         dV = 1.0 / np.asarray(A.sum(axis=1)).ravel()
     if fell_back or close.size:  # merged groups: the residual of the full system
         residual = float(np.abs(A @ dV - 1.0).max())
-    release_freed_memory()  # the solver's copy of the matrix and its vectors, before the assembly's peak
+    release_freed_memory(n)  # the solver's copy of the matrix and its vectors, before the assembly's peak
     return AreaElements(dV=dV, method="numerical", n_negative=int((dV < 0).sum()), residual=residual,
                         n_merged=n_merged, fell_back=fell_back)
 

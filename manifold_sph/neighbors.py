@@ -352,13 +352,21 @@ GRID_MAX_COLUMN = 4096
 _GRID_ROWS = 8192
 
 
-def release_freed_memory() -> None:
+#: Builds of fewer points skip :func:`release_freed_memory`: at N = 131072 a call took 3-13 ms (two a
+#: build, serial) to return some 15-25 MB.
+TRIM_MIN_POINTS = 400_000
+
+
+def release_freed_memory(n_points: int | None = None) -> None:
     """Give the memory freed by a build step back to the system (glibc's ``malloc_trim``; nothing elsewhere).
 
     Buffers allocated and freed on worker threads stay in their threads' malloc arenas, resident: the
     grid search's chunk buffers and the area solve's vectors left 100-200 MB per million points
-    resident under the assembly's peak (measured with ``ru_maxrss``)."""
+    resident under the assembly's peak (measured with ``ru_maxrss``). ``n_points``: the build's size;
+    below :data:`TRIM_MIN_POINTS` nothing is done."""
     global _TRIM
+    if n_points is not None and n_points < TRIM_MIN_POINTS:
+        return
     if _TRIM is None:
         try:
             import ctypes
@@ -404,17 +412,25 @@ def _grid_search(pts, nr, radii, normal_threshold, workers, index_dtype):
     order = np.empty(n, dtype=np.int64)
     if _jit.grid_sort(pts, lo, cell, ax_a, ax_b, ax_z, n_a, n_b, GRID_MAX_COLUMN, colptr, order) > GRID_MAX_COLUMN:
         return None
+    # the columns' sorts along the third axis and the gather, in chunks on threads (the counting sort
+    # above is the only serial pass)
+    ncols = n_a * n_b
+    col_cuts = np.searchsorted(colptr, np.arange(0, n, _GRID_ROWS), side="right") - 1  # ~_GRID_ROWS points a chunk
+    col_cuts = np.unique(np.concatenate([[0], col_cuts, [ncols]]))
+    run_chunks(lambda c: _jit.grid_sort_columns(int(col_cuts[c]), int(col_cuts[c + 1]), pts, ax_z, colptr, order),
+               col_cuts.size - 1, workers)
     use = nr is not None
     ps = np.empty((n, 3))
     ns = np.empty((n, 3)) if use else np.zeros((1, 3))
     zs = np.empty(n)
     ca = np.empty(n, dtype=np.int64)
     cb = np.empty(n, dtype=np.int64)
-    _jit.grid_gather(order, pts, np.ascontiguousarray(nr) if use else ns, use, lo, cell, ax_a, ax_b, ax_z, n_a, n_b,
-                     ps, ns, zs, ca, cb)
+    nr_c = np.ascontiguousarray(nr) if use else ns
+    starts = list(range(0, n, _GRID_ROWS))
+    run_chunks(lambda c: _jit.grid_gather(starts[c], min(starts[c] + _GRID_ROWS, n), order, pts, nr_c, use, lo, cell,
+                                          ax_a, ax_b, ax_z, n_a, n_b, ps, ns, zs, ca, cb), len(starts), workers)
     counts = np.empty(n, dtype=np.int64)
     n_filtered = np.zeros(n, dtype=np.int64)
-    starts = list(range(0, n, _GRID_ROWS))
     found = [None] * len(starts)
     like = np.zeros(0, dtype=index_dtype if n < 2**31 - 1 else np.int64)  # the chunks' buffers: column indices
 
@@ -433,7 +449,7 @@ def _grid_search(pts, nr, radii, normal_threshold, workers, index_dtype):
     run_chunks(lambda c: _jit.grid_scatter(starts[c], min(starts[c] + _GRID_ROWS, n), order, found[c][0], found[c][1],
                                            indptr, indices), len(starts), workers)
     del found
-    release_freed_memory()
+    release_freed_memory(n)
     return indptr.astype(index_dtype), indices, int(n_filtered.sum())
 
 #: Rows per block of the neighbour query: its (rows, k) distance and index arrays are the largest
