@@ -175,6 +175,7 @@ _CONSENSUS_K = 12  # neighbours (itself included) whose reflected normals vote
 _CONSENSUS_PRIOR = 0.05  # bonus of the current normal (of a mean |cos| in [0, 1])
 _CONSENSUS_ROUNDS = 5
 _CALIBRATE = True
+_FLAG_S = 0.5  # probes with w_in + w_out below this (both outside: a flipped thin part) start patches (was -0.5)
 _ROW_K = 32  # step 2b: neighbours searched for points steeply above and below the fitted plane
 _ROW_STEEP = 2  # at least this many on each side
 _ROW_TAN = 1.0  # steep: height above the plane over the distance along it (1: 45 degrees)
@@ -847,7 +848,7 @@ def _outward(pts, nrm, neighbors, distances):
         D, S = wi - wo, wi + wo
         if rnd > 0 and np.all(sP > 0):
             break
-        bad = (D < 0) | (S < -0.5)
+        bad = (D < 0) | (S < _FLAG_S)
         near = cKDTree(pts[probes]).query(pts, k=1, workers=get_num_threads())[1] if probes.size < N else np.arange(N)
         flag = bad[near]
     # flat sheets: no winding-number evidence either way -> mean normal with a positive largest component
