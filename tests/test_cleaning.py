@@ -189,7 +189,7 @@ def _beyond_one_radius(p, q):
     return d > tree.query(p[j], 17)[0][:, 1:].mean(axis=1)
 
 
-NOISY_FLOORS = {0.0: (0.95, 0.95), 0.2: (0.95, 0.95), 0.5: (0.75, 0.95), 1.0: (0.5, 0.7)}
+NOISY_FLOORS = {0.2: (0.95, 0.95), 0.5: (0.75, 0.95), 1.0: (0.5, 0.7)}  # noise-free: see the tests below
 
 
 @pytest.mark.parametrize("noise", sorted(NOISY_FLOORS))
@@ -284,7 +284,7 @@ def test_far_outliers_of_a_dense_cloud_are_caught():
     far = np.abs(np.linalg.norm(q, axis=1) - 1.0) > 2 * spacing
     caught = ~r.keep_mask[-500:]
     assert (~r.keep_mask[:-500]).mean() <= 1e-3
-    assert caught[far].mean() >= 0.95, caught[far].mean()  # measured 0.978 (0.80 when only clumps of <= k points counted)
+    assert caught[far].mean() >= 0.95, caught[far].mean()  # measured 0.987 (0.978 before the fit test; 0.80 when only clumps of <= k points counted)
 
 
 if __name__ == "__main__":  # the table behind MODEL_LIMITS: python tests/test_cleaning.py
