@@ -417,6 +417,13 @@ SSOR_MAXITER = 60
 SSOR_STALL_WINDOW = 10
 
 
+#: The block-SSOR split stores its columns as int16 offsets from their row when none is farther than
+#: this (the matrix's bandwidth in the sweep order: about 10 sqrt(N) on a Fibonacci sphere), else int32.
+#: Measured at N = 131072 (Fibonacci, one thread, 16 paired runs): the solve 5 % faster than with int32,
+#: and 2 bytes an entry less memory.
+SSOR_NARROW_WIDTH = int(np.iinfo(np.int16).max)
+
+
 def _sweep_key(xy) -> np.ndarray | None:
     """The sweep order of :func:`bicgstab_ssor` as a sort key: the particles' coordinate along the axis
     of the cloud's largest extent; None (their own order) when they are already sorted along an axis
@@ -495,14 +502,16 @@ def bicgstab_ssor(A: sp.csr_matrix, b: np.ndarray, x0: np.ndarray, rtol: float, 
     diag = np.empty(n)
     if run(_jit.ssor_count, perm, iperm, indptr, indices, data, n_upper, n_rest, diag)[0] > 0:
         return np.array(x0, dtype=np.float64), -12
+    # the split's columns are stored as offsets from their row: int16 when the (permuted) matrix is that narrow
+    offset_dtype = np.int16 if partial[:, 1].max() <= SSOR_NARROW_WIDTH else np.int32
     ptr_u = np.zeros(n + 1, dtype=np.int64)
     np.cumsum(n_upper, out=ptr_u[1:])
     ptr_r = np.zeros(n + 1, dtype=np.int64)
     np.cumsum(n_rest, out=ptr_r[1:])
     del n_upper, n_rest
-    idx_u = np.empty(int(ptr_u[-1]), dtype=indices.dtype)
+    idx_u = np.empty(int(ptr_u[-1]), dtype=offset_dtype)
     dat_u = np.empty(idx_u.size)
-    idx_r = np.empty(int(ptr_r[-1]), dtype=indices.dtype)
+    idx_r = np.empty(int(ptr_r[-1]), dtype=offset_dtype)
     dat_r = np.empty(idx_r.size)
     run(_jit.ssor_fill, perm, iperm, indptr, indices, data, ptr_u, idx_u, dat_u, ptr_r, idx_r, dat_r)
     upper = (ptr_u, idx_u, dat_u, diag)

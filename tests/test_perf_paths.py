@@ -218,3 +218,19 @@ def test_merged_near_duplicate_system_equals_the_sparse_product(monkeypatch):
     dVc = spla.spsolve(sp.csc_matrix(ref), np.ones(ncl))
     size = np.bincount(label)
     assert np.abs(s.dV - (dVc / size)[label]).max() < 1e-11 * np.abs(s.dV).max()
+
+
+def test_ssor_split_offsets_int16_and_int32_give_the_same_solve(monkeypatch):
+    """The split's columns are int16 offsets when the sweep order keeps the matrix that narrow, else int32:
+    the same iteration either way (and with the order given or shuffled)."""
+    monkeypatch.setattr(area, "SSOR_MIN_ROWS", 1000)  # four blocks
+    c = shapes.sphere(5000)
+    A, d = _kernel_system(c.points)
+    shuffle = np.random.default_rng(1).permutation(5000)
+    for order in (None, shuffle):
+        x16, info16 = area.bicgstab_ssor(A, np.ones(5000), d, rtol=1e-15, maxiter=60, order=order)
+        monkeypatch.setattr(area, "SSOR_NARROW_WIDTH", 0)
+        x32, info32 = area.bicgstab_ssor(A, np.ones(5000), d, rtol=1e-15, maxiter=60, order=order)
+        monkeypatch.setattr(area, "SSOR_NARROW_WIDTH", 32767)
+        assert info16 == info32 == 0
+        np.testing.assert_array_equal(x16, x32)
