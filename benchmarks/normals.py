@@ -14,12 +14,39 @@ Poisson-disk sphere and a Poisson-disk torus, with the fitted order, for the def
 (jet, degree 2), degree 3 and 4 and ``method="pca"``.
 
 Last, thin and anisotropically sampled synthetic clouds with exact normals (a torus tube
-5 points around, a sphere sampled on latitude rings 6x denser along them): median angle,
-particles more than 30 degrees off and pointing inward, with the consensus of step 7
-(module notes of manifold_sph.scans.normals) and without it.
+5 points around, a sphere sampled on latitude rings 6x denser along them, a thin torus
+sampled on 40 meridian circles of 16 points): median angle, particles more than 30
+degrees off and pointing inward, with everything ("all"), without the consensus of step
+7 and without the row normals of step 2b (module notes of manifold_sph.scans.normals).
 
-Run: ``python benchmarks/normals.py`` (about a minute on 2 cores; ``--quick`` skips
+Run: ``python benchmarks/normals.py`` (a few minutes on 2 busy cores; ``--quick`` skips
 Igea and the largest analytic clouds).
+
+Measured (default; median angle / normals more than 30 degrees off / orientation),
+before (commit 9401b37) -> after the distance-weighted base fit, the row normals of step
+2b, the area rescaling and the patch flags of step 4:
+
+    model         before                      after
+    cow           6.15 / 238 / 2.69 % in      5.47 / 218 / 1.58 % in
+    homer         2.19 / 22 / 0.03 % in       1.98 / 20 / 0.07 % in
+    rocker-arm    3.19 / 18 / 0.01 % in       3.00 / 9 / 0.00 % in
+    cheburashka   1.33 / 205 / 1.06 % in      1.24 / 182 / 0.90 % in
+    teapot        2.63 / 663 / 88.7 % agree   2.17 / 136 / 97.8 % agree
+    beetle        10.40 / 186 / 96.9 % agree  8.75 / 155 / 97.1 % agree
+    alligator     0 / 0 / 100 % agree         0 / 0 / 100 % agree
+    bunny         1.18 / 26 / 100 % agree     0.97 / 25 / 100 % agree
+    Igea          0.60 / 35 / 0.00 % in       0.52 / 36 / 0.00 % in
+
+degree=4: cow 6.27 / 280 -> 5.71 / 240, teapot 3.09 / 711 -> 2.26 / 236 (97.7 % agree),
+beetle 11.16 / 214 -> 9.27 / 173. Orders unchanged (default 2.9-3.0 on the spheres, 2.0
+on the torus, whose error dropped by a quarter: 0.25 / 0.062 / 0.015 -> 0.19 / 0.047 /
+0.012 deg; degree 3 unchanged, degree 4 within 6 %). Ring sphere: 160 of 960 inward ->
+none; meridian torus (40 x 16): 37 / 2 normals more than 30 degrees off and none
+inward (without step 2b 281 / 343, 50 / 65 inward). Time (single-threaded BLAS, best of
+3, old -> new on a loaded machine):
+cow 0.38 -> 0.45 s, homer 0.82 -> 0.87, rocker-arm 1.84 -> 2.37, cheburashka 1.93 -> 1.72,
+teapot 0.81 -> 0.97, beetle 0.33 -> 0.50, alligator 0.53 -> 0.57, bunny 6.10 -> 6.85,
+Igea 25.8 -> 32.8 (one run).
 """
 
 from __future__ import annotations
@@ -107,23 +134,36 @@ def orders(quick=False):
             print(f"{name:18s} {label:18s} {' '.join(f'{e:.2e}' for e in err):>40s} {slope:6.2f}", flush=True)
 
 
+def meridian_torus(meridians=40, per=16, R=1.0, r=0.08, seed=0):
+    """A thin torus on planar meridian circles of ``per`` points (a rolled lip; as in tests/test_normals.py)."""
+    rng = np.random.default_rng(seed)
+    phi = np.repeat((np.arange(meridians) + 0.3 * rng.random(meridians)) * 2 * np.pi / meridians, per)
+    th = ((np.arange(per)[None, :] + 0.3 * rng.random((meridians, per))) * 2 * np.pi / per).ravel()
+    n = np.c_[np.cos(th) * np.cos(phi), np.cos(th) * np.sin(phi), np.sin(th)]
+    return np.c_[R * np.cos(phi), R * np.sin(phi), np.zeros_like(phi)] + r * n, n
+
+
 def synthetic():
     from manifold_sph.scans import normals as mod
 
     clouds = [(f"thin torus seed {s}", shapes.thin_torus(seed=s)) for s in range(3)]
     clouds += [(f"ring sphere seed {s}", shapes.ring_sphere(seed=s)) for s in range(3)]
     cases = [(name, (c.points, c.normals)) for name, c in clouds]
-    print(f"\n{'cloud':20s} {'points':>7s} {'step 7':>7s} {'median':>7s} {'>30deg':>7s} {'inward':>7s}")
-    original = mod._consensus
+    cases += [(f"meridian torus {s}", meridian_torus(seed=s)) for s in range(2)]
+    print(f"\n{'cloud':20s} {'points':>7s} {'steps':>10s} {'median':>7s} {'>30deg':>7s} {'inward':>7s}")
+    original, steep = mod._consensus, mod._ROW_STEEP
     for name, (p, exact) in cases:
-        for label, fn in (("on", original), ("off", lambda pts, nb, n, fixed=None: (n, None))):
-            mod._consensus = fn
+        for label in ("all", "no step 7", "no 2b"):
+            if label == "no step 7":
+                mod._consensus = lambda pts, nb, n, fixed=None: (n, None)
+            if label == "no 2b":
+                mod._ROW_STEEP = 0
             try:
                 d = np.einsum("ij,ij->i", estimate_normals(p), exact)
             finally:
-                mod._consensus = original
+                mod._consensus, mod._ROW_STEEP = original, steep
             ang = np.degrees(np.arccos(np.clip(np.abs(d), 0.0, 1.0)))
-            print(f"{name:20s} {len(p):7d} {label:>7s} {np.median(ang):6.2f}d {int((ang > 30).sum()):7d} {int((d < 0).sum()):7d}", flush=True)
+            print(f"{name:20s} {len(p):7d} {label:>10s} {np.median(ang):6.2f}d {int((ang > 30).sum()):7d} {int((d < 0).sum()):7d}", flush=True)
 
 
 if __name__ == "__main__":
