@@ -30,16 +30,18 @@ Pipeline of :func:`estimate_normals` (default ``method="jet"``, ``degree=2``; st
    neighbour) and to the nearest steep point on each side (the adjacent rows); it
    replaces the fit where it at least halves the smaller steep count. Particles whose
    10 nearest lie on a line (middle PCA eigenvalue below 0.02 of the largest) are
-   tested again with their 96 nearest (rows denser than 32 points between rows).
-   The refit of step 5 keeps these normals (their nearest neighbours lie on their own
-   row); step 7 may reconsider them. Not kept: protecting them there too (teapot 94
-   instead of 138 normals more than 30 degrees off, but cow 2.6 instead of 2.2 %
-   inward), or only those with no point steeply on both sides of their plane (teapot
-   136 -> 98, but 3 of 640 inward on the meridian torus of the tests, and the cow's
-   confidence missed 39 instead of 32 doubtful normals). Teapot (its lip and meridian rows):
-   630 -> 138 normals more than 30 degrees off, 90.1 -> 98.3 % agreeing with the mesh;
-   cow 231 -> 209; a thin torus sampled on 40 meridian circles of 16 points 281 / 343 ->
-   37 / 2 (seeds 0, 1); analytic clouds (spheres, tori, the ring sphere) never trigger it.
+   tested again with their 96 nearest (rows denser than 32 points between rows; a
+   torus on 12 meridian circles of 80 points: 960 -> 506 normals more than 30 degrees
+   off, so still short there). The refit of step 5 keeps these normals (their nearest
+   neighbours lie on their own row); step 7 may reconsider them. Not kept: protecting
+   them there too (teapot 94 instead of 138 normals more than 30 degrees off, but cow
+   2.6 instead of 2.2 % inward), or only those with no point steeply on both sides of
+   their plane (teapot 136 -> 98, but 3 of 640 inward on the meridian torus of the
+   tests, and the cow's confidence missed 39 instead of 32 doubtful normals). Teapot
+   (its lip and meridian rows): 630 -> 138 normals more than 30 degrees off, 90.1 ->
+   98.3 % agreeing with the mesh; cow 231 -> 209; a thin torus sampled on 40 meridian
+   circles of 16 points 281 / 343 -> 37 / 2 (seeds 0, 1); analytic clouds (spheres,
+   tori, the ring sphere) never trigger it.
 3. **Consistent orientation.** On the k-nearest-neighbour graph, the sign across
    an edge ``(i, j)`` is predicted by reflecting ``n_i`` in the bisector plane of
    ``p_i p_j`` (the normal a circle through both points tangent to ``n_i`` has at
