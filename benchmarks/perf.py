@@ -505,9 +505,10 @@ def ratio_child(n: int, mode: str, repeat: int, sampling: str = "fibonacci") -> 
     quiet(lambda: Surface(warm))()
     h = float(smoothing_length_for_count(p, 27))  # msph's default count
     rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    times = []
+    times, cpus = [], []
     for _ in range(repeat):
-        t0 = time.perf_counter()
+        gc.collect()
+        t0, c0 = time.perf_counter(), time.process_time()
         if mode == "query":
             cKDTree(p).query(p, k=40, distance_upper_bound=3 * h, workers=-1)
         elif mode == "default":
@@ -515,9 +516,10 @@ def ratio_child(n: int, mode: str, repeat: int, sampling: str = "fibonacci") -> 
         else:
             quiet(lambda: Surface(p, nn, area="shepard"))()
         times.append(time.perf_counter() - t0)
+        cpus.append(time.process_time() - c0)
     rss1 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    return {"n": n, "mode": mode, "sampling": sampling, "seconds": float(np.median(times)), "rss_before_mb": rss0,
-            "rss_peak_mb": rss1}
+    return {"n": n, "mode": mode, "sampling": sampling, "seconds": float(np.median(times)),
+            "cpu_seconds": float(np.median(cpus)), "rss_before_mb": rss0, "rss_peak_mb": rss1}
 
 
 def ratio_table(sizes, repeat: int, sampling: str = "fibonacci") -> list[dict]:
@@ -528,7 +530,7 @@ def ratio_table(sizes, repeat: int, sampling: str = "fibonacci") -> list[dict]:
     print(f"cores {os.cpu_count()}, load average at start {' '.join(f'{x:.2f}' for x in os.getloadavg())}; "
           f"{sampling} points on the unit sphere, exact normals; median of {repeat} runs, each row in a fresh process")
     print(f"{'N':>9} {'query s':>8} {'default s':>10} {'ratio':>6} {'shepard s':>10} {'ratio':>6} "
-          f"{'peak RSS MB':>12} {'RSS before':>11} {'build MB per 1M':>16}")
+          f"{'peak RSS MB':>12} {'RSS before':>11} {'build MB per 1M':>16}   CPU s: query default shepard (ratios)")
     rows = []
     for n in sizes:
         r = {}
@@ -538,9 +540,11 @@ def ratio_table(sizes, repeat: int, sampling: str = "fibonacci") -> list[dict]:
             r[mode] = json.loads(out.strip().splitlines()[-1])
         q, d, sh = (r[m]["seconds"] for m in RATIO_MODES)
         peak, before = r["default"]["rss_peak_mb"], r["default"]["rss_before_mb"]
+        qc, dc, sc = (r[m].get("cpu_seconds", float("nan")) for m in RATIO_MODES)
         print(f"{n:>9d} {q:>8.3f} {d:>10.3f} {d / q:>6.2f} {sh:>10.3f} {sh / q:>6.2f} {peak:>12.0f} {before:>11.0f} "
-              f"{(peak - before) / n * 1e6:>16.0f}", flush=True)
+              f"{(peak - before) / n * 1e6:>16.0f}   {qc:.3f} {dc:.3f} ({dc / qc:.2f}) {sc:.3f} ({sc / qc:.2f})", flush=True)
         rows.append({"n": n, "query_s": q, "default_s": d, "shepard_s": sh, "default_ratio": d / q, "shepard_ratio": sh / q,
+                     "query_cpu_s": qc, "default_cpu_s": dc, "shepard_cpu_s": sc,
                      "rss_peak_mb": peak, "rss_before_mb": before})
     if len(rows) >= 2:
         x = np.log([r["n"] for r in rows])
