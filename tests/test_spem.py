@@ -366,3 +366,70 @@ def test_line1d_with_the_source_wide_kernel_needs_a_source_region():
 def test_planewave_on_a_jittered_layout_with_sbp_coupling():
     r = run_planewave(size=0.2, ppw=20, layout="jittered", coupling="sbp", h_ratio=0.8)
     assert r.error <= 0.05  # measured 4.1e-2 (Yee lattice: 4.2e-3); "direct" is refused on this layout
+
+
+# --------------------------------------------------------------------------- mimetic coupling (issue 21 item 2)
+def test_mimetic_operators_are_skew_adjoint_second_order_gradient_and_consistent_divergence():
+    from manifold_sph.spem.mimetic import mimetic_operators
+
+    lay = make_layout("poisson", (0.0, 1.0, 0.0, 1.0), 0.1, seed=1)
+    free = ~lay.e_fixed
+    ops = mimetic_operators(lay.e, free, [(lay.hy, 0), (lay.hx, 1)], h=0.15, scale=0.1)
+    assert ops.residual < 1e-8 and ops.vol_e[free].min() > 0 and min(v.min() for v in ops.vol_h) > 0
+    e = lay.e
+    q = 1.0 + e[:, 0] ** 2 - 2.0 * e[:, 0] * e[:, 1] + 0.5 * e[:, 1] ** 2 + e[:, 0] ** 2 * e[:, 1]
+    for (G, D), axis, vh in zip(ops.pairs, (0, 1), ops.vol_h):
+        h = lay.hy if axis == 0 else lay.hx
+        x, y = h[:, 0], h[:, 1]
+        exact = 2.0 * x - 2.0 * y + 2.0 * x * y if axis == 0 else -2.0 * x + y + x * x
+        np.testing.assert_allclose(G @ q, exact, atol=1e-8)  # G exact for cubic fields
+        np.testing.assert_allclose(D @ (3.0 - h[:, 0] + 2.0 * h[:, 1]), -1.0 if axis == 0 else 2.0, atol=1e-8)
+        # D is exactly the negative adjoint of G in the volume inner products (energy conservation)
+        adj = -(G[:, np.flatnonzero(free)].T.multiply(vh[None, :]).toarray() / ops.vol_e[free][:, None])
+        np.testing.assert_allclose(D.toarray(), adj, rtol=1e-12, atol=1e-12 * abs(adj).max())
+
+
+def test_mimetic_coupling_conserves_the_volume_weighted_leapfrog_energy_on_a_poisson_layout():
+    a = 0.1
+    lay = make_layout("poisson", (0.0, a, 0.0, a), a / 12, seed=2)
+    s = TMzSolver(lay, coupling="mimetic", eps_r=lambda p: 1.0 + 3.0 * (p[:, 0] > a / 2))
+    assert s.h == pytest.approx(1.5 * lay.dr)  # the coupling's default h_ratio
+    fr, e = s.free, lay.e
+    s.set_initial(np.exp(-(((e[:, 0] - a / 3) ** 2 + (e[:, 1] - a / 2) ** 2) / (0.1 * a) ** 2)))
+
+    def modified_energy():  # sum V_E eps E^n.E^n + V_H mu H^{n-1/2}.H^{n+1/2}: conserved exactly
+        ez = s.e_field
+        hxp, hyp = s.hx + s.db_x * (s.Dy_hx @ ez), s.hy - s.db_y * (s.Dx_hy @ ez)
+        return (EPS0 * (s.vol_e * s.eps_r[fr] * ez[fr] ** 2).sum() + (s.vol_hx * s.mu_r_x * s.hx * hxp).sum() * 4e-7 * np.pi
+                + (s.vol_hy * s.mu_r_y * s.hy * hyp).sum() * 4e-7 * np.pi)
+
+    w = []
+    for _ in range(5):
+        s.run(400)
+        w.append(modified_energy())
+    assert np.ptp(w) / w[0] < 1e-9  # measured ~1e-15
+
+
+def test_mimetic_phase_error_is_second_order_where_sbp_is_not_on_a_poisson_layout():
+    # TM22 mode of a unit PEC square, 14 spacings per side (9.9 particles per wavelength), seed 1
+    v, ppw = measured_phase_velocity("poisson", 2, cells=14, coupling="mimetic", h_ratio=1.5, steps=400, seed=1)
+    assert ppw == pytest.approx(9.9, abs=0.1)
+    assert abs(v - 1) < 0.03  # measured -2.11 % (sbp: -2.85 %, then +0.38 % and +1.14 % at 28 and 56: no convergence)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("layout", ["jittered", "poisson"])
+def test_mimetic_phase_error_converges_at_second_order_on_irregular_layouts(layout):
+    v1, _ = measured_phase_velocity(layout, 2, cells=14, coupling="mimetic", steps=400, seed=1)
+    v2, ppw = measured_phase_velocity(layout, 2, cells=28, coupling="mimetic", steps=400, seed=1)
+    # measured at 9.9 / 19.8 particles per wavelength: jittered -0.87 % / +0.07 %, poisson -2.11 % / -0.04 %
+    # (the target is 0.5 % at 20; the spatial and leap-frog errors partly cancel at 19.8, so the ratio
+    # overstates the order: at least second order is what is asserted)
+    assert abs(v2 - 1) < 0.005
+    assert math.log2(abs(v1 - 1) / abs(v2 - 1)) >= 1.8
+
+
+def test_mimetic_refuses_too_small_supports_with_a_clear_error():
+    lay = make_layout("poisson", (0.0, 0.1, 0.0, 0.1), 0.01, seed=1)
+    with pytest.raises(ValueError, match="neighbours.*increase h_ratio"):
+        TMzSolver(lay, coupling="mimetic", h_ratio=0.6)

@@ -133,9 +133,10 @@ def peak_frequency(signal: ArrayLike, dt: float, fmin: float = 0.0) -> float:
 @_timed
 def run_cavity(*, r0: float = 0.1, eps_r: float = 10.0, n_radial: int = 40, periods: float = 1.0,
                layout: str = "yee", form: str = "fpm", kernel: str | Kernel | type[Kernel] = "cubic",
-               h_ratio: float = DEFAULT_H_RATIO,
+               h_ratio: float | None = None,
                courant: float = 0.9, coupling: str = DEFAULT_COUPLING, spectrum_periods: float = 0.0, frames: int = 0,
-               sbp_layers: int | None = None, progress: bool = False) -> CavityResult:
+               sbp_layers: int | None = None, seed: int | np.random.Generator | None = 0,
+               progress: bool = False) -> CavityResult:
     """Circular PEC cavity ([2] sec. 4.3), ``Ez(0) = 1 - r^2/r0^2``, compared with the Bessel series.
 
     ``dr = r0 / n_radial``. The error is taken over every E particle after
@@ -144,15 +145,16 @@ def run_cavity(*, r0: float = 0.1, eps_r: float = 10.0, n_radial: int = 40, peri
     spectrum of a probe at the centre (``"f1_measured"``, relative error
     ``"f1_error"`` against the exact 362.8 MHz). ``sbp_layers`` defaults to
     None here (the whole operator is corrected: next to the curved wall it
-    keeps converging where a local band stalls; :data:`.operators.SBP_LAYERS`).
+    keeps converging where a local band stalls; :data:`.operators.SBP_LAYERS`). ``layout`` "jittered" and
+    "poisson" are seeded random disks (:func:`.layouts.disk_layout`); ``h_ratio`` defaults to the coupling's.
     """
     r0 = check_positive("r0", r0)
     eps_r = check_positive("eps_r", eps_r)
     n_radial = check_int("n_radial", n_radial, minimum=4)
-    check_in("layout", layout, ("yee", "staggered"))
+    check_in("layout", layout, ("yee", "staggered", "jittered", "poisson"))
     dr = r0 / n_radial
     c = (r0, r0)
-    lay = disk_layout(c, r0, dr, kind=layout)
+    lay = disk_layout(c, r0, dr, kind=layout, seed=seed)
     f1 = cavity_frequency(r0, eps_r)
     T1 = 1.0 / f1
     s = TMzSolver(lay, h_ratio=h_ratio, kernel=kernel, form=form, coupling=coupling, eps_r=eps_r, courant=courant,

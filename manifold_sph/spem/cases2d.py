@@ -29,7 +29,7 @@ from .constants import C0
 from .layouts import Layout, make_layout
 from .pml import PML
 from .results import PlanewaveResult, PMLResult, WaveguideResult
-from .solver import DEFAULT_COUPLING, DEFAULT_H_RATIO, TMzSolver
+from .solver import DEFAULT_COUPLING, TMzSolver
 from .sources import GaussianPulse, Sinusoid, Source, point_source
 
 if TYPE_CHECKING:
@@ -138,7 +138,7 @@ def _with_pml(interior, pml_cells, dr, sides="all", order=3, reflection=1e-6):
 
 @_timed
 def run_planewave(*, size: float = 0.5, freq: float = 3.6e9, ppw: float = 40.0, pml_cells: int = 10,
-                  layout: str = "yee", form: str = "fpm", kernel: str | Kernel | type[Kernel] = "cubic", h_ratio: float = DEFAULT_H_RATIO,
+                  layout: str = "yee", form: str = "fpm", kernel: str | Kernel | type[Kernel] = "cubic", h_ratio: float | None = None,
                   courant: float = 0.9, coupling: str = DEFAULT_COUPLING, travel: float = 0.8, ramp: float = 2.0,
                   seed: int | np.random.Generator | None = 0,
                   source_span: str = "full", frames: int = 0, progress: bool = False) -> PlanewaveResult:
@@ -206,7 +206,7 @@ def run_planewave(*, size: float = 0.5, freq: float = 3.6e9, ppw: float = 40.0, 
 def run_waveguide(*, width: float = 0.5, length: float = 0.4, pml_thickness: float = 0.1, ppw: float = 80.0,
                   f_ratio: float = 1.2, t_end: float = 4.1e-9, line_x: float = 0.244, amplitude: float = 0.2,
                   layout: str = "yee", form: str = "fpm", kernel: str | Kernel | type[Kernel] = "cubic",
-                  h_ratio: float = DEFAULT_H_RATIO,
+                  h_ratio: float | None = None,
                   courant: float = 0.9, coupling: str = DEFAULT_COUPLING, ramp: float = 0.0, frames: int = 0,
                   progress: bool = False) -> WaveguideResult:
     """Parallel-plate waveguide ([2] sec. 4.4): PEC plates x = 0 and x = ``width``, TM1 source at y = 0.
@@ -261,7 +261,7 @@ def run_waveguide(*, width: float = 0.5, length: float = 0.4, pml_thickness: flo
 
 @_timed
 def run_pml(*, cells: int = 60, pml_cells: int = 10, order: int = 3, reflection: float = 1e-6,
-            layout: str = "yee", form: str = "fpm", kernel: str | Kernel | type[Kernel] = "cubic", h_ratio: float = DEFAULT_H_RATIO,
+            layout: str = "yee", form: str = "fpm", kernel: str | Kernel | type[Kernel] = "cubic", h_ratio: float | None = None,
             courant: float = 0.9, coupling: str = DEFAULT_COUPLING, dr: float = 1e-3, progress: bool = False) -> PMLResult:
     """PML reflection: a pulse in a ``cells`` square with PML, against a reference run without echo.
 

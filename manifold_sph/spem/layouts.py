@@ -213,7 +213,7 @@ def make_layout(name: str, bounds: Sequence[float], dr: float, *, seed: int | np
 
 
 def disk_layout(center: ArrayLike, radius: float, dr: float, kind: str = "yee", *, wall_spacing: float = 0.5,
-                wall_margin: float = 0.3) -> Layout:
+                wall_margin: float = 0.3, seed: int | np.random.Generator | None = 0, amplitude: float = 0.2) -> Layout:
     """A circular PEC cavity: a lattice clipped to the disk plus E particles on the circle.
 
     The wall particles (spacing about ``wall_spacing * dr`` along the circle)
@@ -223,8 +223,19 @@ def disk_layout(center: ArrayLike, radius: float, dr: float, kind: str = "yee", 
     cavity of :func:`.cases.run_cavity` 1.2e-2 / 2.4e-3 / 8.2e-4 at 10 / 20 / 40
     spacings per radius instead of 1.5e-2 / 3.9e-3 / 1.3e-3, with a 2-3.6x
     larger stable step (the `sbp` correction is less stiff next to a denser wall).
+
+    ``kind="jittered"``: the Yee-style lattice with every E and H particle
+    moved by a uniform offset of at most ``amplitude * dr`` per coordinate
+    (seeded) before the clipping; ``kind="poisson"``: independent relaxed
+    random (Poisson-disk-like) E and H sets of mean spacing ``dr``
+    (:func:`manifold_sph.reference.sampling.square`) clipped to the disk.
+    Both keep the same wall particles and margins; the E particles next to
+    the wall are not pruned (the "mimetic" coupling needs no two-sided
+    neighbourhood).
     """
-    check_in("kind", kind, ("yee", "staggered"))
+    check_in("kind", kind, ("yee", "staggered", "jittered", "poisson"))
+    if kind in ("jittered", "poisson"):
+        return _random_disk(center, radius, dr, kind, wall_spacing, wall_margin, seed, amplitude)
     radius = check_positive("radius", radius)
     wall_spacing = check_positive("wall_spacing", wall_spacing)
     wall_margin = check_positive("wall_margin", wall_margin, allow_zero=True)
@@ -250,6 +261,41 @@ def disk_layout(center: ArrayLike, radius: float, dr: float, kind: str = "yee", 
     e_all = np.vstack([e, wall])
     fixed = np.r_[np.zeros(len(e), bool), np.ones(m, bool)]
     return Layout(e_all, hx, hy, dr, f"disk-{kind}", fixed, b)
+
+
+def _random_disk(center, radius, dr, kind, wall_spacing, wall_margin, seed, amplitude):
+    from ..reference.sampling import square
+
+    radius = check_positive("radius", radius)
+    dr = check_positive("dr", dr)
+    wall_spacing = check_positive("wall_spacing", wall_spacing)
+    wall_margin = check_positive("wall_margin", wall_margin, allow_zero=True)
+    amplitude = check_positive("amplitude", amplitude, allow_zero=True)
+    if amplitude >= 0.5:
+        raise ValueError(f"amplitude must be below 0.5 (particles would cross), got {amplitude}")
+    c = np.asarray(center, dtype=np.float64).reshape(2)
+    b = (c[0] - radius, c[0] + radius, c[1] - radius, c[1] + radius)
+    rng = np.random.default_rng(seed)
+    if kind == "jittered":
+        lat = yee_layout(b, dr)
+        shift = c - (np.round((c - np.array([b[0], b[2]])) / dr) * dr + np.array([b[0], b[2]]))
+        e, hx, hy = (p + shift + amplitude * dr * rng.uniform(-1.0, 1.0, p.shape) for p in (lat.e, lat.hx, lat.hy))
+    else:
+        n = max(10, int(round((2 * radius) ** 2 / dr**2)))
+        e = square(n, bounds=b, sampling="poisson", seed=rng)
+        hx = hy = square(n, bounds=b, sampling="poisson", seed=rng)
+
+    def inside(p, margin):
+        return p[np.hypot(p[:, 0] - c[0], p[:, 1] - c[1]) < radius - margin]
+
+    e = inside(e, wall_margin * dr)
+    hx = inside(hx, 0.0)
+    hy = hx if kind == "poisson" else inside(hy, 0.0)
+    m = max(8, int(np.ceil(2 * np.pi * radius / (wall_spacing * dr))))
+    th = 2 * np.pi * (np.arange(m) + 0.5) / m
+    wall = c + radius * np.column_stack([np.cos(th), np.sin(th)])
+    fixed = np.r_[np.zeros(len(e), bool), np.ones(m, bool)]
+    return Layout(np.vstack([e, wall]), hx, hy, dr, f"disk-{kind}", fixed, b)
 
 
 def _supported(e: np.ndarray, h_sets, dr: float, candidates: np.ndarray, reach: float = 1.2) -> np.ndarray:

@@ -1,0 +1,333 @@
+"""Second-order energy-conserving (summation-by-parts) SPEM operators on any layout (issue 21 item 2).
+
+The "mimetic" coupling builds the E -> H gradient ``G`` first, as a corrected
+(moving-least-squares) gradient exact for *quadratic* fields, and takes the
+H -> E operator as its negative adjoint in the volume-weighted inner products,
+
+    D = -V_E^-1 G_free^T V_H          (free E rows, H columns),
+
+so that the pair is skew-adjoint and leap-frog conserves the discrete energy
+``sum V_E eps Ez^2 + sum V_H mu H^2`` on every layout, material and support
+(the stable step is the computed ``2 / sqrt(rho)``). ``G`` also has
+columns at the PEC and driven E particles, which carry data (zero on the
+walls), not unknowns: they are free for the gradient's exactness and play no
+part in the energy.
+
+Second order needs ``D`` to be consistent as well (the discrete divergence
+theorem, the SBP property): for every free E particle ``j`` and both
+axes ``a``,
+
+    sum_i G_ij V_i = 0,   sum_i G_ij V_i (x_i - x_j)_a = -V_j,   sum_i G_ij V_i (x_i - x_j)_b = 0,
+
+which make ``D`` exact for linear H fields. Then the E -> E operator
+``D mu^-1 G`` is exact for quadratic fields, and its truncation error on
+smooth fields has the form ``D (O(dr^2))``: the energy argument gives
+second-order convergence of Ez on irregular layouts (a lattice-free
+version of the mimetic finite-difference argument).
+
+Two small least-squares problems make the conditions hold:
+
+1. volumes: ``V_E``, ``V_Hx``, ``V_Hy`` nearest (relatively) to the kernel
+   estimates ``1 / sum_j W_h(x_i - x_j)`` that satisfy the conditions in the
+   least-squares sense for the uncorrected ``G`` (linear in the volumes);
+2. gradient: the smallest weighted change of ``G`` (same sparsity, weights
+   the kernel values, so that far neighbours hardly move) that keeps every
+   row exact for quadratics and meets the column conditions exactly.
+
+Both are sparse normal-equations solves. Measured (``benchmarks/spem_mimetic.py``)
+in docs/method.md section 7.
+
+Examples
+--------
+>>> from manifold_sph.spem import make_layout
+>>> lay = make_layout("poisson", (0.0, 1.0, 0.0, 1.0), 0.1, seed=1)
+>>> free = ~lay.e_fixed
+>>> ops = mimetic_operators(lay.e, free, [(lay.hy, 0), (lay.hx, 1)], h=0.15, scale=0.1)
+>>> (Gx, Dx), (Gy, Dy) = ops.pairs
+>>> q = lay.e[:, 0] ** 2 + 3 * lay.e[:, 0] * lay.e[:, 1]          # quadratic Ez
+>>> bool(np.allclose(Gx @ q, 2 * lay.hy[:, 0] + 3 * lay.hy[:, 1]))  # G exact for quadratics (and cubics)
+True
+>>> u = 2 * lay.hy[:, 0] - lay.hy[:, 1] + 1                         # linear Hy
+>>> bool(np.allclose(Dx @ u, 2.0))                                   # D exact for linear fields
+True
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import spsolve
+from scipy.spatial import cKDTree
+
+from ..kernels import Kernel, get_kernel
+
+__all__ = ["MimeticOperators", "mimetic_operators", "quadratic_gradient", "kernel_volumes"]
+
+#: Polynomial degree for which the gradient G is exact: 3 (cubic) by default. Measured on the TM22 mode of a
+#: Poisson square at 28 spacings (seed 1): the Rayleigh quotient is -2.2 % off with quadratic fits (h = 1.2 dr;
+#: G damps short waves) and -0.2 % with cubic fits (h = 1.5 dr); the order of the scheme is 2 either way (D is
+#: exact for linear fields only).
+GRADIENT_DEGREE = 3
+#: Weight of the relative volume changes against the flux-weight changes in the correction.
+VOLUME_WEIGHT = 1.0
+#: The fit and correction weights are ``W_h(r) / (r / dr)^WEIGHT_POWER``: steep weights favour the nearest
+#: particles (on a lattice the quadratic fit then tends to Yee's two-point difference, the most compact
+#: stencil exact for quadratics).
+WEIGHT_POWER = 4.0
+#: Only the flux weights of pairs closer than this many spacings are corrected (inf: every pair; 1.5 was
+#: measured to make the fit infeasible: non-positive volumes on Poisson and jittered layouts).
+CORRECTION_RADIUS = np.inf
+#: Floor of the kernel weights of the gradient correction (relative to the centre value).
+WEIGHT_FLOOR = 1e-2
+
+
+@dataclass
+class MimeticOperators:
+    """What :func:`mimetic_operators` returns.
+
+    ``pairs[k] = (G, D)`` for each requested ``(H points, axis)``: ``G`` (n_H, n_E) over every E particle,
+    ``D`` (n_free, n_H) on the free E particles; ``vol_e`` (n_E,) (set on the free particles, 0 elsewhere),
+    ``vol_h`` one (n_H,) array per pair; ``residual`` the largest relative miss of the column conditions
+    after the correction; ``correction`` the relative size of the change of ``G`` (Frobenius).
+    """
+
+    pairs: list
+    vol_e: np.ndarray
+    vol_h: list
+    residual: float
+    correction: float
+    volume_change: float
+
+
+def _pairs(rows: np.ndarray, cols: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
+    tree = cKDTree(cols)
+    lists = tree.query_ball_point(rows, np.nextafter(radius, 0.0), return_sorted=False)
+    lens = np.fromiter((len(a) for a in lists), dtype=np.int64, count=len(lists))
+    i = np.repeat(np.arange(len(rows)), lens)
+    j = np.fromiter((k for a in lists for k in a), dtype=np.int64, count=int(lens.sum()))
+    order = np.lexsort((j, i))
+    return i[order], j[order]
+
+
+def _monomials(z: np.ndarray, degree: int) -> np.ndarray:
+    zx, zy = z[:, 0], z[:, 1]
+    out = [np.ones(len(z)), zx, zy]
+    if degree >= 2:
+        out += [zx * zx, zx * zy, zy * zy]
+    if degree >= 3:
+        out += [zx**3, zx * zx * zy, zx * zy * zy, zy**3]
+    return np.stack(out, axis=1)
+
+
+def _n_monomials(degree: int) -> int:
+    return (degree + 1) * (degree + 2) // 2
+
+
+def kernel_volumes(points: np.ndarray, h: float, kernel: str | Kernel | type[Kernel] = "cubic") -> np.ndarray:
+    """``1 / sum_j W_h(x_i - x_j)`` over the particle's own set (the SPH volume estimate, 2D)."""
+    k = get_kernel(kernel)
+    i, j = _pairs(points, points, k.support * h)
+    R = np.linalg.norm(points[j] - points[i], axis=1) / h
+    s = np.bincount(i, weights=k.w(R), minlength=len(points)) * k.alpha(2) / h**2
+    return 1.0 / s
+
+
+def quadratic_gradient(rows: np.ndarray, cols: np.ndarray, h: float, *, kernel: str | Kernel | type[Kernel] = "cubic",
+                       scale: float = 1.0, degree: int = 2, max_condition: float = 1e12,
+                       row_name: str = "H particles", col_name: str = "E particles"
+                       ) -> tuple[sp.csr_matrix, sp.csr_matrix, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Moving-least-squares gradient from ``cols`` to ``rows``, exact for polynomials of ``degree`` (2 or 3).
+
+    With ``degree=3`` the rows whose cubic fit is singular or ill-conditioned (e.g. particles on a straight
+    wall, with three rows of neighbours) fall back to the quadratic fit; a row whose quadratic fit is
+    singular too is refused (ValueError).
+
+    Returns ``(Gx, Gy, i, j, w, deg)``: the two csr matrices (rows x cols), the pair lists and fit weights in
+    their storage order, and the degree of each row's fit.
+    """
+    k = get_kernel(kernel)
+    i, j = _pairs(rows, cols, k.support * h)
+    z = (cols[j] - rows[i]) / scale
+    R = np.linalg.norm(z, axis=1) * (scale / h)
+    w = k.w(R) / np.maximum(np.linalg.norm(z, axis=1), 0.25) ** WEIGHT_POWER
+    n = len(rows)
+    count = np.bincount(i, minlength=n)
+    few = count < 6
+    if few.any():
+        first = int(np.flatnonzero(few)[0])
+        raise ValueError(
+            f"{int(few.sum())} of {n} {row_name} have fewer than 6 neighbours among the {col_name} within kappa*h = "
+            f"{k.support * h:.4g} (first: index {first} at {rows[first].tolist()}, {int(count[first])}); the "
+            f"second-order (mimetic) coupling needs a wider support: increase h_ratio (1.5 or more)"
+        )
+    deg = np.full(n, degree)
+    coef = np.zeros((len(i), 2))
+    for d in sorted({degree, 2}, reverse=True):
+        todo = deg == d
+        if not todo.any():
+            continue
+        m = _n_monomials(d)
+        sel = todo[i]
+        ii, P, ww = i[sel], _monomials(z[sel], d), w[sel]
+        A = np.zeros((n, m, m))
+        for a in range(m):
+            for c in range(a, m):
+                A[:, a, c] = A[:, c, a] = np.bincount(ii, weights=ww * P[:, a] * P[:, c], minlength=n)
+        A[~todo] = np.eye(m)
+        cond = np.linalg.cond(A)
+        bad = ~(cond < max_condition) | (count < m)
+        if bad.any() and d == 3:
+            deg[bad & todo] = 2  # refit these rows with quadratics
+            sel &= ~bad[i]
+            ii, P, ww = i[sel], _monomials(z[sel], d), w[sel]
+            A[bad] = np.eye(m)
+        elif bad.any():
+            first = int(np.flatnonzero(bad)[0])
+            raise ValueError(
+                f"{int(bad.sum())} {row_name} have a singular or ill-conditioned quadratic fit (condition "
+                f"{cond[first]:.3g}; first: index {first} at {rows[first].tolist()}): their {col_name} neighbours "
+                f"are too few or collinear; increase h_ratio"
+            )
+        Ainv = np.linalg.inv(A)
+        coef[sel] = np.einsum("pak,pk->pa", Ainv[ii][:, 1:3, :], P) * ww[:, None] / scale
+    shape = (n, len(cols))
+    Gx = sp.csr_matrix((coef[:, 0], (i, j)), shape=shape)
+    Gy = sp.csr_matrix((coef[:, 1], (i, j)), shape=shape)
+    return Gx, Gy, i, j, w, deg
+
+
+def mimetic_operators(e: np.ndarray, free: np.ndarray, h_sets: list[tuple[np.ndarray, int]], h: float, *,
+                      kernel: str | Kernel | type[Kernel] = "cubic",
+                      scale: float = 1.0, vol_e0: np.ndarray | None = None, vol_h0: list[np.ndarray] | None = None,
+                      fit_volumes: bool = True, degree: int | None = None) -> MimeticOperators:
+    """The skew-adjoint, second-order pairs ``(G, D)`` for each ``(H points, axis)`` in ``h_sets``.
+
+    Parameters
+    ----------
+    e : (n_E, 2) array
+        Every E particle (free, PEC and driven).
+    free : (n_E,) bool array
+        The E particles that are unknowns (rows of ``D``, energy carriers).
+    h_sets : list of (points, axis)
+        ``(Hy, 0)`` for d/dx and ``(Hx, 1)`` for d/dy; the same array may appear twice (shared H set).
+    h : float
+        Smoothing length (support ``kappa h``); about ``1.2 dr`` or more with the cubic kernel.
+    scale : float
+        The spacing (makes the systems dimensionless).
+    vol_e0, vol_h0 : arrays, optional
+        Volume priors (default: the kernel estimates).
+    fit_volumes : bool
+        Step 1 (volume least squares); without it the priors are used as they are.
+    """
+    degree = GRADIENT_DEGREE if degree is None else degree
+    if degree not in (2, 3):
+        raise ValueError(f"degree must be 2 or 3, got {degree!r}")
+    e = np.asarray(e, dtype=np.float64)
+    free = np.asarray(free, dtype=bool)
+    n_e = len(e)
+    fidx = np.flatnonzero(free)
+    n_f = len(fidx)
+    where = -np.ones(n_e, dtype=np.int64)
+    where[fidx] = np.arange(n_f)
+    # distinct H sets (a shared set keeps one volume vector)
+    sets, set_of = [], []
+    for pts, _axis in h_sets:
+        for s_idx, q in enumerate(sets):
+            if q is pts:
+                set_of.append(s_idx)
+                break
+        else:
+            sets.append(pts)
+            set_of.append(len(sets) - 1)
+    ve0 = (kernel_volumes(e, h, kernel) if vol_e0 is None else np.asarray(vol_e0, float)) / scale**2
+    vh0 = [(kernel_volumes(p, h, kernel) if vol_h0 is None else np.asarray(vol_h0[k], float)) / scale**2
+           for k, p in enumerate(sets)]
+    grads, degs = [], []
+    for pts, axis in h_sets:
+        Gx, Gy, i, j, w, deg = quadratic_gradient(pts, e, h, kernel=kernel, scale=scale, degree=degree)
+        G = Gx if axis == 0 else Gy
+        grads.append((G.data * scale, i, j, w))
+        degs.append(deg)  # dimensionless, aligned with (i, j)
+    offs_h = np.cumsum([0] + [len(v) for v in vh0])
+    # Unknowns: the flux weights Q = V_H G of every pair (linear in everything), then V_H of each
+    # distinct set and V_E of the free particles. Constraints (all homogeneous, linear):
+    #   rows    sum_j Q_ij p(x_j - x_i) - V_i dp/dx_a(0) = 0   (6 quadratic monomials per H row)
+    #   columns sum_i Q_ij {1, y_a, y_b} + V_j {0, 1, 0} = 0   (3 per free E column, y = x_i - x_j)
+    n_q = [len(g) for g, *_ in grads]
+    offs_q = np.cumsum([0] + n_q)
+    o_vh = int(offs_q[-1])
+    o_ve = o_vh + int(offs_h[-1])
+    n_u = o_ve + n_f
+    R_, C_, V_ = [], [], []
+    n_con = 0
+    q0 = []
+    for k, ((g, i, j, w), (pts, axis)) in enumerate(zip(grads, h_sets)):
+        n_h = len(pts)
+        other = 1 - axis
+        z = (e[j] - pts[i]) / scale  # x_j - x_i
+        vcol = o_vh + offs_h[set_of[k]]
+        Mr = _monomials(z, degree)
+        m_row = np.array([_n_monomials(d) for d in (0, 1, 2, 3)])[degs[k]]  # constraints per H row
+        row_off = n_con + np.r_[0, np.cumsum(m_row)[:-1]]
+        for c in range(Mr.shape[1]):
+            use = np.flatnonzero(c < m_row[i])
+            R_.append(row_off[i[use]] + c)
+            C_.append(offs_q[k] + use)
+            V_.append(Mr[use, c])
+        # - V_i d/dx_axis of the monomial at 0: monomial 1 + axis is x_axis (derivative 1)
+        R_.append(row_off + 1 + axis)
+        C_.append(vcol + np.arange(n_h))
+        V_.append(-np.ones(n_h))
+        n_con += int(m_row.sum())
+        sel = np.flatnonzero(free[j])
+        jj = where[j[sel]]
+        y = -z[sel]
+        for c, val in enumerate((np.ones(len(sel)), y[:, axis], y[:, other])):
+            R_.append(n_con + 3 * jj + c)
+            C_.append(offs_q[k] + sel)
+            V_.append(val)
+        R_.append(n_con + 3 * np.arange(n_f) + 1)
+        C_.append(o_ve + np.arange(n_f))
+        V_.append(np.ones(n_f))
+        n_con += 3 * n_f
+        q0.append(g * vh0[set_of[k]][i])
+    A = sp.csr_matrix((np.concatenate(V_), (np.concatenate(R_), np.concatenate(C_))), shape=(n_con, n_u))
+    u0 = np.concatenate(q0 + list(vh0) + [ve0[fidx]])
+    wq = np.concatenate([np.maximum(w, WEIGHT_FLOOR * w.max()) * vh0[set_of[k]][i]
+                         for k, (g, i, j, w) in enumerate(grads)])
+    wv = VOLUME_WEIGHT * np.concatenate(list(vh0) + [ve0[fidx]]) ** 2
+    wt = np.r_[wq, wv] if fit_volumes else np.r_[wq, 1e-14 * wv]
+    near = np.concatenate([np.linalg.norm(e[j] - h_sets[k][0][i], axis=1) < CORRECTION_RADIUS * scale
+                           for k, (g, i, j, w) in enumerate(grads)])
+    on = np.r_[near, np.ones(n_u - o_vh, bool)]
+    AW = A[:, on] @ sp.diags(wt[on])
+    K = (AW @ A[:, on].T).tocsc()
+    K = K + sp.identity(K.shape[0], format="csc") * (1e-13 * K.diagonal().max())
+    res = -(A @ u0)
+    lam = spsolve(K, res, permc_spec="MMD_AT_PLUS_A")
+    delta = np.zeros(n_u)
+    delta[on] = AW.T @ lam
+    u = u0 + delta
+    after = A @ u
+    ve = u[o_ve:]
+    vh = [u[o_vh + offs_h[s]: o_vh + offs_h[s + 1]] for s in range(len(sets))]
+    v_all = np.r_[np.concatenate(vh), ve]
+    if not np.all(v_all > 0):
+        raise ValueError(f"the mimetic volume fit gave {int((v_all <= 0).sum())} non-positive volumes: the "
+                         f"neighbourhoods are too small for the second-order conditions; increase h_ratio or use "
+                         f"coupling='sbp'")
+    volume_change = float(np.abs(v_all / np.r_[np.concatenate(vh0), ve0[fidx]] - 1).max())
+    worst = float(np.abs(after).max())
+    corr = float(np.linalg.norm(delta[:o_vh]) / np.linalg.norm(u0[:o_vh]))
+    pairs = []
+    for k, ((g, i, j, w), (pts, axis)) in enumerate(zip(grads, h_sets)):
+        vhk = vh[set_of[k]]
+        Q = sp.csr_matrix((u[offs_q[k]: offs_q[k + 1]], (i, j)), shape=(len(pts), n_e))
+        G = (sp.diags(1.0 / (vhk * scale)) @ Q).tocsr()
+        D = (-(sp.diags(1.0 / (ve * scale)) @ Q[:, fidx].T)).tocsr()
+        pairs.append((G, D))
+    vol_e = np.zeros(n_e)
+    vol_e[fidx] = ve * scale**2
+    return MimeticOperators(pairs, vol_e, [vh[s] * scale**2 for s in set_of], worst, corr, volume_change)
