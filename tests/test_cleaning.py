@@ -141,13 +141,15 @@ def test_local_and_statistical_methods_and_errors(sphere):
 # tests/test_cleaning.py`` prints them, and the catch rate by distance to the mesh in local spacings).
 # Issue 16's targets: <= 0.1 % removed, met; >= 95 % caught, met on homer and Igea only: the
 # misses lie within about 0.3 local spacings of the surface (undetectable against a sample), or
-# have another stray point among their nearest neighbours (pairs, clumps), and the alligator is
-# planar, so its outliers lie in its own plane. Statistical rule: cow 1.41 %, homer 0.15 %,
+# have other stray points among their nearest neighbours (clumps), and the alligator is planar,
+# so its outliers lie in its own plane. Seed 0 is a kind draw: seeds 1-3 give cow 59, 52, 79 %,
+# homer 92, 92, 88, rocker-arm 88, 87, 81, cheburashka 94, 87, 84, teapot 84, 91, 84, beetle 64,
+# 73, 55, bunny 75, 79, 81 (far outliers linked into a sparse, not quite volumetric piece), Igea 99. Statistical rule: cow 1.41 %, homer 0.15 %,
 # rocker-arm 1.05 %, cheburashka 2.26 %, teapot 0 % removed; the beetle lost 0.7 % with ratio=3.
 MODEL_LIMITS = {  # (max % removed, min caught, min caught beyond one radius)
     "cow": (0.1, 0.8, 0.95),  # 0.069 %, 0.83 (before the leave-one-out fit: 0.66; before issue 16: 0.48), 1.0
     "homer": (0.0, 0.95, 0.95),  # 0 %, 0.97 (0.80, 0.70), 1.0
-    "rocker-arm": (0.03, 0.78, 0.92),  # 0.020 %, 0.80 (0.67, 0.58), 0.94
+    "rocker-arm": (0.03, 0.8, 0.95),  # 0.020 %, 0.84 (0.67, 0.58), 0.985
     "cheburashka": (0.05, 0.88, 0.95),  # 0.030 %, 0.91 (0.82, 0.75), 0.96
     "teapot": (0.04, 0.9, 0.95),  # 0.031 %, 0.94 (0.75, 0.69), 0.96
     "beetle": (0.0, 0.6, 0.95),  # 0 % (0.70 %), 0.64 (0.64, 0.27), 1.0
@@ -253,6 +255,27 @@ def test_single_outliers_a_fraction_of_a_spacing_off_the_surface(sampling):
     assert remove_outliers(np.vstack([p, p[idx] + (spacing[idx])[:, None] * nrm[idx]]), fit_offset=None).n_removed < 40
 
 
+def test_pairs_of_stray_points():
+    """Exact answers: 30 pairs of stray points, 0.8 spacings apart, 2 and 3 spacings off a noise-free
+    torus. Each lifts the other's reference height; a point more than 1.5 spacings off its fit
+    leaves out one neighbour that its own fit rejects, so all 60 are caught (measured; without that
+    rule 0 at 2 spacings, 60 at 3 by the other tests). At 1 spacing the pairs stay (measured: 0):
+    two samples of a coarse fin look the same (the beetle has them)."""
+    from scipy.spatial import cKDTree
+
+    from manifold_sph.frames import tangent_frames
+
+    c = shapes.torus(2000, seed=3)
+    p, nrm = c.points, c.normals
+    spacing = cKDTree(p).query(p, 4)[0][:, 1:].mean(axis=1)
+    idx = _separated(p, spacing, 30, 0)
+    u, _ = tangent_frames(nrm[idx])
+    for d, caught in ((2.0, 60), (3.0, 60), (1.0, 0)):
+        a = p[idx] + (d * spacing[idx])[:, None] * nrm[idx]
+        r = remove_outliers(np.vstack([p, a, a + (0.8 * spacing[idx])[:, None] * u]))
+        assert r.keep_mask[: len(p)].all() and (~r.keep_mask[len(p) :]).sum() == caught, d
+
+
 def test_thin_plate_keeps_both_sheets():
     """Two sheets two spacings apart (a thin part): no sample is removed, and a stray point midway,
     one spacing from both, is not caught (documented limitation: its neighbours lie on both
@@ -319,6 +342,7 @@ if __name__ == "__main__":  # the table behind MODEL_LIMITS: python tests/test_c
             d = np.sqrt(igl.point_mesh_squared_distance(q[-m:], V.astype(float), F.astype(np.int64))[0])
         d = d / tree.query(p[j], 4)[0][:, 1:].mean(axis=1)
         by = " ".join(f"{int(caught[(d >= a) & (d < b)].sum())}/{int(((d >= a) & (d < b)).sum())}" for a, b in zip(bins[:-1], bins[1:]))
+        others = [(~clean(_inject(p, seed=seed)[0]).keep_mask[-m:]).mean() for seed in (1, 2, 3)]
         print(f"{path.stem:15s} {len(p):7d} points  removed {100 * r.n_removed / len(p):.3f} %  outliers caught "
-              f"{100 * caught.mean():5.1f} % of {m}, {100 * caught[far].mean():5.1f} % of the {int(far.sum())} beyond one "
-              f"neighbourhood radius; by distance {by}")
+              f"{100 * caught.mean():5.1f} % of {m} (seeds 1-3: {', '.join(f'{100 * c:.0f}' for c in others)} %), "
+              f"{100 * caught[far].mean():5.1f} % of the {int(far.sum())} beyond one neighbourhood radius; by distance {by}")
