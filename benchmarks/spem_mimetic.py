@@ -103,8 +103,8 @@ def main():
                         rows.append({"n_radial": n, "refused": str(exc)[:160]})
                         continue
                     total = time.perf_counter() - t0
-                    rows.append({"n_radial": n, "error": float(f"{r.error:.3e}"), "run_s": round(r.seconds, 2),
-                                 "setup_s": round(total - r.seconds, 2), "steps": r.steps})
+                    rows.append({"n_radial": n, "error": float(f"{r.error:.3e}"), "run_s": round(r.step_seconds, 2),
+                                 "setup_s": round(total - r.step_seconds, 2), "steps": r.steps})
                 errs = [r["error"] for r in rows if "error" in r]
                 print(json.dumps({"run": "cavity", "layout": layout, "coupling": coupling, "rows": rows,
                                   "order": order(errs, radial[: len(errs)])}), flush=True)

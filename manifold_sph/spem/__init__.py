@@ -2,7 +2,8 @@
 
 Modules: :mod:`.layouts` (E / H particle sets: staggered, Yee-style, jittered,
 Poisson, disk, line), :mod:`.operators` (cross-set CSPM derivative matrices,
-the SBP correction with its PEC closure), :mod:`.solver` (leap-frog TMz and 1D
+the SBP correction with its PEC closure), :mod:`.mimetic` (the second-order, energy-conserving
+"mimetic" coupling: cubic-exact gradient, adjoint divergence, fitted volumes), :mod:`.solver` (leap-frog TMz and 1D
 solvers, energy-conserving "sbp" coupling by default, the CFL and spectral
 limits, the measured-spectrum check that refuses a growing "direct" coupling,
 PEC, materials, split-field PML), :mod:`.pml`, :mod:`.sources` (sinusoid,

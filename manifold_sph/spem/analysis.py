@@ -156,7 +156,7 @@ def ppw_for_phase_error(tol: float = 0.01, layout: str = "yee", *,
     return hi
 
 
-def measured_phase_velocity(layout: str = "yee", m: int = 4, *, cells: int = 40, h_ratio: float = DEFAULT_H_RATIO,
+def measured_phase_velocity(layout: str = "yee", m: int = 4, *, cells: int = 40, h_ratio: float | None = None,
                             kernel: str | Kernel | type[Kernel] = "cubic", form: str = "fpm", coupling: str = DEFAULT_COUPLING,
                             courant: float = 0.9, steps: int = 300,
                             seed: int | np.random.Generator | None = 0) -> tuple[float, float]:
