@@ -139,21 +139,22 @@ def test_local_and_statistical_methods_and_errors(sphere):
 # measured (seed 0): % of a noise-free model removed, share of 1 % injected uniform outliers caught,
 # share caught of those farther from the vertices than one neighbourhood radius (``python
 # tests/test_cleaning.py`` prints them, and the catch rate by distance to the mesh in local spacings).
-# Issue 16's targets: <= 0.1 % removed, met; >= 95 % caught, met on homer and Igea only: the
-# misses lie within about 0.3 local spacings of the surface (undetectable against a sample), or
-# have other stray points among their nearest neighbours (clumps), and the alligator is planar,
-# so its outliers lie in its own plane. Seed 0 is a kind draw: seeds 1-3 give cow 59, 52, 79 %,
-# homer 92, 92, 88, rocker-arm 88, 87, 81, cheburashka 94, 87, 84, teapot 84, 91, 84, beetle 64,
-# 73, 55, bunny 75, 79, 81 (far outliers linked into a sparse, not quite volumetric piece), Igea 99. Statistical rule: cow 1.41 %, homer 0.15 %,
-# rocker-arm 1.05 %, cheburashka 2.26 %, teapot 0 % removed; the beetle lost 0.7 % with ratio=3.
+# Issue 16's targets: <= 0.1 % removed, met; >= 95 % caught, met on homer, the teapot and the scans:
+# the misses lie within about 0.3 local spacings of the surface (undetectable against a sample), or
+# have several stray points among their nearest neighbours, and the alligator is planar, so its
+# outliers lie in its own plane. Seed 0 is a kind draw for the coarse models: seeds 1-3 give cow
+# 62, 52, 83 %, homer 95, 93, 90, rocker-arm 88, 88, 81, cheburashka 94, 88, 85, teapot 84, 91, 84,
+# beetle 64, 73, 55, bunny 98, 98, 100 (75-81 before sparse clumps were recognised), Igea 99.
+# Statistical rule: cow 1.41 %, homer 0.15 %, rocker-arm 1.05 %, cheburashka 2.26 %, teapot 0 %
+# removed; the beetle lost 0.7 % with ratio=3.
 MODEL_LIMITS = {  # (max % removed, min caught, min caught beyond one radius)
     "cow": (0.1, 0.8, 0.95),  # 0.069 %, 0.83 (before the leave-one-out fit: 0.66; before issue 16: 0.48), 1.0
     "homer": (0.0, 0.95, 0.95),  # 0 %, 0.97 (0.80, 0.70), 1.0
-    "rocker-arm": (0.03, 0.8, 0.95),  # 0.020 %, 0.84 (0.67, 0.58), 0.985
-    "cheburashka": (0.05, 0.88, 0.95),  # 0.030 %, 0.91 (0.82, 0.75), 0.96
-    "teapot": (0.04, 0.9, 0.95),  # 0.031 %, 0.94 (0.75, 0.69), 0.96
+    "rocker-arm": (0.03, 0.82, 0.95),  # 0.020 %, 0.85 (0.67, 0.58), 1.0
+    "cheburashka": (0.05, 0.9, 0.95),  # 0.030 %, 0.94 (0.82, 0.75), 1.0
+    "teapot": (0.04, 0.93, 0.95),  # 0.031 %, 0.97 (0.75, 0.69), 1.0
     "beetle": (0.0, 0.6, 0.95),  # 0 % (0.70 %), 0.64 (0.64, 0.27), 1.0
-    "alligator": (0.0, 0.15, 0.7),  # 0 %, 0.19 (0.19, 0.19), 0.75
+    "alligator": (0.0, 0.2, 0.8),  # 0 %, 0.22 (0.19, 0.19), 0.875
 }
 
 
@@ -274,6 +275,23 @@ def test_pairs_of_stray_points():
         a = p[idx] + (d * spacing[idx])[:, None] * nrm[idx]
         r = remove_outliers(np.vstack([p, a, a + (0.8 * spacing[idx])[:, None] * u]))
         assert r.keep_mask[: len(p)].all() and (~r.keep_mask[len(p) :]).sum() == caught, d
+
+
+def test_sparse_clumps_around_a_surface_and_a_separate_coarse_object():
+    """200 stray points uniform in [-1.5, 1.5]^3 around a dense sphere (20,000 points), with a
+    separate sphere of 100 points (radius 0.5, 5 times coarser) nearby: the stray points link into
+    sparse pieces of the neighbour graph, interleaved with the dense sphere, and are caught
+    (measured 0.99 of all, all of those more than 3 spacings off; 0.94 without the sparse-clump
+    rule); the coarse sphere lies apart and is kept whole, and no sample is lost."""
+    p = shapes.sphere(20000).points
+    small = shapes.sphere(100, radius=0.5, center=(0, 0, 2.2)).points
+    q = np.random.default_rng(3).uniform(-1.5, 1.5, (200, 3))
+    q = q[np.linalg.norm(q - [0, 0, 2.2], axis=1) > 0.7]
+    r = remove_outliers(np.vstack([p, small, q]))
+    far = np.abs(np.linalg.norm(q, axis=1) - 1) > 3 * np.sqrt(4 * np.pi / 20000)
+    caught = ~r.keep_mask[20100:]
+    assert r.keep_mask[:20100].all()
+    assert caught.mean() >= 0.97 and caught[far].all(), (caught.mean(), caught[far].mean())
 
 
 def test_thin_plate_keeps_both_sheets():
