@@ -361,9 +361,9 @@ def remove_outliers(
     samplings) a lone stray point 0.3 spacings or more off the surface is caught
     and none of the samples is removed. With Gaussian noise the detectable offset
     grows with the noise (8,000 points on a sphere, 80 uniform outliers, caught
-    beyond one / three spacings: 0.99 / 0.98 noise-free, 0.97 / 1.0 at 0.2
+    beyond one / three spacings: 1.0 / 1.0 noise-free, 0.97 / 1.0 at 0.2
     spacings of noise, 0.93 / 1.0 at 0.3, 0.81 / 1.0 at 0.5), and no sample is
-    removed up to half a spacing of noise (2 of 8,000 at one spacing). A stray
+    removed up to half a spacing of noise (3 of 8,000 at one spacing). A stray
     point midway inside a part thinner than about three spacings (neighbours on
     both sides) fits no surface and stays. This falls short of issue 16's 95 % target
     on the coarse models: there many uniform outliers land within half a spacing
