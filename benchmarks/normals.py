@@ -27,23 +27,23 @@ before (commit 9401b37) -> after the distance-weighted base fit, the row normals
 2b, the area rescaling and the patch flags of step 4:
 
     model         before                      after
-    cow           6.15 / 238 / 2.69 % in      5.47 / 218 / 1.58 % in
-    homer         2.19 / 22 / 0.03 % in       1.98 / 20 / 0.07 % in
+    cow           6.15 / 238 / 2.69 % in      5.40 / 211 / 1.72 % in
+    homer         2.19 / 22 / 0.03 % in       1.98 / 19 / 0.02 % in
     rocker-arm    3.19 / 18 / 0.01 % in       3.00 / 9 / 0.00 % in
-    cheburashka   1.33 / 205 / 1.06 % in      1.24 / 182 / 0.90 % in
-    teapot        2.63 / 663 / 88.7 % agree   2.17 / 136 / 97.8 % agree
+    cheburashka   1.33 / 205 / 1.06 % in      1.25 / 187 / 1.02 % in
+    teapot        2.63 / 663 / 88.7 % agree   2.17 / 139 / 98.6 % agree
     beetle        10.40 / 186 / 96.9 % agree  8.75 / 155 / 97.1 % agree
     alligator     0 / 0 / 100 % agree         0 / 0 / 100 % agree
     bunny         1.18 / 26 / 100 % agree     0.97 / 25 / 100 % agree
     Igea          0.60 / 35 / 0.00 % in       0.52 / 36 / 0.00 % in
 
-degree=4: cow 6.27 / 280 -> 5.71 / 240, teapot 3.09 / 711 -> 2.26 / 236 (97.7 % agree),
+degree=4: cow 6.27 / 280 -> 5.58 / 235, teapot 3.09 / 711 -> 2.26 / 240 (98.6 % agree),
 beetle 11.16 / 214 -> 9.27 / 173. Orders unchanged (default 2.9-3.0 on the spheres, 2.0
 on the torus, whose error dropped by a quarter: 0.25 / 0.062 / 0.015 -> 0.19 / 0.047 /
 0.012 deg; degree 3 unchanged, degree 4 within 6 %). Ring sphere: 160 of 960 inward ->
 none; meridian torus (40 x 16): 37 / 2 normals more than 30 degrees off and none
-inward (without step 2b 281 / 343, 50 / 65 inward). Time (single-threaded BLAS, best of
-3, old -> new on a loaded machine):
+inward (without step 2b 281 / 343, 39 / 60 inward). Time (single-threaded BLAS, best of
+3, old -> new (commit 8226fc4, same work as now) on a loaded machine):
 cow 0.38 -> 0.45 s, homer 0.82 -> 0.87, rocker-arm 1.84 -> 2.37, cheburashka 1.93 -> 1.72,
 teapot 0.81 -> 0.97, beetle 0.33 -> 0.50, alligator 0.53 -> 0.57, bunny 6.10 -> 6.85,
 Igea 25.8 -> 32.8 (one run).

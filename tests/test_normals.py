@@ -298,7 +298,7 @@ def test_meridian_rows_are_not_taken_for_the_surface(seed, monkeypatch):
     # the particle's own circle and the fit returns the plane of the circle. Step 2b (module
     # notes) sees points steeply above and below that plane (the neighbouring circles) and
     # takes the normal across the rows. Measured (seeds 0, 1): 37 / 2 normals > 30 deg off,
-    # none inward; without step 2b 281 / 343 and 50 / 65 inward
+    # none inward; without step 2b 281 / 343 and 39 / 60 inward
     from manifold_sph.scans import normals as mod
 
     p, exact = _meridian_torus(seed=seed)
