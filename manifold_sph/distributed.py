@@ -207,6 +207,14 @@ def _tile_surface(spts, snrm, opts, normal_options, estimate):
     return s, snrm
 
 
+def _dependency_k(k: int, normal_options: dict) -> int:
+    """Nearest neighbours a normal depends on: the fit's ``k``, and with ``refine`` (the default) the
+    ``_ROW_K`` nearest of steps 2b and 7 (scans.normals; rows lying on a line search further, rarely)."""
+    from .scans.normals import _ROW_K
+
+    return max(int(k), _ROW_K) if normal_options.get("refine", True) else int(k)
+
+
 def _complete_rows(s, spts, n_own, margin, opts, normal_options, estimate, kq):
     """Which own rows are complete (their result equals the whole cloud's), and the reach they need.
 
@@ -230,8 +238,8 @@ def _complete_rows(s, spts, n_own, margin, opts, normal_options, estimate, kq):
         k_est = normal_options.get("k")
         if k_est is None:
             k_est = DEFAULT_JET_K[normal_options.get("degree") or 2] if normal_options.get("method", "jet") == "jet" else 16
-        k_graph = min(max(k_est, 10), ns)
-        ok = margin >= dist[:, k_graph - 1]  # the jet fit's and the orientation graph's ball
+        k_graph = min(max(_dependency_k(k_est, normal_options), 10), ns)
+        ok = margin >= dist[:, k_graph - 1]  # the jet fit's, the orientation graph's and steps 2b/7's ball
         ptr = np.arange(0, ns * k_est + 1, k_est)
         for _ in range(2):  # the two refits use the neighbours' previous normals
             ok = ok & _all_rows(ok, ptr, np.ascontiguousarray(knn[:, :k_est]).ravel(), ns)
@@ -834,7 +842,7 @@ class TiledSurface:
         if k is None:
             jet = self.normal_options.get("method", "jet") == "jet"
             k = DEFAULT_JET_K[self.normal_options.get("degree") or 2] if jet else 16
-        return int(k)
+        return int(_dependency_k(k, self.normal_options))
 
     def _tile_path(self, t: int) -> str:
         return str(self.cache_dir / f"tile-{self._key}-{t:05d}.npz")
