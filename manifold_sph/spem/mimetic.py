@@ -34,7 +34,7 @@ meets them exactly (weights: the fit weights for ``Q``, :data:`VOLUME_WEIGHT`
 for the relative volume changes). Fitting the volumes first and correcting
 ``G`` after was tried: the corrections then spread over the whole domain and
 grew with resolution (the volumes must take part). Non-positive volumes are
-refused (ValueError). The solve dominates the set-up (10-40x a run).
+refused (ValueError). The solve dominates the set-up (10-300x a run).
 
 Measured (``benchmarks/spem_mimetic.py``) in docs/method.md section 7.
 
