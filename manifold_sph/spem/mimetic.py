@@ -67,7 +67,7 @@ from ..kernels import Kernel, get_kernel
 __all__ = ["MimeticOperators", "mimetic_operators", "quadratic_gradient", "kernel_volumes"]
 
 #: Polynomial degree for which the gradient G is exact: 3 (cubic) by default. Measured on the TM22 mode of a
-#: Poisson square at 28 spacings (seed 1): the Rayleigh quotient is -2.2 % off with quadratic fits (h = 1.2 dr;
+#: Poisson square at 28 spacings (seed=1): the Rayleigh quotient is -2.2 % off with quadratic fits (h = 1.2 dr;
 #: G damps short waves) and -0.2 % with cubic fits (h = 1.5 dr); the order of the scheme is 2 either way (D is
 #: exact for linear fields only).
 GRADIENT_DEGREE = 3
