@@ -11,7 +11,7 @@ from numpy.typing import ArrayLike
 from .exceptions import ManifoldSPHWarning
 from . import geometry
 from .frames import PairOffsets, check_frames, project_pairs, tangent_frames
-from .neighbors import build_tree, find_neighbors
+from .neighbors import GRID_MIN_POINTS, build_tree, find_neighbors
 from .operators import OperatorSet
 from .pointcloud import PointCloud
 
@@ -125,7 +125,10 @@ class Surface(OperatorSet):
             cloud = PointCloud(cloud.points, _estimate_normals(cloud.points, self.scheme), geometry=cloud.geometry)
         self.cloud = cloud
         pts, nrm = cloud.points, cloud.normals
-        tree = self._tree = build_tree(pts)  # kept for the stable Laplacian's wider searches
+        # The KD-tree is built here for small clouds (its k-NN query is reused by the neighbour
+        # search) and h="adaptive"; large clouds search on a grid, and build it on first use.
+        self._kdtree = build_tree(pts) if pts.shape[0] < GRID_MIN_POINTS or isinstance(h, str) else None
+        tree = self._kdtree
         hv = self._smoothing_length(h, pts, tree)
         nb = find_neighbors(
             pts, nrm, h=hv, support=self.kernel.support, normal_threshold=normal_threshold, tree=tree,
@@ -143,6 +146,13 @@ class Surface(OperatorSet):
             total_area = getattr(cloud.geometry, "area", None)
         frames = np.stack([self.u, self.v], axis=1)
         self._setup(nb, xy, frames, area, total_area, column_normals=nrm)
+
+    @property
+    def _tree(self):
+        """The KD-tree of the points (built on first use for clouds searched on a grid)."""
+        if self._kdtree is None:
+            self._kdtree = build_tree(self.points)
+        return self._kdtree
 
     @property
     def points(self) -> np.ndarray:
@@ -188,6 +198,7 @@ class Surface(OperatorSet):
         self.widened, self.flipped = lonely, lonely[:0]
         if not lonely.size:
             return nb, nrm
+        tree = self._tree if tree is None else tree
         n = pts.shape[0]
         k = min(n, 4 * self.neighbors)
         dist, idx = tree.query(pts[lonely], k=k)
