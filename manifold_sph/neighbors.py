@@ -169,7 +169,8 @@ def smoothing_length_for_count(
         otherwise needed) also count neighbours among every second point only,
         for ``target / 2`` of them: ``h`` within 0.1 % of the full count's
         (measured: Fibonacci and Igea 0.00 %, random sphere -0.08 %, bunny
-        +0.03 %) at half the tree and a third of the query.
+        +0.03 %) with a tree of half the points and about half the
+        nearest neighbours per query.
     return_knn : bool
         Also return the nearest-neighbour query ``(dist, idx)`` of every point
         (``None`` when a subsample was used), which holds every neighbour
