@@ -60,9 +60,9 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
-from scipy.spatial import cKDTree
 
 from ..kernels import Kernel, get_kernel
+from .operators import cross_pairs
 
 __all__ = ["MimeticOperators", "mimetic_operators", "quadratic_gradient", "kernel_volumes"]
 
@@ -104,11 +104,8 @@ class MimeticOperators:
 
 
 def _pairs(rows: np.ndarray, cols: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
-    tree = cKDTree(cols)
-    lists = tree.query_ball_point(rows, np.nextafter(radius, 0.0), return_sorted=False)
-    lens = np.fromiter((len(a) for a in lists), dtype=np.int64, count=len(lists))
-    i = np.repeat(np.arange(len(rows)), lens)
-    j = np.fromiter((k for a in lists for k in a), dtype=np.int64, count=int(lens.sum()))
+    """:func:`~manifold_sph.spem.operators.cross_pairs`, sorted by row, then column."""
+    i, j, _ = cross_pairs(rows, cols, radius)
     order = np.lexsort((j, i))
     return i[order], j[order]
 
