@@ -70,6 +70,7 @@ __all__ = [
     "ssor_count",
     "ssor_fill",
     "ssor_upper_times",
+    "ssor_residual",
     "voronoi_rows",
     "winding_rows",
 ]
@@ -1032,6 +1033,27 @@ def ssor_upper_times(g0, g1, bounds, ptr_u, idx_u, dat_u, diag, x, out, partial)
             for q in range(_u(ptr_u[i]), _u(ptr_u[i + 1])):
                 acc += dat_u[q] * x[_u(i + idx_u[q])]
             out[i] = acc
+
+
+@_jit
+def ssor_residual(g0, g1, bounds, ptr_u, idx_u, dat_u, ptr_r, idx_r, dat_r, diag, b, x, out, partial):
+    """``out = b - A x`` from the split (``A = D + U + L + B``, all in the sweep order) on blocks
+    ``g0:g1``; ``partial[k] = (out . out, max |out|)`` over block ``k``."""
+    for k in range(g0, g1):
+        ss = 0.0
+        mx = 0.0
+        for i in range(bounds[k], bounds[k + 1]):
+            acc = diag[i] * x[i]
+            for q in range(_u(ptr_u[i]), _u(ptr_u[i + 1])):
+                acc += dat_u[q] * x[_u(i + idx_u[q])]
+            for q in range(_u(ptr_r[i]), _u(ptr_r[i + 1])):
+                acc += dat_r[q] * x[_u(i + idx_r[q])]
+            o = b[i] - acc
+            out[i] = o
+            ss += o * o
+            mx = max(mx, abs(o))
+        partial[k, 0] = ss
+        partial[k, 1] = mx
 
 
 # ------------------------------------------------------------- Voronoi cells

@@ -315,7 +315,10 @@ def _numerical(A: sp.csr_matrix, nb: Neighborhood, xy: np.ndarray | PairOffsets,
     else:
         key = _sweep_key(xy)
         order = None if key is None else np.argsort(key, kind="stable")
-        dV, residual, budget = _solve_partition_of_unity(A, order=order)  # its residual is that of A itself: not measured again
+        shepard: dict = {}  # A's entries may be released by the solver (it keeps a copy): not used after this
+        dV, residual, budget = _solve_partition_of_unity(A, order=order, shepard=shepard)  # the residual of A itself
+        if A.data.size < A.nnz:
+            A = None
     fell_back = dV is None or not np.all(np.isfinite(dV))
     if fell_back:
         warnings.warn(
@@ -325,8 +328,10 @@ def _numerical(A: sp.csr_matrix, nb: Neighborhood, xy: np.ndarray | PairOffsets,
             ManifoldSPHWarning,
             stacklevel=4,
         )
-        dV = 1.0 / _csr_row_sums(A)
-    if fell_back or close.size:  # merged groups: the residual of the full system
+        dV = 1.0 / _csr_row_sums(A) if A is not None else shepard["dV"]
+    if A is None:  # released: the solver measured the Shepard elements' residual (a converged one is in hand)
+        residual = shepard["residual"] if fell_back else residual
+    elif fell_back or close.size:  # merged groups: the residual of the full system
         residual = float(np.abs(_product(A, dV) - 1.0).max())
     release_freed_memory(n)  # the solver's copy of the matrix and its vectors, before the assembly's peak
     return AreaElements(dV=dV, method="numerical", n_negative=int((dV < 0).sum()), residual=residual,
@@ -356,7 +361,8 @@ STALL_WINDOW = 30
 LU_MAX_ROWS = 10_000
 
 
-def _solve_partition_of_unity(A: sp.csr_matrix | _Merged, rtol: float = 1e-15, order: np.ndarray | None = None):
+def _solve_partition_of_unity(A: sp.csr_matrix | _Merged, rtol: float = 1e-15, order: np.ndarray | None = None,
+                              shepard: dict | None = None):
     """Solve ``A dV = 1``: BiCGSTAB started from the Shepard elements, to a relative residual of
     ``rtol``, preconditioned by block SSOR (:func:`bicgstab_ssor`; the Shepard (row-sum) one when
     the compiled kernels are off or a diagonal entry is not positive); sparse LU if the iteration
@@ -365,10 +371,18 @@ def _solve_partition_of_unity(A: sp.csr_matrix | _Merged, rtol: float = 1e-15, o
     Round-off level (1e-15) keeps the operators
     invariant under rotation, translation and scaling to ~1e-11: at 1e-12 the
     elements' residual, amplified by ill-conditioned boundary systems (cond ~3e4),
-    showed as 2e-8 differences (measured, planar ncsph), for ~25 % fewer iterations."""
+    showed as 2e-8 differences (measured, planar ncsph), for ~25 % fewer iterations.
+
+    ``shepard`` (a dict; plain CSR systems of more than :data:`LU_MAX_ROWS` rows only): the
+    solver may then release ``A.data`` once its split copy is built (``A`` is unusable after:
+    the caller gives it up); the dict receives ``"dV"`` and ``"residual"``, the Shepard elements
+    and their ``max |A dV - 1|``, for the fallback."""
     n = A.shape[0]
     ones = np.ones(n)
     rowsum = _row_sums(A)
+    release = shepard is not None and not isinstance(A, _Merged) and n > LU_MAX_ROWS
+    if shepard is not None:
+        shepard["dV"] = 1.0 / rowsum
     budget = SSOR_MAXITER if _jit.ENABLED else NUMERICAL_MAXITER
     if np.all(rowsum > 0):
         dinv = 1.0 / rowsum
@@ -377,7 +391,9 @@ def _solve_partition_of_unity(A: sp.csr_matrix | _Merged, rtol: float = 1e-15, o
             budget = SSOR_MAXITER
             found: dict = {}
             dV, info = bicgstab_ssor(A, ones, dinv, rtol=rtol, maxiter=SSOR_MAXITER, stall_window=SSOR_STALL_WINDOW,
-                                     order=order, _found=found)
+                                     order=order, _found=found, _release=release)
+            if "x0_residual" in found:  # A's entries released: the Shepard residual measured by the solver
+                shepard["residual"] = found["x0_residual"]
         if info == -12:
             budget = NUMERICAL_MAXITER
             found = {}
@@ -451,7 +467,7 @@ def _ssor_bounds(n: int) -> np.ndarray:
 
 def bicgstab_ssor(A: sp.csr_matrix, b: np.ndarray, x0: np.ndarray, rtol: float, maxiter: int,
                   stall_window: int | None = None, order: np.ndarray | None = None,
-                  _found: dict | None = None) -> tuple[np.ndarray, int]:
+                  _found: dict | None = None, _release: bool = False) -> tuple[np.ndarray, int]:
     """BiCGSTAB on ``(D + L)^-1 A (D + U)^-1 y = (D + L)^-1 b``, ``x = (D + U)^-1 y``: block-SSOR
     (symmetric Gauss-Seidel) preconditioning applied by Eisenstat's trick, each operator
     application two compiled passes that read every matrix entry once, blocks on threads.
@@ -465,7 +481,11 @@ def bicgstab_ssor(A: sp.csr_matrix, b: np.ndarray, x0: np.ndarray, rtol: float, 
     earlier. Returns ``(x, info)`` as :func:`manifold_sph._sparse.bicgstab_csr`
     (``info = -12``: a diagonal entry is not positive, nothing solved). ``A`` may be a merged
     system (``_Merged``): read through its maps, never copied. ``_found`` (internal) receives
-    ``"residual"``, ``max |b - A x|`` of the converged ``x``.
+    ``"residual"``, ``max |b - A x|`` of the converged ``x``. Residuals are computed from the split
+    copy (the same entries; sums in the sweep order). ``_release`` (internal): once the split is
+    built, ``A.data`` is replaced by an empty array (the caller gives up ``A``: its entries are
+    not needed twice at the build's peak, 8 bytes an entry); then ``_found`` also receives
+    ``"x0_residual"``, ``max |b - A x0|``.
     """
     n = A.shape[0]
     rows_of, cols_of = (A.rep, A.label) if isinstance(A, _Merged) else (None, None)
@@ -516,33 +536,40 @@ def bicgstab_ssor(A: sp.csr_matrix, b: np.ndarray, x0: np.ndarray, rtol: float, 
     run(_jit.ssor_fill, perm, iperm, indptr, indices, data, ptr_u, idx_u, dat_u, ptr_r, idx_r, dat_r)
     upper = (ptr_u, idx_u, dat_u, diag)
     rest = (ptr_r, idx_r, dat_r, diag)
-    del iperm, perm
-    b_in = np.ascontiguousarray(b, dtype=np.float64)
-    b = b_in[sweep]  # the solve runs on the permuted unknowns
+    del iperm, perm, data, indices, indptr
+    if _release and rows_of is None:
+        A.data = np.empty(0, dtype=np.float64)  # the split holds every entry now
+    del A, A_in
+    b = np.ascontiguousarray(b, dtype=np.float64)[sweep]  # the solve runs on the permuted unknowns
     zeros = np.zeros(n)
     t = np.zeros(n)
     w = np.empty(n)
 
-    def unprecondition(y):  # x = (D + U)^-1 y, in the caller's numbering
+    def unprecondition(y, scatter=True):  # x = (D + U)^-1 y, in the caller's numbering (or the sweep order)
         x = np.empty(n)
         run(_jit.ssor_backward, *upper, 0, y, y, y, 0.0, 0.0, x)
+        if not scatter:
+            return x
         out = np.empty(n)
         out[sweep] = x
         return out
 
-    def true_residual(x):
-        r = _product(A_in, x)
-        np.subtract(b_in, r, out=r)
-        return r
+    def true_residual(xs):  # b - A x, x and the result in the sweep order; and max |b - A x|
+        r = np.empty(n)
+        run(_jit.ssor_residual, ptr_u, idx_u, dat_u, ptr_r, idx_r, dat_r, diag, b, xs, r)
+        return r, float(partial[:, 1].max())
 
     bnorm = float(np.sqrt(np.einsum("i,i->", b, b)))
     bhat = np.empty(n)
     bhat_norm = float(np.sqrt(run(_jit.ssor_forward, *rest, b, zeros, w, bhat, b)[0]))
     del bhat
-    x = np.array(x0, dtype=np.float64)
+    x = np.array(x0, dtype=np.float64)[sweep]
     y = np.empty(n)
-    run(_jit.ssor_upper_times, *upper, x[sweep], y)  # y0 = (D + U) x0
-    r0 = true_residual(x)[sweep]
+    run(_jit.ssor_upper_times, *upper, x, y)  # y0 = (D + U) x0
+    r0, r0_max = true_residual(x)
+    del x
+    if _found is not None and _release:
+        _found["x0_residual"] = r0_max
     r = np.empty(n)
     rr = run(_jit.ssor_forward, *rest, r0, zeros, w, r, r0)[0]  # r = (D + L)^-1 (b - A x0)
     del r0
@@ -561,12 +588,13 @@ def bicgstab_ssor(A: sp.csr_matrix, b: np.ndarray, x0: np.ndarray, rtol: float, 
 
     def converged(yv):  # the preconditioned residual is small: is the true one? (x kept when it is)
         nonlocal target
-        xv = unprecondition(yv)
-        r = true_residual(xv)
+        xs = unprecondition(yv, scatter=False)
+        r, r_max = true_residual(xs)
         if float(np.sqrt(np.einsum("i,i->", r, r))) < atol:
-            done["x"] = xv
+            done["x"] = np.empty(n)
+            done["x"][sweep] = xs
             if _found is not None:
-                _found["residual"] = float(np.abs(r).max())
+                _found["residual"] = r_max
             return True
         target *= 0.1  # not yet: go on
         return False

@@ -234,3 +234,30 @@ def test_ssor_split_offsets_int16_and_int32_give_the_same_solve(monkeypatch):
         monkeypatch.setattr(area, "SSOR_NARROW_WIDTH", 32767)
         assert info16 == info32 == 0
         np.testing.assert_array_equal(x16, x32)
+
+
+@pytest.mark.parametrize("sampling", ["fibonacci", "random"])
+def test_released_kernel_matrix_gives_the_same_area_elements(monkeypatch, sampling):
+    """Above LU_MAX_ROWS the solver frees the kernel matrix's entries once its split copy is built (the
+    build's memory peak, issue 22). The elements, the fallback and the reported residual must be those
+    of the unreleased solve: round-off (converged, Fibonacci) or identical (Shepard fallback, random)."""
+    # seed=2: no near-duplicates (merged systems are never released)
+    c = shapes.sphere(3000) if sampling == "fibonacci" else shapes.sphere(3000, sampling="random", seed=2)
+    s = Surface(c.points, c.normals, area="shepard")
+    nb, xy, kern = s.neighborhood, s.pair_offsets(), s.kernel
+    A = area.kernel_matrix(nb, xy, kern)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        kept = area._numerical(A.copy(), nb, xy, None)  # 3000 rows <= LU_MAX_ROWS: nothing released
+        monkeypatch.setattr(area, "LU_MAX_ROWS", 1000)
+        B = A.copy()
+        released = area._numerical(B, nb, xy, None)
+    assert B.data.size == 0  # the entries were given up
+    assert released.fell_back == (sampling == "random")
+    if sampling == "random":  # stalls near 1e-4: the Shepard elements and their residual
+        np.testing.assert_array_equal(released.dV, 1.0 / np.asarray(A.sum(axis=1)).ravel())
+        assert released.residual == pytest.approx(np.abs(A @ released.dV - 1.0).max(), rel=1e-12)
+    else:
+        np.testing.assert_allclose(released.dV, kept.dV, rtol=0, atol=1e-12 * np.abs(kept.dV).max())
+        assert np.abs(A @ released.dV - 1.0).max() < 1e-12
+        assert released.residual == pytest.approx(np.abs(A @ released.dV - 1.0).max(), rel=1e-3, abs=1e-15)
