@@ -340,7 +340,11 @@ class OperatorSet:
     _WIDER_K = 64
 
     def _wider_candidates(self, rows: np.ndarray):
-        """``(indptr, xy, columns, radius)`` of a wider search for ``rows``, or None (subclasses)."""
+        """``(indptr, xy, columns, radius[, height])`` of a wider search for ``rows``, or None (subclasses)."""
+        return None
+
+    def _pair_heights(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray | None:
+        """Offsets ``n_i . (x_j - x_i)`` of pairs along the row particle's normal, or None (flat domains)."""
         return None
 
     def _stable(self) -> dict:
@@ -349,16 +353,17 @@ class OperatorSet:
             return self._cache["stable"]
         nb = self.neighborhood
         n = nb.n_rows
-        cells = voronoi_cells(nb.indptr, self.pair_offsets(), nb.support * nb.h)
-        rows, cols, weights = nb.rows, np.asarray(self._columns), cells.weights
+        rows, cols = nb.rows, np.asarray(self._columns)
+        cells = voronoi_cells(nb.indptr, self.pair_offsets(), nb.support * nb.h, height=self._pair_heights(rows, cols))
+        weights = cells.weights
         area, flags = cells.area.copy(), cells.flags.copy()
         redo = np.flatnonzero(flags & (INCOMPLETE | DEGENERATE))
         n_widened = 0
         if redo.size:
             wider = self._wider_candidates(redo)
             if wider is not None:
-                indptr2, xy2, cols2, radius2 = wider
-                more = voronoi_cells(indptr2, xy2, radius2)
+                indptr2, xy2, cols2, radius2 = wider[:4]
+                more = voronoi_cells(indptr2, xy2, radius2, height=wider[4] if len(wider) > 4 else None)
                 mark = np.zeros(n, dtype=bool)
                 mark[redo] = True
                 keep = ~mark[rows]

@@ -252,7 +252,17 @@ class Surface(OperatorSet):
         xy = project_pairs(pts, self.u, self.v, pair_rows, idx[keep])
         indptr = np.concatenate([[0], np.cumsum(keep.sum(axis=1))])
         radius = dist[:, -1] if k < pts.shape[0] else np.full(rows.size, np.inf)
-        return indptr, xy, idx[keep], radius
+        return indptr, xy, idx[keep], radius, self._pair_heights(pair_rows, idx[keep])
+
+    def _pair_heights(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """Offsets ``n_i . (x_j - x_i)`` of pairs along the row particle's normal (in chunks of pairs)."""
+        pts, nrm = self.points, self.normals
+        out = np.empty(rows.size)
+        for a in range(0, rows.size, 1 << 20):
+            r, c = rows[a : a + (1 << 20)], cols[a : a + (1 << 20)]
+            d = pts[c] - pts[r]
+            out[a : a + r.size] = np.einsum("pk,pk->p", d, nrm[r])
+        return out
 
     def _tangential(self, F: np.ndarray) -> np.ndarray:
         n = self.normals

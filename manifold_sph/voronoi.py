@@ -56,7 +56,7 @@ from . import _jit
 from ._validation import _describe, as_points, check_finite, check_int, check_positive
 from .threads import run_chunks
 
-__all__ = ["VoronoiCells", "voronoi_cells", "stiffness_matrix", "DUPLICATE_TOL"]
+__all__ = ["VoronoiCells", "voronoi_cells", "lift_offsets", "stiffness_matrix", "DUPLICATE_TOL"]
 
 #: Neighbours closer than this fraction of a cell's size (square root of its area) are
 #: near-duplicates: their distance is floored there in the flux weight, so that two
@@ -65,6 +65,10 @@ DUPLICATE_TOL = 1e-3
 
 #: Rows per chunk (the numpy twin pads a chunk to its largest neighbourhood: ~1.6 kB per row).
 _ROWS = 4096
+
+#: Tangent-plane slope ``|z| / |t|`` of a neighbour tolerated as the same sheet (curvature and the
+#: normal's error): only the height above ``LIFT_SLOPE * |t|`` moves a bisector (:func:`lift_offsets`).
+LIFT_SLOPE = 0.2
 
 INCOMPLETE, BOUNDARY, DEGENERATE, NEAR_DUPLICATE = 1, 2, 4, 8
 
@@ -226,7 +230,9 @@ def _cells_numpy(lo, hi, indptr, xy, radius, dup_tol, w, area, flags):
     flags[lo:hi] = fl
 
 
-def voronoi_cells(indptr: ArrayLike, xy: ArrayLike, radius: ArrayLike, *, dup_tol: float = DUPLICATE_TOL) -> VoronoiCells:
+def voronoi_cells(
+    indptr: ArrayLike, xy: ArrayLike, radius: ArrayLike, *, height: ArrayLike | None = None, dup_tol: float = DUPLICATE_TOL
+) -> VoronoiCells:
     """Voronoi cell of each particle among its neighbours, in its tangent plane.
 
     Parameters
@@ -238,6 +244,12 @@ def voronoi_cells(indptr: ArrayLike, xy: ArrayLike, radius: ArrayLike, *, dup_to
         itself at offset 0).
     radius : ndarray, shape (N,)
         Every particle within this distance of ``i`` is among its pairs.
+    height : ndarray, shape (P,), optional
+        Offset of each pair along particle ``i``'s normal, ``n_i . (x_j - x_i)``. When
+        given, neighbour ``j`` cuts the cell with its bisector *in space* (the plane
+        of points equidistant from ``x_i`` and ``x_j``) intersected with ``i``'s tangent
+        plane, and ``w_ij`` divides by the distance in space: the cell is the section of
+        the 3D Voronoi cell by the tangent plane. See :func:`lift_offsets`.
     dup_tol : float
         See :data:`DUPLICATE_TOL`.
 
@@ -271,6 +283,24 @@ def voronoi_cells(indptr: ArrayLike, xy: ArrayLike, radius: ArrayLike, *, dup_to
     if radius.shape != (n,) or np.any(np.isnan(radius)) or np.any(radius <= 0):
         raise ValueError(f"radius must have shape ({n},) with positive values (inf allowed), got {_describe(radius)}")
     dup_tol = check_positive("dup_tol", dup_tol, allow_zero=True)
+    if height is not None:
+        height = np.ascontiguousarray(height, dtype=np.float64)
+        if height.shape != (xy.shape[0],):
+            raise ValueError(f"height must have shape ({xy.shape[0]},) (one offset a pair), got {_describe(height)}")
+        check_finite("height", height)
+        xy, scale, keep = lift_offsets(xy, height)
+        # bisector beyond the search radius: it can cut only cells already flagged incomplete
+        keep &= np.einsum("pk,pk->p", xy, xy) <= 4.0 * np.repeat(radius, np.diff(indptr)) ** 2
+        # a point beyond radius in space may have its lifted offset as near as _lift_reach() * radius
+        radius = radius * _lift_reach(LIFT_SLOPE)
+        if not keep.all():  # on i's normal line (the bisector is parallel to the tangent plane) or far
+            kept = np.concatenate([[0], np.cumsum(keep)])[indptr]
+            cells = voronoi_cells(kept, xy[keep], radius, dup_tol=dup_tol)
+            w = np.zeros(keep.size)
+            w[keep] = cells.weights * scale[keep]
+            return VoronoiCells(weights=w, area=cells.area, flags=cells.flags)
+        cells = voronoi_cells(indptr, xy, radius, dup_tol=dup_tol)
+        return VoronoiCells(weights=cells.weights * scale, area=cells.area, flags=cells.flags)
     w = np.zeros(xy.shape[0])
     area = np.zeros(n)
     flags = np.zeros(n, dtype=np.uint8)
@@ -281,6 +311,62 @@ def voronoi_cells(indptr: ArrayLike, xy: ArrayLike, radius: ArrayLike, *, dup_to
         len(starts),
     )
     return VoronoiCells(weights=w, area=area, flags=flags)
+
+
+def _lift_reach(slope: float) -> float:
+    """Smallest ``|lifted offset|`` of a point at distance 1 in space (:func:`lift_offsets`), slightly under.
+
+    With ``u = |z| / |t|`` it is ``(1 + (u - slope)^2) / sqrt(1 + u^2)`` for ``u >= slope`` (and
+    ``1 / sqrt(1 + u^2)`` below), minimised on a fine grid; 0.965 for ``slope = 0.2``.
+    """
+    u = slope + np.linspace(0.0, 4.0, 40001)
+    return 0.999 * float(np.min((1.0 + (u - slope) ** 2) / np.sqrt(1.0 + u * u)))
+
+
+def lift_offsets(xy: np.ndarray, height: np.ndarray, slope: float = LIFT_SLOPE) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Planar offsets whose bisectors are the tangent-plane sections of the bisectors in space.
+
+    The points equidistant from ``x_i`` and ``x_j = x_i + t + z n_i`` (``t`` in the tangent
+    plane) cut the tangent plane in the line ``p . t / |t| = (|t|^2 + z^2) / (2 |t|)``: the
+    planar bisector of the offset ``t (|t|^2 + z^2) / |t|^2``. Only the part of ``|z|``
+    above ``slope * |t|`` is counted, so that a neighbour on the same sheet (``|z| / |t|``
+    about ``|t| kappa / 2`` plus the normal's error) keeps its projected offset, while a
+    point on another sheet across a gap (``|z|`` comparable to ``|t|``) moves out of the
+    cell's reach.
+
+    Parameters
+    ----------
+    xy : ndarray, shape (P, 2)
+        Offsets ``t`` projected to the row particle's tangent plane.
+    height : ndarray, shape (P,)
+        Offsets ``z`` along the row particle's normal.
+    slope : float
+        See :data:`LIFT_SLOPE`.
+
+    Returns
+    -------
+    lifted : ndarray, shape (P, 2)
+    scale : ndarray, shape (P,)
+        ``|lifted| / sqrt(|t|^2 + z_eff^2)``: the planar weight ``|edge| / |lifted|`` times
+        ``scale`` is ``|edge|`` over the lifted distance.
+    keep : ndarray of bool, shape (P,)
+        False for points on ``i``'s normal line (``|t|`` below 1e-9 of ``|z|``), whose
+        bisector never meets the tangent plane.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> lifted, scale, keep = lift_offsets(np.array([[1.0, 0.0], [1.0, 0.0]]), np.array([0.1, 1.2]))
+    >>> lifted.round(3).tolist(), keep.tolist()        # 0.1 < 0.2 * 1: unchanged; 1.2 -> 1 + 1.0**2
+    ([[1.0, 0.0], [2.0, 0.0]], [True, True])
+    """
+    t2 = np.einsum("pk,pk->p", xy, xy)
+    z = np.maximum(np.abs(height) - slope * np.sqrt(t2), 0.0)
+    z2 = z * z
+    keep = (t2 > 1e-18 * z2) | (z2 == 0)  # the particle itself (0, 0) stays
+    with np.errstate(divide="ignore", invalid="ignore"):
+        factor = np.where(keep & (z2 > 0), (t2 + z2) / t2, 1.0)
+    return xy * factor[:, None], np.sqrt(factor), keep
 
 
 def stiffness_matrix(rows: ArrayLike, cols: ArrayLike, weights: ArrayLike, n: int) -> sp.csr_matrix:
