@@ -112,6 +112,7 @@ def test_dirichlet_rim_holds_values(open_scan):
         (dict(oriented="yes"), "oriented must be True or False"),
         (dict(seed_size=0), "seed_size must be at least 1"),
         (dict(max_offset=float("nan")), "max_offset must be a finite positive number"),
+        (dict(resolve=0), "resolve must be a finite positive number"),
     ],
 )
 def test_bad_input(kwargs, match):
@@ -262,6 +263,26 @@ def test_specks_are_dropped():
     assert not (strict.mask & ~loose.mask).any()  # the cleanup only removes
 
 
+def test_density_change_is_no_rim():
+    """Exact answer: a rectangle sampled on a grid of spacing 0.1 for x < 0 and 0.01 for x > 0. The
+    dense particles along x = 0 have their k nearest neighbours all on the dense side; the next
+    coarse particle lies 0.055 away and the one beyond it 0.1: no hole, only sparser sampling.
+    Measured: without ``resolve`` 88 of the 176 particles along the jump and 18 more inside are
+    flagged; with it none, and 98.9 % of the outer rim is still found, in one piece."""
+    A = np.array(np.meshgrid(np.arange(-1, 0, 0.1) + 0.05, np.arange(-0.5, 0.5, 0.1) + 0.05)).reshape(2, -1).T
+    B = np.array(np.meshgrid(np.arange(0, 0.3, 0.01) + 0.005, np.arange(-0.5, 0.5, 0.01) + 0.005)).reshape(2, -1).T
+    p = np.c_[np.r_[A, B], np.zeros(len(A) + len(B))]
+    x, y = p[:, 0], p[:, 1]
+    n = np.tile([0.0, 0, 1], (len(p), 1))
+    jump = (np.abs(x) < 0.02) & (np.abs(y) < 0.44)
+    rim = (x < -0.9) | (x > 0.29) | (np.abs(y) > 0.49) | ((x < 0) & (np.abs(y) > 0.4))
+    rep = detect_boundary(p, n)
+    assert not rep.mask[~rim].any() and rep.mask[rim].mean() >= 0.95 and rep.n_loops == 1
+    old = detect_boundary(p, n, resolve=None)
+    assert old.mask[jump].sum() >= 40  # the test can fail: without it the jump is taken for a rim
+    assert not (rep.mask & ~old.mask).any()
+
+
 MODELS = Path(__file__).resolve().parents[2] / "shared" / "data" / "models"
 
 
@@ -386,26 +407,33 @@ def _scores(p, rep, ref, free, open_):
 # ends and the spout's base end inside the body (53 of their 60 vertices by winding number): 107
 # free (the lid's rim, the body's rim, the spout's tip, 7 handle-end vertices), of which only 22 are
 # open (the body's rim and the lid's lie 0.5 edge lengths apart, the spout's tip curls back).
-# Mesh normals 0.79 / 0.78 / 0.82, 0.24 in 6 pieces; oriented=True 0.89 / 0.93 / 0.91, 0.25 in 4;
-# estimated normals 0.57 / 0.71 / 0.59, 0.39 in 5 (before issue 16: 0.67 / 0.49 in 9 with mesh
+# Mesh normals 0.787 / 0.776 / 0.818, 0.113 in 6 pieces (without the ``resolve`` test, which drops
+# the ring of the spout's wall under its rolled lip: 0.787 / 0.776 / 0.818, 0.241); oriented=True
+# 0.675 / 0.607 / 0.909, 0.223 in 5 (without ``resolve`` 0.894 / 0.935 / 0.909, 0.251: the body's
+# and lid's rims were found through the anisotropy of the sampling, their empty side pointing along
+# the rim or down the wall to a particle one ordinary step away); estimated normals 0.575 / 0.710 /
+# 0.591, 0.193 in 4 (without ``resolve`` 0.403; before issue 16: 0.67 / 0.49 in 9 with mesh
 # normals). Beetle (301 boundary vertices, all free, 272 open, 23 loops, many of 2-10 vertices, in
-# 1148): 0.53 / 0.53 / 0.55, 0.48 in 3 pieces; estimated 0.54 / 0.54 / 0.56, 0.45. Alligator
-# (planar, 433 boundary vertices, 373 open: 60 lie in notches of the outline narrower than 0.75
-# edges, which a cloud cannot show): 0.80 / 0.80 / 0.93, 0.025 in 1 piece. The targets (>= 0.9,
-# <= 0.1) are NOT met on the teapot and the beetle: both meshes are strongly anisotropic
-# (edge-length ratio per vertex: median 2.9 / 4.7, 99th percentile 17 / 43: a particle's nearest
-# neighbours lie on one meridian); the false positives lie next to the boundary (90 % of the
-# beetle's and 75 % of the teapot's within 2 local spacings of a mesh-boundary vertex: the
-# beetle's boundary is a quarter of its vertices, with the next row a fraction of a spacing
-# inside) or on the curled lip of the spout; the beetle's missed open boundary vertices have
-# neighbours all round (median gap 98 degrees: its panels lie 1-2 spacings apart, and its loops
-# of 2-10 vertices are smaller than a neighbourhood). (Estimated normals come from
-# scans/normals.py, which is being reworked: looser floors.)
+# 1148): 0.498 / 0.498 / 0.515, 0.449 in 4 pieces (without ``resolve`` 0.528 / 0.528 / 0.548,
+# 0.482 in 3); estimated 0.478 / 0.478 / 0.493, 0.433 in 7 (without 0.538, 0.449). Alligator (planar,
+# 433 boundary vertices, 373 open: 60 lie in notches of the outline narrower than 0.75 edges, which a
+# cloud cannot show): 0.788 / 0.788 / 0.914, 0.026 in 2 pieces (without ``resolve`` 0.797 / 0.925,
+# 0.025 in 1). The targets (>= 0.9, <= 0.1) are NOT met on the teapot and the beetle: both meshes are
+# strongly anisotropic (edge-length ratio per vertex: median 2.9 / 4.7, 99th percentile 17 / 43: a
+# particle's nearest neighbours lie on one meridian); the beetle's false positives lie 1-3 mesh edges
+# from its boundary (85 / 37 / 23 of 148 before ``resolve``: its boundary is a quarter of its
+# vertices, with the next row a fraction of a spacing inside); its missed open boundary vertices have
+# neighbours all round (median gap 98 degrees: its panels lie 1-2 spacings apart, and its loops of
+# 2-10 vertices, 35 vertices in loops at most 3.5 spacings across, are smaller than a
+# neighbourhood). A finer mesh of the same beetle (19,885 vertices; not in the repository) gives
+# 0.95 recall with 5 % false positives. (Estimated normals come from scans/normals.py, which is
+# being reworked: looser floors.)
 BOUNDARY_FLOORS = {  # min recall (all, free, open), max false positives; with mesh / estimated normals
-    "teapot": ((0.75, 0.75, 0.8, 0.3), (0.5, 0.6, 0.5, 0.5)),
-    "beetle": ((0.5, 0.5, 0.5, 0.52), (0.45, 0.45, 0.45, 0.6)),
+    "teapot": ((0.75, 0.75, 0.8, 0.15), (0.5, 0.6, 0.5, 0.25)),
+    "beetle": ((0.45, 0.45, 0.47, 0.48), (0.43, 0.43, 0.45, 0.48)),
     "alligator": ((0.75, 0.75, 0.9, 0.05), (0.75, 0.75, 0.9, 0.05)),
 }
+FAR_FALSE_POSITIVES = {"teapot": 12, "beetle": 16, "alligator": 0}  # measured 10, 12, 0 (mesh normals)
 
 
 @pytest.mark.parametrize("name", sorted(BOUNDARY_FLOORS))
@@ -422,13 +450,15 @@ def test_mesh_boundaries_of_open_models(name):
         assert recall >= lo and recall_free >= lo_free and recall_open >= lo_open and false_pos <= hi, (
             recall, recall_free, recall_open, false_pos, rep.n_loops)
         assert rep.n_loops <= 10
-        if normals is not None:
-            assert near >= 0.7  # measured 0.75 (teapot), 0.90 (beetle), 1.0 (alligator)
+        if normals is not None:  # false positives more than 2 local spacings from the mesh boundary
+            assert round((1 - near) * (rep.mask & ~ref).sum()) <= FAR_FALSE_POSITIVES[name]
     if name == "teapot":  # consistently oriented mesh normals separate the lid from the rim
         assert free.sum() == 107 and open_.sum() == 22  # the handle's ends and the spout's base lie inside the body
         rep = detect_boundary(p, n, oriented=True)
-        recall, recall_free, _, false_pos, _ = _scores(p, rep, ref, free, open_)
-        assert recall >= 0.85 and recall_free >= 0.9 and false_pos <= 0.3
+        recall, _, recall_open, false_pos, _ = _scores(p, rep, ref, free, open_)
+        assert recall_open >= 0.85 and false_pos <= 0.27  # measured 0.909, 0.223
+        old = detect_boundary(p, n, oriented=True, resolve=None)  # 0.894 / 0.935 / 0.909, 0.251
+        assert _scores(p, old, ref, free, open_)[0] > recall and not (rep.mask & ~old.mask).any()
 
 
 def _holed_sphere(sampling, n=6000, seed=1, radii=(1, 1.5, 2, 3, 4, 6)):
