@@ -227,3 +227,45 @@ def test_direct_coupling_on_a_large_layout_says_its_check_is_partial():
     with pytest.warns(ManifoldSPHWarning, match=r"only the extreme eigenvalues were checked \(partial stability check\)"):
         s = TMzSolver(lay, coupling="direct")
     assert s.growth == pytest.approx(1.0, abs=1e-12)
+
+
+# --------------------------------------------------------------------------- the spectral-radius bound
+def test_spectral_radius_bound_brackets_the_radius_of_clustered_and_irregular_spectra(monkeypatch):
+    """Lanczos (300 steps) from a random start: theta <= rho <= bound, the bound within 0.3 % (Kuczynski-
+    Wozniakowski, failure 1e-9). A 2D lattice Laplacian (its top eigenvalues clustered: ARPACK to tol 1e-8
+    needed 1800 iterations on a 200 x 200 lattice) and the sbp operator of a Poisson layout, against dense
+    eigenvalues."""
+    import scipy.sparse as sp
+
+    from manifold_sph.spem import solver
+
+    m = 40
+    T = sp.diags([-np.ones(m - 1), 2 * np.ones(m), -np.ones(m - 1)], [-1, 0, 1])
+    lap = -(sp.kron(T, sp.eye(m)) + sp.kron(sp.eye(m), T)).tocsr()  # negative semi-definite, n = 1600
+    lay = make_layout("poisson", (0.0, A, 0.0, A), A / 24, seed=3)
+    _, S = TMzSolver(lay, h_ratio=1.5)._lossless_operator()
+    monkeypatch.setattr(solver, "DENSE_RADIUS", 10)  # the Lanczos path on these small matrices
+    for M in (lap, S):
+        rho = float(np.abs(np.linalg.eigvalsh(M.toarray())).max())
+        theta, bound = solver.spectral_radius_bound(M)
+        assert theta <= rho * (1 + 1e-12) and rho <= bound <= 1.003 * rho, (theta, rho, bound)
+        assert theta >= 0.999 * rho  # and close from below on these sizes
+    monkeypatch.setattr(solver, "DENSE_RADIUS", 10**6)
+    rho = float(np.abs(np.linalg.eigvalsh(lap.toarray())).max())
+    assert solver.spectral_radius_bound(lap) == (pytest.approx(rho, rel=1e-12), pytest.approx(rho, rel=1e-12))
+
+
+def test_spectral_radius_bound_checks_its_arguments():
+    import scipy.sparse as sp
+
+    from manifold_sph.spem.solver import spectral_radius_bound
+
+    S = -sp.eye(500).tocsr()
+    with pytest.raises(ValueError, match=r"failure must be a probability in \(0, 1\), got 1.5"):
+        spectral_radius_bound(S, failure=1.5)
+    with pytest.raises(ValueError, match=r"steps"):
+        spectral_radius_bound(S, steps=0)
+    with pytest.raises(ValueError, match=r"non-finite"):
+        spectral_radius_bound(sp.diags(np.r_[np.nan, -np.ones(499)]).tocsr())
+    theta, bound = spectral_radius_bound(S)  # an invariant subspace at the first step: exact
+    assert theta == pytest.approx(1.0) and 1.0 <= bound <= 1.003
