@@ -290,7 +290,9 @@ def voronoi_cells(
         check_finite("height", height)
         xy, scale, keep = lift_offsets(xy, height)
         # bisector beyond the search radius: it can cut only cells already flagged incomplete
-        keep &= np.einsum("pk,pk->p", xy, xy) <= 4.0 * np.repeat(radius, np.diff(indptr)) ** 2
+        far = np.flatnonzero(scale > 1.0)  # only lifted offsets can have left the search radius
+        row = np.searchsorted(indptr, far, side="right") - 1
+        keep[far[np.einsum("pk,pk->p", xy[far], xy[far]) > 4.0 * radius[row] ** 2]] = False
         # a point beyond radius in space may have its lifted offset as near as _lift_reach() * radius
         radius = radius * _lift_reach(LIFT_SLOPE)
         if not keep.all():  # on i's normal line (the bisector is parallel to the tangent plane) or far
@@ -360,13 +362,21 @@ def lift_offsets(xy: np.ndarray, height: np.ndarray, slope: float = LIFT_SLOPE) 
     >>> lifted.round(3).tolist(), keep.tolist()        # 0.1 < 0.2 * 1: unchanged; 1.2 -> 1 + 1.0**2
     ([[1.0, 0.0], [2.0, 0.0]], [True, True])
     """
-    t2 = np.einsum("pk,pk->p", xy, xy)
-    z = np.maximum(np.abs(height) - slope * np.sqrt(t2), 0.0)
-    z2 = z * z
-    keep = (t2 > 1e-18 * z2) | (z2 == 0)  # the particle itself (0, 0) stays
-    with np.errstate(divide="ignore", invalid="ignore"):
-        factor = np.where(keep & (z2 > 0), (t2 + z2) / t2, 1.0)
-    return xy * factor[:, None], np.sqrt(factor), keep
+    scale = np.ones(xy.shape[0])
+    keep = np.ones(xy.shape[0], dtype=bool)
+    t2 = xy[:, 0] * xy[:, 0] + xy[:, 1] * xy[:, 1]
+    up = np.flatnonzero(height * height > slope * slope * t2)  # the only pairs that move
+    if up.size == 0:
+        return xy, scale, keep
+    t2u = t2[up]
+    z = np.abs(height[up]) - slope * np.sqrt(t2u)
+    on_axis = t2u <= 1e-18 * z * z
+    keep[up[on_axis]] = False
+    factor = np.where(on_axis, 1.0, (t2u + z * z) / np.where(on_axis, 1.0, t2u))
+    xy = xy.copy()
+    xy[up] *= factor[:, None]
+    scale[up] = np.sqrt(factor)
+    return xy, scale, keep
 
 
 def stiffness_matrix(rows: ArrayLike, cols: ArrayLike, weights: ArrayLike, n: int) -> sp.csr_matrix:
