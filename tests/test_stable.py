@@ -10,7 +10,7 @@ import scipy.sparse as sp
 
 from manifold_sph import Domain2D, Surface, pde
 from manifold_sph.reference import shapes
-from manifold_sph.voronoi import voronoi_cells
+from manifold_sph.voronoi import LIFT_SLOPE, lift_offsets, voronoi_cells
 
 EXACT = np.concatenate([[l * (l + 1)] * (2 * l + 1) for l in range(1, 4)])  # 15 eigenvalues of -Lap on S^2
 
@@ -260,6 +260,70 @@ def test_voronoi_cells_flags():
     xy = np.vstack([[0, 0], np.c_[np.cos(ang), np.sin(ang)]])
     c = voronoi_cells(np.array([0, 10]), xy, np.array([5.0]))
     assert c.flags[0] & 2 and 0 < c.area[0] < np.pi * 0.25
+
+
+def lattice_offsets():
+    g = np.stack(np.meshgrid(np.arange(-2, 3.0), np.arange(-2, 3.0)), -1).reshape(-1, 2)
+    return g[np.argsort(np.hypot(*g.T), kind="stable")]  # the centre first
+
+
+def test_lift_offsets_exact():
+    assert LIFT_SLOPE == 0.2
+    xy = np.array([[0.0, 0.0], [3.0, 4.0], [3.0, 4.0], [0.0, 0.0], [0.6, 0.8]])
+    z = np.array([0.0, 0.9, -2.5, 0.5, 1.2])
+    lifted, scale, keep = lift_offsets(xy, z)
+    # |t| = 5: 0.9 is under the tolerated slope (1.0) and stays; 2.5 counts as 1.5; on the axis: dropped
+    f = (25 + 1.5**2) / 25
+    assert np.allclose(lifted[:3], [[0, 0], [3, 4], [3 * f, 4 * f]], rtol=1e-15)
+    assert np.allclose(scale[:3], [1, 1, np.sqrt(f)], rtol=1e-15)
+    assert keep.tolist() == [True, True, True, False, True]
+    g = (1 + 1.0**2) / 1  # |t| = 1, z = 1.2 -> 1.0 above the slope
+    assert np.allclose(lifted[4], [0.6 * g, 0.8 * g]) and np.isclose(scale[4], np.sqrt(g))
+
+
+def test_voronoi_cells_with_heights_are_sections_of_cells_in_space():
+    off = lattice_offsets()  # 25 points: the cell is the unit square, four weights 1
+    # a point of another sheet above the cell, at planar offset (0.3, 0): it would cut the square
+    xy = np.vstack([off, [[0.3, 0.0]]])
+    ind = np.array([0, xy.shape[0]])
+    z = np.zeros(xy.shape[0])
+    z[-1] = 0.8
+    flat = voronoi_cells(ind, xy, np.array([2.0]))
+    assert flat.area[0] < 0.9 and flat.weights[-1] > 0
+    c = voronoi_cells(ind, xy, np.array([2.0]), height=z)
+    assert np.isclose(c.area[0], 1.0, rtol=1e-12) and c.weights[-1] == 0
+    assert sorted(c.weights[c.weights > 0].round(12).tolist()) == [1.0] * 4
+    # a curved sheet: heights under the slope change nothing at all
+    z2 = 0.1 * np.hypot(*off.T) ** 2 / 2
+    z2[np.hypot(*off.T) > 1.9] = 0.0
+    c2 = voronoi_cells(np.array([0, 25]), off, np.array([2.0]), height=z2)
+    c0 = voronoi_cells(np.array([0, 25]), off, np.array([2.0]))
+    assert np.array_equal(c2.weights, c0.weights) and c2.area[0] == c0.area[0]
+    # the right neighbour 0.5 above the plane: 0.3 counts, its bisector moves to (1 + 0.09) / 2
+    right = int(np.flatnonzero((off[:, 0] == 1) & (off[:, 1] == 0))[0])
+    z3 = np.zeros(25)
+    z3[right] = 0.5
+    c3 = voronoi_cells(np.array([0, 25]), off, np.array([2.0]), height=z3)
+    e = 0.545 - 0.5  # the corners beyond x + |y| = 1 go to the diagonal neighbours
+    assert np.isclose(c3.area[0], 1.045 - e * e, rtol=1e-12)
+    assert np.isclose(c3.weights[right], (1 - 2 * e) / np.sqrt(1.09), rtol=1e-12)  # |edge| / distance
+    with pytest.raises(ValueError, match="height must have shape"):
+        voronoi_cells(np.array([0, 25]), off, np.array([2.0]), height=np.zeros(24))
+
+
+def test_sheets_across_a_gap_do_not_couple():
+    """Two concentric random spheres two spacings apart: their normals agree, and the projected
+    cells coupled them with half of K's weight; the cells in space do not."""
+    n = 2000
+    a, b = random_sphere(n, seed=1), random_sphere(n, seed=2)
+    gap = 2 * np.sqrt(4 * np.pi / n)
+    s = quiet_surface(np.vstack([a, (1 + gap) * b]), np.vstack([a, b]), scheme="msph", area="shepard")
+    K = s.stiffness_matrix().tocoo()
+    off = K.row != K.col
+    cross = off & ((K.row < n) != (K.col < n))
+    assert K.data[cross].sum() / K.data[off].sum() < 1e-2  # measured 4e-4 (0.5 with projected cells)
+    m = s.mass_matrix().diagonal()
+    assert abs(m[:n].sum() / (4 * np.pi) - 1) < 0.02 and abs(m[n:].sum() / (4 * np.pi * (1 + gap) ** 2) - 1) < 0.02
 
 
 def test_bad_input_to_the_new_entry_points(rand2000):
