@@ -71,6 +71,8 @@ __all__ = [
     "ssor_fill",
     "ssor_upper_times",
     "ssor_residual",
+    "tmz_e_update",
+    "tmz_h_update",
     "voronoi_rows",
     "winding_rows",
 ]
@@ -1054,6 +1056,42 @@ def ssor_residual(g0, g1, bounds, ptr_u, idx_u, dat_u, ptr_r, idx_r, dat_r, diag
             mx = max(mx, abs(o))
         partial[k, 0] = ss
         partial[k, 1] = mx
+
+
+# ------------------------------------------------------------- SPEM leap-frog (TMz)
+# One pass per half step of :meth:`manifold_sph.spem.TMzSolver.step`: each row's CSR product and its
+# field update together, no temporaries. The same operations in the same order as the numpy step
+# (scipy's row sums, then ``a * f + b * s``): the same numbers.
+@_jit
+def tmz_e_update(free, xp, xi, xd, yp, yi, yd, hy, hx, cax, cbx, cay, cby, ezx, ezy, ez):
+    """Free E rows ``free[r]``: ``ezx = cax ezx + cbx (Dx hy)``, ``ezy = cay ezy - cby (Dy hx)``, ``ez = ezx + ezy``
+    (``Dx``, ``Dy``: CSR arrays ``(xp, xi, xd)``, ``(yp, yi, yd)`` of the free rows)."""
+    for r in range(free.size):
+        i = free[r]
+        sx = 0.0
+        for q in range(_u(xp[r]), _u(xp[r + 1])):
+            sx += xd[q] * hy[_u(xi[q])]
+        sy = 0.0
+        for q in range(_u(yp[r]), _u(yp[r + 1])):
+            sy += yd[q] * hx[_u(yi[q])]
+        a = cax[r] * ezx[i] + cbx[r] * sx
+        b = cay[r] * ezy[i] - cby[r] * sy
+        ezx[i] = a
+        ezy[i] = b
+        ez[i] = a + b
+
+
+@_jit
+def tmz_h_update(p, idx, dat, ez, h, da, db, sign, out):
+    """``out = da h - db (D ez)`` (``sign`` < 0) or ``da h + db (D ez)``, ``D`` the CSR arrays ``(p, idx, dat)``."""
+    for i in range(h.size):
+        s = 0.0
+        for q in range(_u(p[i]), _u(p[i + 1])):
+            s += dat[q] * ez[_u(idx[q])]
+        if sign < 0:
+            out[i] = da[i] * h[i] - db[i] * s
+        else:
+            out[i] = da[i] * h[i] + db[i] * s
 
 
 # ------------------------------------------------------------- Voronoi cells
