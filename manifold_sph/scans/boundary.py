@@ -251,17 +251,16 @@ def _cloud_measures(pts, nrm, idx, normal_threshold, max_elevation, oriented=Fal
 
 
 _SMOOTH = np.cos(np.radians(45.0))  # normals (with their sign) of a sheet that continues smoothly
-_CONE = np.cos(np.radians(60.0))  # the cone, about the direction across a gap, searched for its far side
 
 
-def _nearest_in_cone(pts, nrm, ni, centre, direction, tree, k, thr, tan_el, oriented):
+def _nearest_in_cone(pts, nrm, ni, centre, direction, tree, k, thr, tan_el, oriented, cone):
     """The nearest same-sheet neighbour (among the ``k`` nearest) of each particle ``centre``
     within 60 degrees of ``direction`` (tangent, unit), and its tangential distance (inf and
     -1 when there is none)."""
     _, nb = tree.query(pts[centre], k=k, workers=get_num_threads())
     t, r, keep = _neighbour_filter(pts, nrm, ni, centre, nb, thr, tan_el, oriented)
     along = np.einsum("nkd,nd->nk", t, direction)
-    keep &= along > _CONE * r
+    keep &= along > cone[:, None] * r
     keep &= np.einsum("nd,nkd->nk", ni, nrm[nb]) > _SMOOTH  # the sheet continues (a fold or a facing sheet: not)
     dist = np.where(keep, r, np.inf)
     j = dist.argmin(axis=1)
@@ -270,7 +269,7 @@ def _nearest_in_cone(pts, nrm, ni, centre, direction, tree, k, thr, tan_el, orie
     return np.where(found, dist[rows, j], np.inf), np.where(found, nb[rows, j], -1)
 
 
-def _unresolved_gaps(pts, nrm, normal, across, cand, tree, k, thr, tan_el, oriented, ratio):
+def _unresolved_gaps(pts, nrm, normal, across, gap, cand, tree, k, thr, tan_el, oriented, ratio):
     """Candidates whose empty side is only the sampling getting sparser (True: not a rim).
 
     Across the gap of candidate ``i`` the nearest same-sheet particle ``j`` lies at
@@ -283,33 +282,37 @@ def _unresolved_gaps(pts, nrm, normal, across, cand, tree, k, thr, tan_el, orien
     c = np.flatnonzero(cand)
     if c.size == 0:
         return np.zeros_like(cand)
-    rho, j = _nearest_in_cone(pts, nrm, normal[c], c, across[c], tree, k, thr, tan_el, oriented)
+    cone = np.cos(np.minimum(np.radians(60.0), gap[c] / 2 - np.radians(5.0)))  # within the gap
+    rho, j = _nearest_in_cone(pts, nrm, normal[c], c, across[c], tree, k, thr, tan_el, oriented, cone)
     has = j >= 0
     out = np.zeros_like(cand)
     if not has.any():
         return out
-    c, rho, j = c[has], rho[has], j[has]
+    c, rho, j, cone = c[has], rho[has], j[has], cone[has]
     dj = across[c] - np.einsum("nd,nd->n", across[c], normal[j])[:, None] * normal[j]
     norm = np.linalg.norm(dj, axis=1)
     ok = norm > 1e-6
     dj = dj / np.where(ok, norm, 1.0)[:, None]
-    rho_j, _ = _nearest_in_cone(pts, nrm, normal[j], j, dj, tree, k, thr, tan_el, oriented)
+    rho_j, _ = _nearest_in_cone(pts, nrm, normal[j], j, dj, tree, k, thr, tan_el, oriented, cone)
     out[c] = ok & np.isfinite(rho_j) & (rho < ratio * rho_j)
     return out
 
 
-def _bridges(pts, idx, kept, which):
-    """Particles ``which`` between two ``kept`` neighbours on opposite sides (more than 120
-    degrees apart as seen from the particle): removing them would cut a rim in two."""
+def _bridges(pts, idx, lab, kept, which):
+    """Particles ``which`` between kept particles of two different pieces (labels ``lab``) on
+    opposite sides (more than 120 degrees apart as seen from the particle): removing them
+    would cut a rim in two."""
     c = np.flatnonzero(which)
     out = np.zeros_like(which)
     if c.size == 0:
         return out
     nb = idx[c, 1:]
+    ok = kept[nb]
     d = pts[nb] - pts[c][:, None, :]
     d /= np.maximum(np.linalg.norm(d, axis=2, keepdims=True), 1e-300)
-    d = np.where(kept[nb][..., None], d, 0.0)
-    out[c] = np.einsum("nid,njd->nij", d, d).min(axis=(1, 2)) < -0.5
+    opposite = np.einsum("nid,njd->nij", d, d) < -0.5
+    other = lab[nb][:, :, None] != lab[nb][:, None, :]
+    out[c] = (opposite & other & ok[:, :, None] & ok[:, None, :]).any(axis=(1, 2))
     return out
 
 
@@ -397,7 +400,8 @@ def detect_boundary(
         less than ``resolve`` times farther than the next particle beyond it (a dense
         lip next to a coarse wall, the long side of anisotropic triangles); a hole or a
         rim leaves a step several spacings wider than the sampling beyond it.
-        Candidates that join two kept ones are kept (a rim is not cut). None: no such
+        Candidates between two pieces of the kept ones, on opposite sides, stay (a
+        rim is not cut). None: no such
         test (the behaviour before it).
     oriented : bool
         The normals are consistently oriented (a mesh's, or estimated ones without
@@ -426,28 +430,29 @@ def detect_boundary(
     vertices, with the meshes' normals the teapot gives recall 0.79 with 11 %
     false positives in 6 pieces (its mesh has 6 boundary loops; without the
     ``resolve`` test 0.79 / 24 %; before any of these filters 0.67 / 49 % in 9;
-    with ``oriented=True`` 0.68 / 22 %, without ``resolve`` 0.89 / 25 %), the
-    beetle 0.50 / 45 % in 4 pieces (without ``resolve`` 0.53 / 48 %; 23 loops,
-    many of 2-10 vertices), the planar alligator 0.79 / 2.6 % in 2. With
-    estimated normals the teapot gives 0.57 / 19 % (without ``resolve`` 41 %),
-    the beetle 0.48 / 43 %. Part of the teapot's mesh boundary is none of the
-    cloud's: the handle's ends and the spout's base end inside the body (53 of
-    its 160 boundary vertices are inside by winding number); of the other 107
-    (the lid's and the body's rims, the spout's tip) recall is 0.78, 0.71 with
-    estimated normals; the lid's rim and the body's lie 0.1 apart at a spacing
-    of 0.17, and where they are found it is mostly through the anisotropy of the
-    sampling (the empty side found points along the rim or down the wall, where
-    the next particle is one ordinary step away: the ``resolve`` test drops those
-    with ``oriented=True``). On the 22 that nothing else approaches within 0.75
-    edge lengths recall is 0.82 (0.91 with ``oriented=True``). The dropped false
-    positives are the wall just under the spout's rolled lip, a dense bead of
-    particles next to a wall sampled 5-10 times coarser. Both meshes are strongly
-    anisotropic (a particle's nearest neighbours lie on one meridian); the
-    beetle's false positives lie 1-3 mesh edges from its boundary (85, 37 and 23
-    of 148), and its loops of 2-10 vertices are smaller than a neighbourhood. A
-    finer model of the same beetle (19,885 vertices, 1,134 on its boundary) gives
-    0.95 / 5 % with its mesh normals (without ``resolve`` 0.95 / 11 %), 0.94 /
-    13 % with estimated ones (18 %).
+    with ``oriented=True`` 0.68 / 21 %, without ``resolve`` 0.89 / 25 %), the
+    beetle 0.50 / 42 % in 3 pieces (without ``resolve`` 0.53 / 48 %; 23 loops,
+    many of 2-10 vertices), the planar alligator 0.80 / 2.5 % in 1 (unchanged).
+    With estimated normals the teapot gives 0.57 / 18 % (without ``resolve``
+    40 %), the beetle 0.50 / 41 % (0.54 / 45 %). Part of the teapot's mesh
+    boundary is none of the cloud's: the handle's ends and the spout's base end
+    inside the body (53 of its 160 boundary vertices are inside by winding
+    number); of the other 107 (the lid's and the body's rims, the spout's tip)
+    recall is 0.78, 0.71 with estimated normals; the lid's rim and the body's lie
+    0.1 apart at a spacing of 0.17, and where they are found it is mostly through
+    the anisotropy of the sampling (the empty side found points along the rim or
+    down the wall, where the next particle is one ordinary step away: with
+    ``oriented=True`` the ``resolve`` test drops those). On the 22 that nothing
+    else approaches within 0.75 edge lengths recall is 0.82 (0.91 with
+    ``oriented=True``). The false positives ``resolve`` drops are the wall just
+    under the spout's rolled lip (a dense bead of particles next to a wall
+    sampled 5-10 times coarser) and, on the beetle, rows next to its boundary.
+    Both meshes are strongly anisotropic (a particle's nearest neighbours lie on
+    one meridian); the beetle's false positives lie 1-3 mesh edges from its
+    boundary, and its loops of 2-10 vertices are smaller than a neighbourhood. A
+    finer mesh of the same beetle (19,885 vertices, 1,134 on its boundary) gives
+    0.94 / 4 % with its mesh normals (without ``resolve`` 0.95 / 11 %), 0.94 /
+    13 % with estimated ones (0.94 / 18 %).
     On synthetic clouds with exact answers (a sphere with holes of radius 1-6 mean
     spacings, Poisson, random and variable-density samplings) the rims of holes of
     radius 3 spacings or more are found whole (variable density: 5 of 8 at 3, all
@@ -542,8 +547,9 @@ def detect_boundary(
             seeded |= size >= seed_size
         mask = cand & (size[lab] >= min_piece) & seeded[lab]
         if not isinstance(surface, OperatorSet) and resolve is not None and mask.any():
-            veto = _unresolved_gaps(pts, nrm, normal, across, mask, tree, min(n, 4 * k), thr, np.tan(np.radians(elev)), oriented, resolve)
-            mask &= ~(veto & ~_bridges(pts, idx, mask & ~veto, veto))
+            veto = _unresolved_gaps(pts, nrm, normal, across, gap, mask, tree, min(n, 4 * k), thr, np.tan(np.radians(elev)), oriented, resolve)
+            kept = mask & ~veto
+            mask = kept | _bridges(pts, idx, _pieces(kept, rows, cols, n), kept, veto & mask)
             lab = _pieces(mask, rows, cols, n)
             mask &= np.bincount(lab[mask], minlength=lab.max() + 1)[lab] >= min_piece
         if mask.any():
