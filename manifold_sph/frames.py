@@ -15,7 +15,7 @@ from numpy.typing import ArrayLike
 from . import _jit
 from .threads import run_chunks
 
-__all__ = ["tangent_frames", "check_frames", "project_pairs", "project_neighborhood", "PairOffsets"]
+__all__ = ["tangent_frames", "check_frames", "project_pairs", "project_neighborhood", "PairOffsets", "FramePair"]
 
 #: Below this value of sqrt(n_x^2 + n_z^2) the normal counts as parallel to e_y.
 PARALLEL_TOL = 0.1
@@ -248,3 +248,26 @@ def offsets_at(xy: np.ndarray | PairOffsets, pos: np.ndarray) -> np.ndarray:
 def offsets_array(xy: np.ndarray | PairOffsets) -> np.ndarray:
     """The whole (P, 2) array from an array or a :class:`PairOffsets`."""
     return xy.full() if isinstance(xy, PairOffsets) else xy
+
+
+class FramePair:
+    """The frames ``(u, v)`` read as an (N, 2, D) array without stacking them (a copy of 48 bytes a
+    particle): ``frames[idx, k]`` is ``(u, v)[k][idx]``, for any row index ``idx`` and ``k`` in {0, 1}.
+
+    Examples
+    --------
+    >>> u, v = tangent_frames(np.array([[0.0, 0.0, 1.0]] * 3))
+    >>> e = FramePair(u, v)
+    >>> e.shape, bool(np.array_equal(e[[2, 0], 1], np.stack([u, v], axis=1)[[2, 0], 1]))
+    ((3, 2, 3), True)
+    """
+
+    def __init__(self, u: np.ndarray, v: np.ndarray) -> None:
+        if u.shape != v.shape or u.ndim != 2:
+            raise ValueError(f"u and v must be (N, D) arrays of one shape, got {u.shape} and {v.shape}")
+        self._uv = (u, v)
+        self.shape = (u.shape[0], 2, u.shape[1])
+
+    def __getitem__(self, key):
+        rows, k = key
+        return self._uv[k][rows]

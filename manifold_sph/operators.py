@@ -89,7 +89,8 @@ class OperatorSet:
             )
 
     def _setup(self, nb, xy, frames, area, total_area, columns=None, column_normals=None):
-        """Area elements and assembly. ``frames`` (N, 2, D) maps tangent-plane components to ambient ones;
+        """Area elements and assembly. ``frames`` (N, 2, D) maps tangent-plane components to ambient ones
+        (an array or a :class:`~manifold_sph.frames.FramePair`, read as ``frames[rows, k]`` only);
         ``column_normals`` (N, D), when given, are the normals the divergence projects each column's vector on.
 
         Area elements are computed here when the scheme's weights use them, and

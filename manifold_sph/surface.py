@@ -10,7 +10,7 @@ from numpy.typing import ArrayLike
 
 from .exceptions import ManifoldSPHWarning
 from . import geometry
-from .frames import PairOffsets, check_frames, project_pairs, tangent_frames
+from .frames import FramePair, PairOffsets, check_frames, project_pairs, tangent_frames
 from .neighbors import GRID_MIN_POINTS, build_tree, find_neighbors
 from .operators import OperatorSet
 from .pointcloud import PointCloud
@@ -144,8 +144,7 @@ class Surface(OperatorSet):
         xy = PairOffsets(pts, self.u, self.v, nb.indptr, nb.indices)  # projected per chunk when read, never stored
         if total_area is None and cloud.geometry is not None:
             total_area = getattr(cloud.geometry, "area", None)
-        frames = np.stack([self.u, self.v], axis=1)
-        self._setup(nb, xy, frames, area, total_area, column_normals=nrm)
+        self._setup(nb, xy, FramePair(self.u, self.v), area, total_area, column_normals=nrm)  # not stacked: 48 B a point
 
     @property
     def _tree(self):
