@@ -9,7 +9,10 @@ construction, whatever the sampling:
    plane (the same pairs and local coordinates as the SPH operators) and compute
    the Voronoi cell of ``i`` among them, clipped to the convex hull of the
    neighbourhood (so that a particle on an open boundary gets the half-cell on
-   the surface's side, as a mesh vertex would).
+   the surface's side, as a mesh vertex would). On surfaces each neighbour cuts
+   with the section of its bisector in space by the tangent plane (its height
+   ``n_i . (x_j - x_i)`` above a tolerated slope moves the planar bisector out:
+   :func:`lift_offsets`), so points of another sheet across a gap do not cut.
 2. Every cell edge on the bisector with neighbour ``j`` gives the two-point flux
    weight ``w_ij = |edge| / |x_i - x_j|``; the cell's area is ``M_ii``.
 3. ``K_ij = -(w_ij + w_ji) / 2`` for ``i != j`` and ``K_ii = -sum_j K_ij``.
@@ -40,7 +43,8 @@ chunk at once) when the compiled kernels are off; ``tests/test_jit.py`` compares
 
 A cell is exact when every point that could cut it was among the candidates: the
 candidates of row ``i`` are all particles within ``radius[i]``, and a cell whose
-farthest vertex lies within ``radius[i] / 2`` cannot be cut by any other point.
+farthest vertex lies within ``radius[i] / 2`` cannot be cut by any other point
+(with heights, within ``0.964 radius[i] / 2``: :func:`_lift_reach`).
 Rows that fail this test are recomputed with a wider search by the caller.
 """
 
