@@ -226,3 +226,14 @@ def test_cli_runs_the_new_cases(capsys):
     assert main(["cavity", "--core-radius", "0.05"]) == 2
     assert main(["scatter-dielectric", "--layout", "poisson"]) == 2
     assert "only to the cases" in capsys.readouterr().err
+
+
+def test_tez_refuses_the_tmz_only_mimetic_coupling():
+    """It used to run the plain adjoint pair silently under that name."""
+    from manifold_sph.spem.tez import TEzSolver, tez_layout
+
+    lay = tez_layout((0.0, 0.1, 0.0, 0.06), 0.01)
+    with pytest.raises(ValueError, match=r"coupling 'mimetic' is available for TMz only .* 'sbp', 'adjoint', 'direct'"):
+        TEzSolver(lay, coupling="mimetic")
+    with pytest.raises(ValueError, match=r"coupling"):
+        TEzSolver(lay, coupling="magic")

@@ -48,6 +48,9 @@ from .constants import C0, EPS0, MU0
 from .operators import SBP_LAYERS, cross_gradient, sbp_pair
 from .solver import COUPLINGS, DEFAULT_COUPLING, DEFAULT_H_RATIO, STABILITY_MARGIN, leapfrog_growth, spectral_radius_bound
 
+#: Couplings of :class:`TEzSolver` (those of :class:`.TMzSolver` but "mimetic").
+TEZ_COUPLINGS = tuple(c for c in COUPLINGS if c != "mimetic")
+
 __all__ = ["TEzLayout", "tez_layout", "TEzSolver", "TEzCavityResult", "tez_cavity_frequency", "run_tez_cavity"]
 
 
@@ -164,7 +167,10 @@ class TEzSolver:
             raise TypeError(f"layout must be a TEzLayout, got {type(layout).__name__}")
         self.layout = layout
         self.h = check_positive("h_ratio", h_ratio) * layout.dr
-        self.coupling = check_in("coupling", coupling, COUPLINGS)
+        if coupling == "mimetic":  # not built for TEz (its wall particles are the vector set's): never run another
+            raise ValueError("coupling 'mimetic' is available for TMz only (TMzSolver); TEzSolver offers "
+                             f"{', '.join(repr(c) for c in TEZ_COUPLINGS)}")
+        self.coupling = check_in("coupling", coupling, TEZ_COUPLINGS)
         courant = check_positive("courant", courant)
         if courant > 1:
             raise ValueError(f"courant must be at most 1, got {courant}")
