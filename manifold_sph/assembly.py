@@ -101,13 +101,32 @@ class Assembled:
         used_names: tuple[str, ...],
         fallback: dict[str, np.ndarray],
     ) -> None:
-        self.pair_dx, self.pair_dy, self.pair_lap = pair_dx, pair_dy, pair_lap
+        self._pair_dx, self._pair_dy, self.pair_lap = pair_dx, pair_dy, pair_lap
+        self._gradient_pass: Callable[[], tuple[np.ndarray, np.ndarray]] | None = None
         self._make_csr = make_csr
         self.condition = condition
         self.used_code = used_code
         self.used_names = used_names
         self.fallback = fallback
         self._matrices: dict[str, sp.csr_matrix] = {}
+
+    def _gradient_weights(self) -> None:
+        if self._pair_dx is None:  # assembled for the Laplacian only: the gradient's pass now, once
+            gx, gy = self._gradient_pass()
+            for name, w in (("dx", gx), ("dy", gy)):
+                if not np.all(np.isfinite(w)):  # pragma: no cover - guarded by the fallbacks
+                    raise FloatingPointError(f"operator {name} has non-finite weights; please report this cloud")
+            self._pair_dx, self._pair_dy, self._gradient_pass = gx, gy, None
+
+    @property
+    def pair_dx(self) -> np.ndarray:
+        self._gradient_weights()
+        return self._pair_dx
+
+    @property
+    def pair_dy(self) -> np.ndarray:
+        self._gradient_weights()
+        return self._pair_dy
 
     def _matrix(self, name: str) -> sp.csr_matrix:
         if name not in self._matrices:
@@ -256,6 +275,7 @@ def assemble(
     n_cols: int | None = None,
     max_condition: float = 1e8,
     workers: int = -1,
+    gradient: bool = True,
 ) -> Assembled:
     """Build the derivative and Laplacian matrices of ``scheme``.
 
@@ -277,11 +297,16 @@ def assemble(
         Local systems above this condition number fall back.
     workers : int
         Threads over row chunks (-1: :func:`manifold_sph.threads.get_num_threads`).
+    gradient : bool
+        Keep the derivative weights. Without, only the Laplacian's are kept (the local
+        systems are the same; 16 bytes a pair less), and ``pair_dx``, ``pair_dy`` are
+        computed by a second pass on first access (the same numbers).
     """
     n = nb.n_rows
-    gx = np.empty(xy.shape[0])
-    gy = np.empty(xy.shape[0])
-    lp = np.empty(xy.shape[0])
+    n_pairs = xy.shape[0]
+    gx = np.empty(n_pairs) if gradient else None
+    gy = np.empty(n_pairs) if gradient else None
+    lp = np.empty(n_pairs)
     condition = np.empty(n)
     used = np.zeros(n, dtype=np.int8)
 
@@ -291,8 +316,9 @@ def assemble(
         valid = pairs.valid
         h = nb.h[rows][:, None]
         at = pos[valid]  # row-major: CSR pair order
-        gx[at] = (grad[:, 0] / h)[valid]
-        gy[at] = (grad[:, 1] / h)[valid]
+        if gradient:
+            gx[at] = (grad[:, 0] / h)[valid]
+            gy[at] = (grad[:, 1] / h)[valid]
         lp[at] = (lap / (h * h))[valid]
         condition[rows] = cond
         used[rows] = u
@@ -312,8 +338,10 @@ def assemble(
         def chunk(c):  # rows lo:hi on views shifted to start at 0: offsets projected per chunk, never whole
             lo, hi = starts[c], min(starts[c] + rows_per_chunk, n)
             p0, p1 = nb.indptr[lo], nb.indptr[hi]
+            # Laplacian only: the derivative weights of the chunk into scratch, dropped
+            cx, cy = (gx[p0:p1], gy[p0:p1]) if gradient else (np.empty(p1 - p0), np.empty(p1 - p0))
             compiled(0, hi - lo, nb.indptr[lo : hi + 1] - p0, offsets_of_rows(xy, nb.indptr, lo, hi),
-                     _dv_range(dV_pairs, p0, p1), nb.h[lo:hi], alpha, max_condition, gx[p0:p1], gy[p0:p1],
+                     _dv_range(dV_pairs, p0, p1), nb.h[lo:hi], alpha, max_condition, cx, cy,
                      lp[p0:p1], condition[lo:hi], failed[lo:hi])
 
         run_chunks(chunk, len(starts), workers)
@@ -338,4 +366,13 @@ def assemble(
 
     names = _chain(scheme)
     fallback = {names[c]: np.flatnonzero(used == c) for c in range(1, len(names)) if np.any(used == c)}
-    return Assembled(gx, gy, lp, csr, condition, used, names, fallback)
+    out = Assembled(gx, gy, lp, csr, condition, used, names, fallback)
+    if not gradient:
+
+        def gradient_pass():
+            again = assemble(nb, xy, dV_pairs, kernel, scheme, columns=columns, n_cols=n_cols,
+                             max_condition=max_condition, workers=workers, gradient=True)
+            return again._pair_dx, again._pair_dy
+
+        out._gradient_pass = gradient_pass
+    return out

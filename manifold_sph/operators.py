@@ -110,12 +110,14 @@ class OperatorSet:
             dV = ColumnAreas(self.area.dV, self._columns)  # looked up per chunk, no (P,) copy
         else:  # the weights do not use area elements: compute them only when asked
             dV = ColumnAreas(np.ones(nb.n_rows), self._columns)
+        # the Laplacian's weights now; the derivatives' by a second pass when first asked for (16 bytes a
+        # pair that Laplacian-only work, the heat, wave and Poisson solvers, never holds)
         self._ops: Assembled = assemble(
-            nb, xy, dV, self.kernel, self.scheme, columns=columns, n_cols=nb.n_rows, max_condition=self.max_condition
+            nb, xy, dV, self.kernel, self.scheme, columns=columns, n_cols=nb.n_rows, max_condition=self.max_condition,
+            gradient=False,
         )
-        for name in ("dx", "dy", "lap"):
-            if not np.all(np.isfinite(getattr(self._ops, "pair_" + name))):  # pragma: no cover - guarded by the fallbacks
-                raise FloatingPointError(f"operator {name} has non-finite weights; please report this cloud")
+        if not np.all(np.isfinite(self._ops.pair_lap)):  # pragma: no cover - guarded by the fallbacks
+            raise FloatingPointError("operator lap has non-finite weights; please report this cloud")
         if self._ops.fallback:
             parts = ", ".join(f"{idx.size} to {name!r}" for name, idx in self._ops.fallback.items())
             warnings.warn(

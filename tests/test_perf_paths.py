@@ -261,3 +261,26 @@ def test_released_kernel_matrix_gives_the_same_area_elements(monkeypatch, sampli
         np.testing.assert_allclose(released.dV, kept.dV, rtol=0, atol=1e-12 * np.abs(kept.dV).max())
         assert np.abs(A @ released.dV - 1.0).max() < 1e-12
         assert released.residual == pytest.approx(np.abs(A @ released.dV - 1.0).max(), rel=1e-3, abs=1e-15)
+
+
+@pytest.mark.parametrize("scheme", ["cspm", "msph", "ncsph", "msph4"])
+def test_derivative_weights_on_demand_equal_the_one_pass_ones(scheme):
+    """A Surface keeps the Laplacian's pair weights only; the derivatives' come from a second pass when
+    first asked for (issue 22: 16 bytes a pair less). They must be the one-pass assembly's, bit for bit,
+    fallbacks included (a uniformly random cloud has some)."""
+    from manifold_sph import assembly
+
+    c = shapes.sphere(4000, sampling="random", seed=1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        s = Surface(c.points, c.normals, scheme=scheme)
+        assert s._ops._pair_dx is None  # not built yet
+        one = assembly.assemble(s.neighborhood, s._xy, assembly.ColumnAreas(s.dV, s._columns) if s.scheme.uses_area
+                                else assembly.ColumnAreas(np.ones(s.n_points), s._columns),
+                                s.kernel, s.scheme, n_cols=s.n_points, max_condition=s.max_condition)
+    np.testing.assert_array_equal(s._ops.pair_lap, one.pair_lap)
+    np.testing.assert_array_equal(s._ops.pair_dx, one.pair_dx)
+    np.testing.assert_array_equal(s._ops.pair_dy, one.pair_dy)
+    f = c.points[:, 0] * c.points[:, 2]
+    g = s.gradient(f).ravel()
+    np.testing.assert_allclose(s.gradient_matrix() @ f, g, rtol=0, atol=1e-10 * np.abs(g).max())  # sum order
