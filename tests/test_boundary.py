@@ -461,6 +461,25 @@ def test_mesh_boundaries_of_open_models(name):
         assert _scores(p, old, ref, free, open_)[0] > recall and not (rep.mask & ~old.mask).any()
 
 
+# Closed models: every flagged particle is a false positive. Measured with the meshes' normals
+# (``resolve=None`` in brackets): cow 155 (196), homer 10 (22), rocker-arm 141 (268), cheburashka
+# 171 (173). What is left: voids of the vertex sampling about as wide as the neighbourhood (the
+# rocker-arm's large flat triangles: the nearest particle across the gap lies 1.0-1.5 k-th
+# neighbour distances away, in plane, 1.6-4 times the step beyond it, as across a hole of radius 3
+# spacings, which is found), and thin parts and tight bends (the cow's legs and horns,
+# cheburashka's ears: across the gap the surface rises 50-60 degrees out of the tangent plane).
+CLOSED_FLAGGED = {"cow": 175, "homer": 15, "rocker-arm": 160, "cheburashka": 190}
+
+
+@pytest.mark.parametrize("name", sorted(CLOSED_FLAGGED))
+def test_closed_models_flag_few(name):
+    p, n, ref, _, _ = _mesh_reference(name)
+    assert not ref.any()
+    rep = detect_boundary(p, n)
+    old = detect_boundary(p, n, resolve=None)
+    assert rep.n_boundary <= CLOSED_FLAGGED[name] and not (rep.mask & ~old.mask).any()
+
+
 def _holed_sphere(sampling, n=6000, seed=1, radii=(1, 1.5, 2, 3, 4, 6)):
     """A sphere with six round holes of the given radii (in mean spacings sqrt(4 pi / n)), centred
     on the axes; returns the points, normals, each point's hole and distance to its rim (spacings)."""
