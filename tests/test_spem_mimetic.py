@@ -101,6 +101,7 @@ def test_fast_variant_second_order_on_poisson_square(monkeypatch):
     assert order > 1.8 and errs[1] < 0.02, (errs, order)
 
 
+@pytest.mark.slow
 def test_joint_layout_pushes_spurious_modes_up():
     """On the independent Poisson square some E particles sit in holes of the H set; their modes are spurious
     eigenvalues, localised on a few particles (participation < 20), among the physical ones. Measured (seed=1,
