@@ -376,6 +376,23 @@ def test_visible_orientation_repairs_a_thin_closed_slab(seed):
     assert ((0 <= conf) & (conf <= 1)).all()
 
 
+@pytest.mark.parametrize("seed", [0, 1])
+def test_probes_stay_inside_a_thin_closed_slab(seed, monkeypatch):
+    # exact directions, random signs: the winding-number probes one spacing off the surface
+    # cross a slab two spacings thick; at most half the height of the point straight across
+    # (module notes, step 4) they stay inside. Measured (seeds 0, 1): 15 / 25 of 2000 inward,
+    # with the usual offset 61 / 83
+    from manifold_sph.scans import normals as mod
+
+    p, exact = _flat_ellipsoid(seed=seed)
+    signs = np.where(np.random.default_rng(0).random(len(p)) < 0.5, -1.0, 1.0)[:, None]
+    n, _ = orient_normals(p, signs * exact)
+    assert np.mean(dots(n, exact) < 0) <= 0.015
+    monkeypatch.setattr(mod, "_THICK_PROBE", 0.0)
+    n, _ = orient_normals(p, signs * exact)
+    assert np.mean(dots(n, exact) < 0) >= 0.025  # the test can tell
+
+
 def test_visible_orientation_leaves_closed_surfaces_alone():
     # the same signs as "outward" on a torus and through orient_normals (random flips of exact
     # normals); on a uniformly random sphere with noise of 0.3 spacings no more inward than
@@ -436,7 +453,7 @@ def _mesh_reference(name):
         ("cow.obj", 1.8, 5.7, 230),
         ("homer.obj", 0.1, 2.1, 25),
         ("rocker-arm.obj", 0.05, 3.1, 12),
-        ("cheburashka.obj", 1.1, 1.3, 195),
+        ("cheburashka.obj", 0.8, 1.3, 195),  # 0.67 % with the thickness-adapted probes of step 4
         # open or several shells: share disagreeing in sign with the mesh; measured 1.4, 2.9, 0 %,
         # 2.17, 8.75, 0 deg and 139, 155, 0; before: 11.3, 3.1, 0 %, 2.6, 10.4, 0 deg and 663,
         # 186, 0 (before step 7: 13.1, 3.1, 0 %, 2.7, 11.6, 0 deg and 845, 235, 0; MST+PCA: 10.8,
