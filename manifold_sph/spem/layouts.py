@@ -338,7 +338,10 @@ def relax_h(e: ArrayLike, h: ArrayLike, dr: float, move, iterations: int | None 
     (the H particles spread into the gaps between E particles), with the
     displacement ``(1 - d/R) R / d`` times the offset summed and scaled by 0.35
     (as in :mod:`manifold_sph.reference.sampling`); ``move(points)`` puts the moved
-    particles back into the domain (it may modify its argument).
+    particles back into the domain (it may modify its argument). With ``cover`` (points,
+    usually the free E particles) each point whose k-th nearest H particle is farther than
+    ``JOINT_COVER[k] * dr`` pulls that particle half-way to this distance: without it an E
+    particle in a region where the E set is locally denser can keep a single H neighbour.
 
     Returns
     -------
