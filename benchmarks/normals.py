@@ -39,6 +39,14 @@ three shells) 19.4 / 173 / 94.1 % agree; beast (32,311) 2.78 / 1884 / 90.0 % agr
 densely sampled thin region at the mouth (spacing 0.4 against 1.3 elsewhere, the other side
 about 2 spacings away) is oriented half one way, half the other already by propagation.
 
+Thickness-adapted probes of step 4 (commit 087d074; module notes): cheburashka 1.02 ->
+0.67 % inward (68 -> 45 normals), teapot 98.61 -> 98.80 % agreeing, beast 90.0 -> 91.1 %;
+cow (1.72 %), homer, rocker-arm, beetle (97.1 %), alligator, bunny, Igea, spot, suzanne,
+beetle-alt unchanged; Igea 29 s, bunny 5.4 s on a loaded machine. Confidence with the
+thickness term (share of doubtful normals flagged / of the others): teapot 0.53 / 0.24 ->
+0.88 / 0.24, beetle 0.57 / 0.21 -> 0.61 / 0.22, cheburashka 0.80 / 0.04 -> 0.85 / 0.04, cow
+0.86 / 0.21 -> 0.88 / 0.22.
+
 Measured (default; median angle / normals more than 30 degrees off / orientation),
 before (commit 9401b37) -> after the distance-weighted base fit, the row normals of step
 2b, the area rescaling and the patch flags of step 4:
