@@ -3,12 +3,21 @@
 Prints JSON lines:
 - phase: the measured phase velocity of the TM22 mode of a unit PEC square (14 / 28 / 56 spacings per
   side: 9.9 / 19.8 / 39.6 particles per wavelength), jittered (0.2 dr) and Poisson layouts (seed 1), with
-  the fitted order of |v - 1| and the set-up / run seconds;
-- cavity: the circular PEC cavity (TM010 start 1 - r^2/r0^2, one period) on jittered and Poisson disks
-  (seed 0) at 10 / 20 / 40 spacings per radius, error against the Bessel series and fitted order;
-- energy: the leap-frog modified energy over 10^4 steps on a Poisson square (relative drift).
+  the fitted order of |v - 1| and the set-up / run seconds (also the joint Poisson layout,
+  :func:`manifold_sph.spem.layouts.joint_poisson_layout`);
+- cavity: the circular PEC cavity (TM010 start 1 - r^2/r0^2, one period) on jittered, Poisson and joint
+  Poisson disks (seed 0) at 10 / 20 / 40 spacings per radius, error against the Bessel series, fitted order,
+  set-up and run seconds;
+- energy: the leap-frog modified energy over 10^4 steps on a Poisson square (relative drift);
+- planewave (``--only planewave``): the plane wave with PML (0.2 m square, 20 and 40 particles per
+  wavelength, jittered and Poisson) with set-up and run seconds.
 
-Run: .venv/bin/python benchmarks/spem_mimetic.py [--quick]   (--quick: the two coarser resolutions only)
+"mimetic-fast" is the ``fast`` variant of :func:`manifold_sph.spem.mimetic.mimetic_operators` (the
+correction keeps quadratic exactness and touches only pairs closer than 2 spacings), switched on here
+through the module constants ``CORRECTION_DEGREE, CORRECTION_RADIUS = FAST``.
+
+Run: .venv/bin/python benchmarks/spem_mimetic.py [--quick] [--only ...] [--couplings sbp,mimetic,mimetic-fast]
+(--quick: the two coarser resolutions only)
 """
 
 from __future__ import annotations
@@ -20,15 +29,28 @@ import time
 
 import numpy as np
 
+import manifold_sph.spem.mimetic as mimetic
 from manifold_sph.spem import EPS0, MU0, TMzSolver, make_layout
-from manifold_sph.spem.cases import run_cavity
+from manifold_sph.spem._casekit import _fitted, relative_error
+from manifold_sph.spem.cases import cavity_exact, cavity_frequency
+from manifold_sph.spem.cases2d import run_planewave
+from manifold_sph.spem.layouts import disk_layout, joint_poisson_layout
+
+_DEFAULT = (mimetic.CORRECTION_DEGREE, mimetic.CORRECTION_RADIUS)
+
+
+def _coupling(name):
+    """The solver's coupling for a benchmark name; "mimetic-fast" sets the module constants to FAST."""
+    mimetic.CORRECTION_DEGREE, mimetic.CORRECTION_RADIUS = mimetic.FAST if name == "mimetic-fast" else _DEFAULT
+    return "mimetic" if name.startswith("mimetic") else name
 
 
 def phase(layout, coupling, cells, m=2, steps=400, seed=1):
     a, dr = 1.0, 1.0 / cells
-    lay = make_layout(layout, (0.0, a, 0.0, a), dr, seed=seed)
+    lay = (joint_poisson_layout((0.0, a, 0.0, a), dr, seed=seed) if layout == "poisson-joint"
+           else make_layout(layout, (0.0, a, 0.0, a), dr, seed=seed))
     t0 = time.perf_counter()
-    s = TMzSolver(lay, coupling=coupling, courant=0.9)
+    s = TMzSolver(lay, coupling=_coupling(coupling), courant=0.9)
     setup = time.perf_counter() - t0
     e = lay.e
     mode = np.sin(m * np.pi * e[:, 0]) * np.sin(m * np.pi * e[:, 1])
@@ -48,6 +70,24 @@ def phase(layout, coupling, cells, m=2, steps=400, seed=1):
             "dt_over_cfl": round(s.courant / math.sqrt(2) * math.sqrt(2), 3)}
 
 
+def cavity(layout, coupling, n_radial, r0=0.1, eps_r=10.0, seed=0):
+    """:func:`manifold_sph.spem.cases.run_cavity` (one period, courant 0.9) on any ``disk_layout`` kind."""
+    dr, c = r0 / n_radial, (r0, r0)
+    lay = disk_layout(c, r0, dr, kind=layout, seed=seed)
+    t0 = time.perf_counter()
+    s = TMzSolver(lay, coupling=_coupling(coupling), eps_r=eps_r, courant=0.9, sbp_layers=None)
+    setup = time.perf_counter() - t0
+    dt, steps = _fitted(s, 1.0 / cavity_frequency(r0, eps_r))
+    r = np.hypot(lay.e[:, 0] - c[0], lay.e[:, 1] - c[1])
+    s.set_initial(np.clip(1.0 - r**2 / r0**2, 0.0, None))
+    t0 = time.perf_counter()
+    s.run(steps)
+    run = time.perf_counter() - t0
+    err = relative_error(s.e_field, cavity_exact(r, s.t, r0, eps_r))
+    return {"n_radial": n_radial, "error": float(f"{err:.3e}"), "setup_s": round(setup, 2), "run_s": round(run, 2),
+            "steps": steps, "dt_over_cfl": round(s.courant, 3), "particles": lay.n_particles}
+
+
 def order(errs, ns):
     return [round(math.log(abs(errs[k]) / abs(errs[k + 1])) / math.log(ns[k + 1] / ns[k]), 2)
             for k in range(len(errs) - 1)]
@@ -56,7 +96,7 @@ def order(errs, ns):
 def energy_drift(coupling, steps=10000, cells=15, seed=1):
     A = 0.1
     lay = make_layout("poisson", (0.0, A, 0.0, A), A / cells, seed=seed)
-    s = TMzSolver(lay, coupling=coupling, eps_r=lambda p: 1.0 + 3.0 * (p[:, 0] > A / 2))
+    s = TMzSolver(lay, coupling=_coupling(coupling), eps_r=lambda p: 1.0 + 3.0 * (p[:, 0] > A / 2))
     fr, e = s.free, lay.e
     s.set_initial(np.exp(-(((e[:, 0] - A / 3) ** 2 + (e[:, 1] - A / 2) ** 2) / (0.1 * A) ** 2)))
     ve = s.vol_e
@@ -80,38 +120,56 @@ def energy_drift(coupling, steps=10000, cells=15, seed=1):
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
-    ap.add_argument("--only", choices=("phase", "cavity", "energy"), default=None)
+    ap.add_argument("--only", choices=("phase", "cavity", "energy", "planewave"), default=None)
+    ap.add_argument("--couplings", default="sbp,mimetic,mimetic-fast")
+    ap.add_argument("--layouts", default="jittered,poisson,poisson-joint")
     args = ap.parse_args()
+    couplings = args.couplings.split(",")
+    layouts = args.layouts.split(",")
     cells = (14, 28) if args.quick else (14, 28, 56)
     radial = (10, 20) if args.quick else (10, 20, 40)
     if args.only in (None, "phase"):
-        for layout in ("jittered", "poisson"):
-            for coupling in ("sbp", "mimetic"):
+        for layout in layouts:
+            for coupling in couplings:
                 rows = [phase(layout, coupling, c) for c in cells]
                 print(json.dumps({"run": "phase TM22 PEC square", "layout": layout, "coupling": coupling,
                                   "cells": cells, "rows": rows,
                                   "order": order([r["v_minus_1_pct"] for r in rows], cells)}), flush=True)
     if args.only in (None, "cavity"):
-        for layout in ("jittered", "poisson"):
-            for coupling in ("sbp", "mimetic"):
+        for layout in layouts:
+            for coupling in couplings:
                 rows = []
                 for n in radial:
-                    t0 = time.perf_counter()
                     try:
-                        r = run_cavity(n_radial=n, layout=layout, coupling=coupling, spectrum_periods=0.0)
+                        rows.append(cavity(layout, coupling, n))
                     except ValueError as exc:
                         rows.append({"n_radial": n, "refused": str(exc)[:160]})
-                        continue
-                    total = time.perf_counter() - t0
-                    rows.append({"n_radial": n, "error": float(f"{r.error:.3e}"), "run_s": round(r.step_seconds, 2),
-                                 "setup_s": round(total - r.step_seconds, 2), "steps": r.steps})
                 errs = [r["error"] for r in rows if "error" in r]
                 print(json.dumps({"run": "cavity", "layout": layout, "coupling": coupling, "rows": rows,
                                   "order": order(errs, radial[: len(errs)])}), flush=True)
     if args.only in (None, "energy"):
-        for coupling in ("sbp", "mimetic"):
+        for coupling in couplings:
             print(json.dumps({"run": "energy drift, 10^4 steps, Poisson square, eps_r 1|4", "coupling": coupling,
                               "relative_drift": energy_drift(coupling)}), flush=True)
+
+    if args.only == "planewave":
+        for layout in layouts:
+            for coupling in couplings:
+                rows = []
+                for ppw in (20.0, 40.0)[: 1 if args.quick else 2]:
+                    t0 = time.perf_counter()
+                    try:
+                        r = run_planewave(size=0.2, ppw=ppw, layout=layout, coupling=_coupling(coupling))
+                    except ValueError as exc:
+                        rows.append({"ppw": ppw, "refused": str(exc)[:160]})
+                        continue
+                    total = time.perf_counter() - t0
+                    rows.append({"ppw": ppw, "error": float(f"{r.error:.3e}"), "error_centre": float(f"{r.error_centre:.3e}"),
+                                 "particles": r.particles, "run_s": round(r.step_seconds, 2),
+                                 "setup_s": round(total - r.step_seconds, 2), "steps": r.steps})
+                errs = [r["error_centre"] for r in rows if "error" in r]
+                print(json.dumps({"run": "planewave with PML, 0.2 m", "layout": layout, "coupling": coupling,
+                                  "rows": rows, "order_centre": order(errs, [20.0, 40.0][: len(errs)])}), flush=True)
 
 
 if __name__ == "__main__":

@@ -34,7 +34,11 @@ meets them exactly (weights: the fit weights for ``Q``, :data:`VOLUME_WEIGHT`
 for the relative volume changes). Fitting the volumes first and correcting
 ``G`` after was tried: the corrections then spread over the whole domain and
 grew with resolution (the volumes must take part). Non-positive volumes are
-refused (ValueError). The solve dominates the set-up (10-300x a run).
+refused (ValueError). The normal equations are symmetric positive definite and are factored without
+pivoting in SuperLU's symmetric mode. The solve still dominates the set-up (10-100x a run: the
+conditions have a near-null space of smooth multiplier fields that grows with the particle count, see
+docs/method.md section 7). ``fast=True`` corrects only pairs closer than 2 spacings and keeps only
+quadratic exactness of ``G`` (0.7x the conditions, 1.5-3x faster).
 
 Measured (``benchmarks/spem_mimetic.py``) in docs/method.md section 7.
 
