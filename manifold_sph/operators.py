@@ -33,7 +33,7 @@ from .frames import offsets_array
 from .kernels import get_kernel
 from .neighbors import Neighborhood, adaptive_smoothing_length, smoothing_length_for_count
 from .schemes import get_scheme
-from .voronoi import BOUNDARY, DEGENERATE, INCOMPLETE, NEAR_DUPLICATE, stiffness_matrix, voronoi_cells
+from .voronoi import BOUNDARY, DEGENERATE, INCOMPLETE, NEAR_DUPLICATE, roughness, stiffness_matrix, voronoi_cells
 
 __all__ = ["OperatorSet"]
 
@@ -357,7 +357,10 @@ class OperatorSet:
         nb = self.neighborhood
         n = nb.n_rows
         rows, cols = nb.rows, np.asarray(self._columns)
-        cells = voronoi_cells(nb.indptr, self.pair_offsets(), nb.support * nb.h, height=self._pair_heights(rows, cols))
+        z = self._pair_heights(rows, cols)
+        xy = self.pair_offsets()
+        tol = None if z is None else roughness(rows, xy, z, nb.support * nb.h)
+        cells = voronoi_cells(nb.indptr, xy, nb.support * nb.h, height=z, height_tol=tol)
         weights = cells.weights
         area, flags = cells.area.copy(), cells.flags.copy()
         redo = np.flatnonzero(flags & (INCOMPLETE | DEGENERATE))
@@ -366,7 +369,8 @@ class OperatorSet:
             wider = self._wider_candidates(redo)
             if wider is not None:
                 indptr2, xy2, cols2, radius2 = wider[:4]
-                more = voronoi_cells(indptr2, xy2, radius2, height=wider[4] if len(wider) > 4 else None)
+                more = voronoi_cells(indptr2, xy2, radius2, height=wider[4] if len(wider) > 4 else None,
+                                     height_tol=None if tol is None else tol[redo])
                 mark = np.zeros(n, dtype=bool)
                 mark[redo] = True
                 keep = ~mark[rows]

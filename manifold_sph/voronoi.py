@@ -60,7 +60,7 @@ from . import _jit
 from ._validation import _describe, as_points, check_finite, check_int, check_positive
 from .threads import run_chunks
 
-__all__ = ["VoronoiCells", "voronoi_cells", "lift_offsets", "stiffness_matrix", "DUPLICATE_TOL"]
+__all__ = ["VoronoiCells", "voronoi_cells", "lift_offsets", "roughness", "stiffness_matrix", "DUPLICATE_TOL"]
 
 #: Neighbours closer than this fraction of a cell's size (square root of its area) are
 #: near-duplicates: their distance is floored there in the flux weight, so that two
@@ -73,6 +73,9 @@ _ROWS = 4096
 #: Tangent-plane slope ``|z| / |t|`` of a neighbour tolerated as the same sheet (curvature and the
 #: normal's error): only the height above ``LIFT_SLOPE * |t|`` moves a bisector (:func:`lift_offsets`).
 LIFT_SLOPE = 0.2
+
+#: Heights within this many times a particle's :func:`roughness` are tolerated too (noise).
+ROUGHNESS_FACTOR = 3.0
 
 INCOMPLETE, BOUNDARY, DEGENERATE, NEAR_DUPLICATE = 1, 2, 4, 8
 
@@ -235,7 +238,8 @@ def _cells_numpy(lo, hi, indptr, xy, radius, dup_tol, w, area, flags):
 
 
 def voronoi_cells(
-    indptr: ArrayLike, xy: ArrayLike, radius: ArrayLike, *, height: ArrayLike | None = None, dup_tol: float = DUPLICATE_TOL
+    indptr: ArrayLike, xy: ArrayLike, radius: ArrayLike, *, height: ArrayLike | None = None,
+    height_tol: ArrayLike | None = None, dup_tol: float = DUPLICATE_TOL
 ) -> VoronoiCells:
     """Voronoi cell of each particle among its neighbours, in its tangent plane.
 
@@ -254,6 +258,9 @@ def voronoi_cells(
         of points equidistant from ``x_i`` and ``x_j``) intersected with ``i``'s tangent
         plane, and ``w_ij`` divides by the distance in space: the cell is the section of
         the 3D Voronoi cell by the tangent plane. See :func:`lift_offsets`.
+    height_tol : ndarray, shape (N,), optional
+        Heights tolerated in each row (noise; :func:`roughness`): only the height above
+        ``height_tol + LIFT_SLOPE * |t|`` moves a bisector.
     dup_tol : float
         See :data:`DUPLICATE_TOL`.
 
@@ -292,13 +299,17 @@ def voronoi_cells(
         if height.shape != (xy.shape[0],):
             raise ValueError(f"height must have shape ({xy.shape[0]},) (one offset a pair), got {_describe(height)}")
         check_finite("height", height)
-        xy, scale, keep = lift_offsets(xy, height)
+        if height_tol is not None:
+            height_tol = np.ascontiguousarray(height_tol, dtype=np.float64)
+            if height_tol.shape != (n,) or np.any(~(height_tol >= 0)):
+                raise ValueError(f"height_tol must have shape ({n},) with values >= 0, got {_describe(height_tol)}")
+        xy, scale, keep = lift_offsets(xy, height, tol=0.0 if height_tol is None else np.repeat(height_tol, np.diff(indptr)))
         # bisector beyond the search radius: it can cut only cells already flagged incomplete
         far = np.flatnonzero(scale > 1.0)  # only lifted offsets can have left the search radius
         row = np.searchsorted(indptr, far, side="right") - 1
         keep[far[np.einsum("pk,pk->p", xy[far], xy[far]) > 4.0 * radius[row] ** 2]] = False
-        # a point beyond radius in space may have its lifted offset as near as _lift_reach() * radius
-        radius = radius * _lift_reach(LIFT_SLOPE)
+        # a point beyond radius in space may have its lifted offset as near as _lift_reach() * (radius - tol)
+        radius = _lift_reach(LIFT_SLOPE) * (radius if height_tol is None else np.maximum(radius - height_tol, 1e-9 * radius))
         if not keep.all():  # on i's normal line (the bisector is parallel to the tangent plane) or far
             kept = np.concatenate([[0], np.cumsum(keep)])[indptr]
             cells = voronoi_cells(kept, xy[keep], radius, dup_tol=dup_tol)
@@ -319,6 +330,46 @@ def voronoi_cells(
     return VoronoiCells(weights=w, area=area, flags=flags)
 
 
+def roughness(rows: np.ndarray, xy: np.ndarray, height: np.ndarray, radius: np.ndarray) -> np.ndarray:
+    """Tolerated height of each row's neighbours: :data:`ROUGHNESS_FACTOR` times the local noise.
+
+    The noise of row ``i`` is the weighted mean ``|z - q(t)|`` of its neighbours' heights
+    about the quadric ``q(t) = a t_x^2 + b t_x t_y + c t_y^2`` fitted to them (weighted least
+    squares), with Gaussian weights ``exp(-(3 |x_j - x_i| / radius_i)^2)`` (about the nearest
+    ring): curvature is fitted away, noise is not, and a point of another sheet two spacings
+    away weighs little. There is no linear term, so a normal tilted by more than the
+    tolerated slope also counts as rough and its row keeps the projected cell.
+
+    Parameters
+    ----------
+    rows : ndarray, shape (P,)
+        Row particle of every pair (sorted or not).
+    xy, height : ndarray, shape (P, 2) and (P,)
+        Tangent-plane offsets and heights along the row's normal.
+    radius : ndarray, shape (N,)
+        Neighbourhood radius of every particle.
+
+    Returns
+    -------
+    ndarray, shape (N,)
+    """
+    n = radius.shape[0]
+    tx, ty = xy[:, 0], xy[:, 1]
+    d2 = tx * tx + ty * ty + height * height
+    w = np.where(d2 > 0, np.exp(-9.0 * d2 / radius[rows] ** 2), 0.0)
+    phi = (tx * tx, tx * ty, ty * ty)
+    A, b = np.empty((n, 3, 3)), np.empty((n, 3))
+    for a in range(3):
+        b[:, a] = np.bincount(rows, weights=w * phi[a] * height, minlength=n)
+        for c in range(a, 3):
+            A[:, a, c] = A[:, c, a] = np.bincount(rows, weights=w * phi[a] * phi[c], minlength=n)
+    A += (1e-9 * np.trace(A, axis1=1, axis2=2) + 1e-300)[:, None, None] * np.eye(3)  # rows with < 3 pairs
+    q = np.linalg.solve(A, b[:, :, None])[:, :, 0]
+    e = np.abs(height - (q[rows, 0] * phi[0] + q[rows, 1] * phi[1] + q[rows, 2] * phi[2]))
+    sw = np.bincount(rows, weights=w, minlength=n)
+    return ROUGHNESS_FACTOR * np.bincount(rows, weights=w * e, minlength=n) / np.where(sw > 0, sw, 1.0)
+
+
 def _lift_reach(slope: float) -> float:
     """Smallest ``|lifted offset|`` of a point at distance 1 in space (:func:`lift_offsets`), slightly under.
 
@@ -329,13 +380,15 @@ def _lift_reach(slope: float) -> float:
     return 0.999 * float(np.min((1.0 + (u - slope) ** 2) / np.sqrt(1.0 + u * u)))
 
 
-def lift_offsets(xy: np.ndarray, height: np.ndarray, slope: float = LIFT_SLOPE) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def lift_offsets(
+    xy: np.ndarray, height: np.ndarray, slope: float = LIFT_SLOPE, tol: np.ndarray | float = 0.0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Planar offsets whose bisectors are the tangent-plane sections of the bisectors in space.
 
     The points equidistant from ``x_i`` and ``x_j = x_i + t + z n_i`` (``t`` in the tangent
     plane) cut the tangent plane in the line ``p . t / |t| = (|t|^2 + z^2) / (2 |t|)``: the
     planar bisector of the offset ``t (|t|^2 + z^2) / |t|^2``. Only the part of ``|z|``
-    above ``slope * |t|`` is counted, so that a neighbour on the same sheet (``|z| / |t|``
+    above ``tol + slope * |t|`` is counted, so that a neighbour on the same sheet (``|z| / |t|``
     about ``|t| kappa / 2`` plus the normal's error) keeps its projected offset, while a
     point on another sheet across a gap (``|z|`` comparable to ``|t|``) moves out of the
     cell's reach.
@@ -348,6 +401,8 @@ def lift_offsets(xy: np.ndarray, height: np.ndarray, slope: float = LIFT_SLOPE) 
         Offsets ``z`` along the row particle's normal.
     slope : float
         See :data:`LIFT_SLOPE`.
+    tol : float or ndarray, shape (P,)
+        Height tolerated on top of ``slope * |t|`` (noise: :func:`roughness`).
 
     Returns
     -------
@@ -369,11 +424,12 @@ def lift_offsets(xy: np.ndarray, height: np.ndarray, slope: float = LIFT_SLOPE) 
     scale = np.ones(xy.shape[0])
     keep = np.ones(xy.shape[0], dtype=bool)
     t2 = xy[:, 0] * xy[:, 0] + xy[:, 1] * xy[:, 1]
-    up = np.flatnonzero(height * height > slope * slope * t2)  # the only pairs that move
+    tol = np.broadcast_to(np.asarray(tol, dtype=np.float64), height.shape)
+    up = np.flatnonzero(np.abs(height) - tol > slope * np.sqrt(t2))  # the only pairs that move
     if up.size == 0:
         return xy, scale, keep
     t2u = t2[up]
-    z = np.abs(height[up]) - slope * np.sqrt(t2u)
+    z = np.abs(height[up]) - tol[up] - slope * np.sqrt(t2u)
     on_axis = t2u <= 1e-18 * z * z
     keep[up[on_axis]] = False
     factor = np.where(on_axis, 1.0, (t2u + z * z) / np.where(on_axis, 1.0, t2u))
