@@ -38,7 +38,7 @@ refused (ValueError). The normal equations are symmetric positive definite and a
 pivoting in SuperLU's symmetric mode. The solve still dominates the set-up (10-100x a run: the
 conditions have a near-null space of smooth multiplier fields that grows with the particle count, see
 docs/method.md section 7). ``fast=True`` corrects only pairs closer than 2 spacings and keeps only
-quadratic exactness of ``G`` (0.7x the conditions, 1.5-3x faster).
+quadratic exactness of ``G`` (0.7x the conditions, up to 3x faster).
 
 Measured (``benchmarks/spem_mimetic.py``) in docs/method.md section 7.
 
