@@ -10,7 +10,13 @@ defaults (normals estimated): build time, particles that fell back, supports
 widened, default heat (``laplacian="auto"``) bounded by the initial range, and the
 stable Laplacian's 20 smallest non-zero eigenvalues against the cotan FEM of the
 model's own mesh (closed one-shell models; median relative distance, with
-robust-laplacian's beside it when the bench extra is installed).
+robust-laplacian's beside it when the bench extra is installed). The ``boundary``
+column is :func:`detect_boundary` with the estimated normals against the mesh's
+boundary vertices (those on an edge of one face), raw: recall / share of the
+flagged particles that are not mesh-boundary vertices / pieces (the detector's own); on closed models
+the number of flagged particles (all false). Some mesh-boundary vertices lie inside
+another part or touch one and cannot show as a rim of the cloud:
+``python tests/test_boundary.py`` splits the figures by kind.
 
 Prints, for the Stanford bunny and Igea (../shared/data/scans, skipped when absent):
 reading, cleaning, normal estimation (agreement with the mesh's vertex normals),
@@ -62,7 +68,8 @@ def models_table(scans: Path):
         robust_laplacian = None
     paths = MODELS + [scans / "stanford-bunny.obj", scans / "igea.ply"]
     head = " ".join(f"{s + ' s/fb/wid/heat':>22s}" for s in MODEL_SCHEMES)
-    print(f"{'model':12s} {'points':>7s} {'median':>7s} {'orientation':>15s} {head} {'eigs: stable':>13s} {'robust':>8s}")
+    print(f"{'model':12s} {'points':>7s} {'median':>7s} {'orientation':>15s} {'boundary':>17s} {head} "
+          f"{'eigs: stable':>13s} {'robust':>8s}")
     for path in paths:
         if not path.exists():
             print(f"{path.stem:12s} (missing, skipped)")
@@ -72,6 +79,16 @@ def models_table(scans: Path):
         d = np.einsum("ij,ij->i", nrm, ref)
         ang = np.degrees(np.arccos(np.clip(np.abs(d), 0.0, 1.0)))
         orient = f"{100 * np.mean(d < 0):.2f} % inward" if closed and shells == 1 else f"{100 * np.mean(d > 0):.2f} % agree"
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            found = detect_boundary(P, nrm)
+            rim = found.mask
+        on_mesh_rim = mesh_boundary_vertices(path, P)
+        if closed:
+            bnd = f"{int(rim.sum())} flagged"
+        else:
+            fp = int((rim & ~on_mesh_rim).sum()) / max(int(rim.sum()), 1)
+            bnd = f"{rim[on_mesh_rim].mean():.2f}/{fp:.2f}/{found.n_loops}"
         cols, surf = [], None
         for scheme in MODEL_SCHEMES:
             t = time.perf_counter()
@@ -103,8 +120,28 @@ def models_table(scans: Path):
                     L, M = robust_laplacian.point_cloud_laplacian(P)  # P and U: the same sorted unique positions
                     lr = sym_eigs(L, M.diagonal(), 21)[1:]
                     eig_rl = f"{np.median(np.abs(lr - exact) / exact):.2e}"
-        print(f"{path.stem:12s} {len(P):7d} {np.median(ang):6.2f}d {orient:>15s} {' '.join(f'{c:>22s}' for c in cols)} "
+        print(f"{path.stem:12s} {len(P):7d} {np.median(ang):6.2f}d {orient:>15s} {bnd:>17s} {' '.join(f'{c:>22s}' for c in cols)} "
               f"{eig_ours:>13s} {eig_rl:>8s}", flush=True)
+
+
+def mesh_boundary_vertices(path: Path, P: np.ndarray) -> np.ndarray:
+    """(len(P),) bool: the points that are vertices on an edge of only one face of the mesh at ``path``."""
+    from scipy.spatial import cKDTree
+
+    from manifold_sph.scans.io import read_mesh
+
+    V, F = read_mesh(str(path))
+    U, inv = np.unique(V, axis=0, return_inverse=True)
+    F = inv.ravel()[F]
+    F = F[(F[:, 0] != F[:, 1]) & (F[:, 1] != F[:, 2]) & (F[:, 0] != F[:, 2])]
+    e = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
+    ue, cnt = np.unique(e, axis=0, return_counts=True)
+    rim = np.unique(ue[cnt == 1].ravel())
+    out = np.zeros(len(P), bool)
+    if rim.size:
+        d, j = cKDTree(P).query(U[rim])
+        out[j[d == 0.0]] = True
+    return out
 
 
 def components(surface) -> np.ndarray:
