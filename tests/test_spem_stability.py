@@ -269,3 +269,15 @@ def test_spectral_radius_bound_checks_its_arguments():
         spectral_radius_bound(sp.diags(np.r_[np.nan, -np.ones(499)]).tocsr())
     theta, bound = spectral_radius_bound(S)  # an invariant subspace at the first step: exact
     assert theta == pytest.approx(1.0) and 1.0 <= bound <= 1.003
+
+
+def test_mimetic_fast_option_is_passed_and_checked():
+    lay = make_layout("poisson", (0.0, A, 0.0, A), A / 10, seed=1)
+    with pytest.raises(TypeError, match=r"mimetic_fast must be a bool, got str"):
+        TMzSolver(lay, coupling="mimetic", mimetic_fast="yes")
+    exact, fast = (TMzSolver(lay, coupling="mimetic", mimetic_fast=f) for f in (False, True))
+    assert exact.mimetic_fast is False and fast.mimetic_fast is True
+    q = lay.e[:, 0] ** 3  # a cubic: only the default G is exact for it
+    d_exact = np.abs(exact.Dx_hy @ q - 3 * lay.hy[:, 0] ** 2).max()
+    d_fast = np.abs(fast.Dx_hy @ q - 3 * lay.hy[:, 0] ** 2).max()
+    assert d_exact < 1e-6 * A and d_fast > 10 * d_exact, (d_exact, d_fast)

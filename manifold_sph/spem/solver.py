@@ -340,6 +340,11 @@ class TMzSolver(_Leapfrog):
         "sbp": rings of pairs around the unmet conditions that the correction
         may change (default 2; None: the whole operator, better next to curved
         walls at fine resolution but a slower set-up; :data:`.operators.SBP_LAYERS`).
+    mimetic_fast : bool
+        "mimetic": correct only pairs closer than 2 spacings and keep ``G`` exact for
+        quadratics instead of cubics (:data:`.mimetic.FAST`): a faster set-up (plane wave
+        at 20 particles per wavelength 48 -> 33 s, measured), the same energy
+        conservation; a larger phase error on coarse Poisson layouts.
 
     Attributes
     ----------
@@ -355,13 +360,17 @@ class TMzSolver(_Leapfrog):
                  mu_r: float | ArrayLike | Callable[[np.ndarray], ArrayLike] = 1.0,
                  sigma: float | ArrayLike | Callable[[np.ndarray], ArrayLike] = 0.0,
                  pml: PML | None = None, dt: float | None = None, courant: float = 0.9, sources: Sequence[Source] = (),
-                 coupling: str = DEFAULT_COUPLING, workers: int = 1, sbp_layers: int | None = SBP_LAYERS) -> None:
+                 coupling: str = DEFAULT_COUPLING, workers: int = 1, sbp_layers: int | None = SBP_LAYERS,
+                 mimetic_fast: bool = False) -> None:
         if not isinstance(layout, Layout):
             raise TypeError(f"layout must be a Layout, got {type(layout).__name__}")
         if pml is not None and not isinstance(pml, PML):
             raise TypeError(f"pml must be a PML or None, got {type(pml).__name__}")
         self.layout, self.pml = layout, pml
         self.coupling = check_in("coupling", coupling, COUPLINGS)
+        if not isinstance(mimetic_fast, (bool, np.bool_)):
+            raise TypeError(f"mimetic_fast must be a bool, got {type(mimetic_fast).__name__}")
+        self.mimetic_fast = bool(mimetic_fast)
         if h_ratio is None:
             h_ratio = MIMETIC_H_RATIO if self.coupling == "mimetic" else DEFAULT_H_RATIO
         self.h = check_positive("h", h) if h is not None else check_positive("h_ratio", h_ratio) * layout.dr
@@ -479,7 +488,7 @@ class TMzSolver(_Leapfrog):
         free[self.free] = True
         t0 = _time.perf_counter()
         ops = mimetic_operators(lay.e, free, [(lay.hy, 0), (lay.hx, 1)], self.h, kernel=self.kernel,
-                                scale=lay.dr)
+                                scale=lay.dr, fast=self.mimetic_fast)
         (self.Dx_hy, self.Dx_e), (self.Dy_hx, self.Dy_e) = ops.pairs
         self.vol_e = ops.vol_e[self.free] / lay.dr**2
         self.vol_hy, self.vol_hx = (v / lay.dr**2 for v in ops.vol_h)
