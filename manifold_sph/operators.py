@@ -359,7 +359,7 @@ class OperatorSet:
         rows, cols = nb.rows, np.asarray(self._columns)
         z = self._pair_heights(rows, cols)
         xy = self.pair_offsets()
-        tol = None if z is None else roughness(rows, xy, z, nb.support * nb.h)
+        tol = None if z is None else roughness(nb.indptr, xy, z, nb.support * nb.h)
         cells = voronoi_cells(nb.indptr, xy, nb.support * nb.h, height=z, height_tol=tol)
         weights = cells.weights
         area, flags = cells.area.copy(), cells.flags.copy()

@@ -330,7 +330,7 @@ def voronoi_cells(
     return VoronoiCells(weights=w, area=area, flags=flags)
 
 
-def roughness(rows: np.ndarray, xy: np.ndarray, height: np.ndarray, radius: np.ndarray) -> np.ndarray:
+def roughness(indptr: np.ndarray, xy: np.ndarray, height: np.ndarray, radius: np.ndarray) -> np.ndarray:
     """Tolerated height of each row's neighbours: :data:`ROUGHNESS_FACTOR` times the local noise.
 
     The noise of row ``i`` is the weighted mean ``|z - q(t)|`` of its neighbours' heights
@@ -342,8 +342,8 @@ def roughness(rows: np.ndarray, xy: np.ndarray, height: np.ndarray, radius: np.n
 
     Parameters
     ----------
-    rows : ndarray, shape (P,)
-        Row particle of every pair (sorted or not).
+    indptr : ndarray, shape (N + 1,)
+        Row offsets of the pairs (CSR).
     xy, height : ndarray, shape (P, 2) and (P,)
         Tangent-plane offsets and heights along the row's normal.
     radius : ndarray, shape (N,)
@@ -354,20 +354,34 @@ def roughness(rows: np.ndarray, xy: np.ndarray, height: np.ndarray, radius: np.n
     ndarray, shape (N,)
     """
     n = radius.shape[0]
+    counts = np.diff(indptr)
+    out = np.zeros(n)
+    if xy.shape[0] == 0:
+        return out
+    full = np.flatnonzero(counts > 0)
+    starts = indptr[:-1][full]
+
+    def rowsum(v):  # sums over each non-empty row's pairs
+        r = np.zeros(n)
+        r[full] = np.add.reduceat(v, starts)
+        return r
+
     tx, ty = xy[:, 0], xy[:, 1]
     d2 = tx * tx + ty * ty + height * height
-    w = np.where(d2 > 0, np.exp(-9.0 * d2 / radius[rows] ** 2), 0.0)
+    w = np.exp(-9.0 * d2 / np.repeat(radius, counts) ** 2)
+    w[d2 == 0] = 0.0
     phi = (tx * tx, tx * ty, ty * ty)
     A, b = np.empty((n, 3, 3)), np.empty((n, 3))
     for a in range(3):
-        b[:, a] = np.bincount(rows, weights=w * phi[a] * height, minlength=n)
+        wp = w * phi[a]
+        b[:, a] = rowsum(wp * height)
         for c in range(a, 3):
-            A[:, a, c] = A[:, c, a] = np.bincount(rows, weights=w * phi[a] * phi[c], minlength=n)
+            A[:, a, c] = A[:, c, a] = rowsum(wp * phi[c])
     A += (1e-9 * np.trace(A, axis1=1, axis2=2) + 1e-300)[:, None, None] * np.eye(3)  # rows with < 3 pairs
-    q = np.linalg.solve(A, b[:, :, None])[:, :, 0]
-    e = np.abs(height - (q[rows, 0] * phi[0] + q[rows, 1] * phi[1] + q[rows, 2] * phi[2]))
-    sw = np.bincount(rows, weights=w, minlength=n)
-    return ROUGHNESS_FACTOR * np.bincount(rows, weights=w * e, minlength=n) / np.where(sw > 0, sw, 1.0)
+    q = np.repeat(np.linalg.solve(A, b[:, :, None])[:, :, 0], counts, axis=0)
+    e = np.abs(height - (q[:, 0] * phi[0] + q[:, 1] * phi[1] + q[:, 2] * phi[2]))
+    sw = rowsum(w)
+    return ROUGHNESS_FACTOR * rowsum(w * e) / np.where(sw > 0, sw, 1.0)
 
 
 def _lift_reach(slope: float) -> float:
