@@ -326,7 +326,7 @@ def test_sheets_across_a_gap_do_not_couple():
     K = s.stiffness_matrix().tocoo()
     off = K.row != K.col
     cross = off & ((K.row < n) != (K.col < n))
-    assert K.data[cross].sum() / K.data[off].sum() < 1e-2  # measured 4e-4 (0.5 with projected cells)
+    assert K.data[cross].sum() / K.data[off].sum() < 1e-2  # measured 1.8e-3 (0.5 with projected cells)
     m = s.mass_matrix().diagonal()
     assert abs(m[:n].sum() / (4 * np.pi) - 1) < 0.02 and abs(m[n:].sum() / (4 * np.pi * (1 + gap) ** 2) - 1) < 0.02
 
