@@ -303,7 +303,7 @@ def voronoi_cells(
             height_tol = np.ascontiguousarray(height_tol, dtype=np.float64)
             if height_tol.shape != (n,) or np.any(~(height_tol >= 0)):
                 raise ValueError(f"height_tol must have shape ({n},) with values >= 0, got {_describe(height_tol)}")
-        xy, scale, keep = lift_offsets(xy, height, tol=0.0 if height_tol is None else np.repeat(height_tol, np.diff(indptr)))
+        xy, scale, keep = lift_offsets(xy, height, LIFT_SLOPE, tol=0.0 if height_tol is None else np.repeat(height_tol, np.diff(indptr)))
         # bisector beyond the search radius: it can cut only cells already flagged incomplete
         far = np.flatnonzero(scale > 1.0)  # only lifted offsets can have left the search radius
         row = np.searchsorted(indptr, far, side="right") - 1
