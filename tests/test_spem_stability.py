@@ -281,3 +281,17 @@ def test_mimetic_fast_option_is_passed_and_checked():
     d_exact = np.abs(exact.Dx_hy @ q - 3 * lay.hy[:, 0] ** 2).max()
     d_fast = np.abs(fast.Dx_hy @ q - 3 * lay.hy[:, 0] ** 2).max()
     assert d_exact < 1e-6 * A and d_fast > 10 * d_exact, (d_exact, d_fast)
+
+
+def test_make_layout_and_the_cli_offer_the_joint_poisson_layout():
+    from manifold_sph.spem.layouts import joint_poisson_layout
+
+    a = make_layout("poisson-joint", (0.0, A, 0.0, A), A / 8, seed=3)
+    b = joint_poisson_layout((0.0, A, 0.0, A), A / 8, seed=3)
+    np.testing.assert_array_equal(a.e, b.e)
+    np.testing.assert_array_equal(a.hx, b.hx)
+    with pytest.raises(ValueError, match=r"layout"):
+        make_layout("poisson-jointed", (0.0, A, 0.0, A), A / 8)
+    from manifold_sph.spem.cli import main as spem_main
+
+    assert spem_main(["cavity", "--layout", "poisson-joint", "--coupling", "mimetic", "--n-radial", "6"]) == 0

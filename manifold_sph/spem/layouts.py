@@ -217,8 +217,11 @@ def poisson_layout(bounds: Sequence[float], dr: float, seed: int | np.random.Gen
 
 def make_layout(name: str, bounds: Sequence[float], dr: float, *, seed: int | np.random.Generator | None = 0,
                 amplitude: float = 0.2) -> Layout:
-    """Build a layout by name: ``staggered``, ``yee``, ``jittered`` (a jittered Yee layout) or ``poisson``."""
-    check_in("layout", name, LAYOUTS)
+    """Build a layout by name: ``staggered``, ``yee``, ``jittered`` (a jittered Yee layout), ``poisson`` or
+    ``poisson-joint`` (:func:`joint_poisson_layout`: the Poisson E set, its H set relaxed into the E gaps)."""
+    check_in("layout", name, LAYOUTS + ("poisson-joint",))
+    if name == "poisson-joint":
+        return joint_poisson_layout(bounds, dr, seed)
     if name == "staggered":
         return staggered_layout(bounds, dr)
     if name == "yee":
