@@ -268,6 +268,6 @@ class FramePair:
         self._uv = (u, v)
         self.shape = (u.shape[0], 2, u.shape[1])
 
-    def __getitem__(self, key):
+    def __getitem__(self, key: tuple) -> np.ndarray:
         rows, k = key
         return self._uv[k][rows]

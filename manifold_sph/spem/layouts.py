@@ -33,7 +33,7 @@ True
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -331,8 +331,8 @@ def _random_disk(center, radius, dr, kind, wall_spacing, wall_margin, seed, ampl
     return Layout(e, hx, hy, dr, f"disk-{kind}", fixed, b)
 
 
-def relax_h(e: ArrayLike, h: ArrayLike, dr: float, move, iterations: int | None = None,
-            cover: ArrayLike | None = None) -> np.ndarray:
+def relax_h(e: ArrayLike, h: ArrayLike, dr: float, move: Callable[[np.ndarray], np.ndarray],
+            iterations: int | None = None, cover: ArrayLike | None = None) -> np.ndarray:
     """Relax the H particles ``h`` by repulsion from the other H particles and from the (fixed) E particles.
 
     Each H particle is pushed away from its 6 nearest H particles closer than
