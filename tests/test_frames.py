@@ -45,3 +45,17 @@ def test_projection_drops_the_normal_offset():
     q[cols] = p + a[:, None] * u + b[:, None] * v + c[:, None] * n
     xy = project_pairs(p, u, v, rows, cols, candidates=q)
     assert np.allclose(xy, np.stack([a, b], 1), atol=1e-12)
+
+
+def test_frame_pair_reads_the_stacked_frames_and_checks_shapes():
+    from manifold_sph.frames import FramePair, tangent_frames
+
+    n = np.random.default_rng(0).normal(size=(5, 3))
+    u, v = tangent_frames(n / np.linalg.norm(n, axis=1)[:, None])
+    stacked, e = np.stack([u, v], axis=1), FramePair(u, v)
+    assert e.shape == stacked.shape
+    for rows in (slice(None), [4, 0, 4]):
+        for k in (0, 1):
+            np.testing.assert_array_equal(e[rows, k], stacked[rows, k])
+    with pytest.raises(ValueError, match=r"u and v must be \(N, D\) arrays of one shape, got \(5, 3\) and \(4, 3\)"):
+        FramePair(u, v[:4])

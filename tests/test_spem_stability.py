@@ -265,6 +265,10 @@ def test_spectral_radius_bound_checks_its_arguments():
         spectral_radius_bound(S, failure=1.5)
     with pytest.raises(ValueError, match=r"steps"):
         spectral_radius_bound(S, steps=0)
+    with pytest.raises(ValueError, match=r"S must be a square sparse matrix, got csr_matrix of shape \(500, 499\)"):
+        spectral_radius_bound(sp.random(500, 499, density=0.01, format="csr", random_state=0))
+    with pytest.raises(ValueError, match=r"S must be a square sparse matrix, got ndarray"):
+        spectral_radius_bound(np.eye(3))
     with pytest.raises(ValueError, match=r"non-finite"):
         spectral_radius_bound(sp.diags(np.r_[np.nan, -np.ones(499)]).tocsr())
     theta, bound = spectral_radius_bound(S)  # an invariant subspace at the first step: exact

@@ -115,10 +115,9 @@ class MimeticOperators:
 
 
 def _pairs(rows: np.ndarray, cols: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`~manifold_sph.spem.operators.cross_pairs`, sorted by row, then column."""
+    """:func:`~manifold_sph.spem.operators.cross_pairs` (sorted by row, then column), indices only."""
     i, j, _ = cross_pairs(rows, cols, radius)
-    order = np.lexsort((j, i))
-    return i[order], j[order]
+    return i, j
 
 
 def _monomials(z: np.ndarray, degree: int) -> np.ndarray:

@@ -168,6 +168,8 @@ def spectral_radius_bound(S: sp.spmatrix, steps: int = LANCZOS_STEPS, failure: f
     """
     from scipy.linalg import eigvalsh_tridiagonal
 
+    if not sp.issparse(S) or S.ndim != 2 or S.shape[0] != S.shape[1]:
+        raise ValueError(f"S must be a square sparse matrix, got {type(S).__name__} of shape {getattr(S, 'shape', None)}")
     n = S.shape[0]
     check_int("steps", steps, minimum=1)
     if not 0.0 < failure < 1.0:
@@ -712,6 +714,17 @@ class TMzSolver(_Leapfrog):
             self._fused = cached = (mats, arrays, np.ascontiguousarray(self.free, dtype=np.int64))
         return cached[1], cached[2]
 
+    def _drive_sources(self) -> list:
+        """Apply the sources at ``self.t`` to the split Ez (hard: set, soft: added); returns them."""
+        for s in self.sources:
+            v = s.waveform(self.t)
+            if s.kind == "hard":
+                self.ezx[s.indices] = v
+                self.ezy[s.indices] = 0.0
+            else:
+                self.ezx[s.indices] += v
+        return self.sources
+
     def step(self) -> None:
         """One leap-frog step: Ez to t + dt, then H to t + 3 dt / 2."""
         if _jit.ENABLED:  # the same numbers as the numpy step below, in one pass per half step
@@ -721,13 +734,7 @@ class TMzSolver(_Leapfrog):
                               self.ezx, self.ezy, ez)
             self.t = (self.n + 1) * self.dt
             self.n += 1
-            for s in self.sources:
-                v = s.waveform(self.t)
-                if s.kind == "hard":
-                    self.ezx[s.indices] = v
-                    self.ezy[s.indices] = 0.0
-                else:
-                    self.ezx[s.indices] += v
+            for s in self._drive_sources():
                 ez[s.indices] = self.ezx[s.indices] + self.ezy[s.indices]
             hx, hy = np.empty_like(self.hx), np.empty_like(self.hy)  # new arrays, as the numpy step's
             _jit.tmz_h_update(*hxm, ez, self.hx, self.da_x, self.db_x, -1.0, hx)
@@ -740,13 +747,7 @@ class TMzSolver(_Leapfrog):
         self.ezy[fr] = self._cay * self.ezy[fr] - self._cby * dhx
         self.t = (self.n + 1) * self.dt
         self.n += 1
-        for s in self.sources:
-            v = s.waveform(self.t)
-            if s.kind == "hard":
-                self.ezx[s.indices] = v
-                self.ezy[s.indices] = 0.0
-            else:
-                self.ezx[s.indices] += v
+        self._drive_sources()
         ez = self.ezx + self.ezy
         dex, dey = self._pair(self.Dy_hx, ez, self.Dx_hy, ez)
         self.hx = self.da_x * self.hx - self.db_x * dex
