@@ -350,29 +350,40 @@ def assemble(
         step = CHUNK_ROWS if CHUNK_ROWS is not None else scheme.chunk_rows  # bounded padded arrays, as above
         run_chunks(lambda c: numpy_rows(redo[c * step : (c + 1) * step]), -(-redo.size // step), workers)
     shape = (n, n if n_cols is None else n_cols)
-    if columns is None:  # pairs are already in CSR order, one entry per (row, column)
-
-        def csr(data):
-            # each matrix owns its index arrays (in-place scipy methods must not touch the neighbourhood)
-            m = sp.csr_matrix((data, nb.indices.copy(), nb.indptr.copy()), shape=shape, copy=False)
-            m.has_sorted_indices = False  # neighbours are ordered by distance, not column
-            return m
-
-    else:
-        rows = nb.rows
-
-        def csr(data):
-            return sp.coo_matrix((data, (rows, columns)), shape=shape).tocsr()  # ghosts: sum duplicates
-
+    make_csr = _PairCSR(nb, columns, shape)
     names = _chain(scheme)
     fallback = {names[c]: np.flatnonzero(used == c) for c in range(1, len(names)) if np.any(used == c)}
-    out = Assembled(gx, gy, lp, csr, condition, used, names, fallback)
+    out = Assembled(gx, gy, lp, make_csr, condition, used, names, fallback)
     if not gradient:
-
-        def gradient_pass():
-            again = assemble(nb, xy, dV_pairs, kernel, scheme, columns=columns, n_cols=n_cols,
-                             max_condition=max_condition, workers=workers, gradient=True)
-            return again._pair_dx, again._pair_dy
-
-        out._gradient_pass = gradient_pass
+        out._gradient_pass = _GradientPass(nb, xy, dV_pairs, kernel, scheme, columns, n_cols, max_condition, workers)
     return out
+
+
+class _PairCSR:
+    """Pair weights -> CSR matrix (module level, so that an assembled Surface pickles).
+
+    Without ``columns`` the pairs are already in CSR order, one entry per (row, column), and each
+    matrix gets its own copy of the index arrays (in-place scipy methods must not touch the
+    neighbourhood); with ``columns`` (ghosts map to their owners) duplicates are summed."""
+
+    def __init__(self, nb: Neighborhood, columns: np.ndarray | None, shape: tuple[int, int]) -> None:
+        self.nb, self.columns, self.shape = nb, columns, shape
+
+    def __call__(self, data: np.ndarray) -> sp.csr_matrix:
+        if self.columns is None:
+            m = sp.csr_matrix((data, self.nb.indices.copy(), self.nb.indptr.copy()), shape=self.shape, copy=False)
+            m.has_sorted_indices = False  # neighbours are ordered by distance, not column
+            return m
+        return sp.coo_matrix((data, (self.nb.rows, self.columns)), shape=self.shape).tocsr()
+
+
+class _GradientPass:
+    """The derivative weights of a Laplacian-only assembly, by a second pass on first use."""
+
+    def __init__(self, nb, xy, dV_pairs, kernel, scheme, columns, n_cols, max_condition, workers) -> None:
+        self.args = (nb, xy, dV_pairs, kernel, scheme)
+        self.kwargs = dict(columns=columns, n_cols=n_cols, max_condition=max_condition, workers=workers)
+
+    def __call__(self) -> tuple[np.ndarray, np.ndarray]:
+        again = assemble(*self.args, gradient=True, **self.kwargs)
+        return again._pair_dx, again._pair_dy

@@ -191,3 +191,14 @@ def test_poisson_square_exactness(n):
         assert err.max() / 3.0 < 1e-9
     lin = 0.5 - p[:, 0] + 4 * p[:, 1]
     assert np.abs(Domain2D(p, scheme="cspm").gradient(lin) - [-1, 4]).max() < 1e-10 * 4
+
+
+def test_mirrored_domain_pickles():
+    import pickle
+
+    p = jittered(15, seed=3)
+    d = Domain2D(p, scheme="cspm", bounds=(-1, 1, -1, 1), mirror=True)
+    f = np.sin(np.pi * p[:, 0]) * p[:, 1]
+    d2 = pickle.loads(pickle.dumps(d))
+    assert np.array_equal(d2.laplacian(f), d.laplacian(f))
+    assert np.array_equal(d2.gradient(f), d.gradient(f))
