@@ -1272,3 +1272,102 @@ def winding_rows(lo, hi, Q, P, An, eps2, label, order, cstart, ccen, crad2, aptr
                     rz = P[j, 2] - qz
                     r2 = rx * rx + ry * ry + rz * rz + eps2[j]
                     out[i, label[j]] += c4 * (An[j, 0] * rx + An[j, 1] * ry + An[j, 2] * rz) / (r2 * np.sqrt(r2))
+
+
+# ------------------------------------------------ TMz stencil runs (spem.stencil)
+# Rows of the TMz step whose operators repeat one stencil (spem.stencil.find_runs) are applied
+# run by run: a run's rows read columns ``run_col + k + offsets`` with the pattern's weights and
+# coefficients, so no index or weight is streamed per entry. The sums are formed for a block of
+# up to _RUN_BLOCK rows at once, weight by weight (in the pattern's stored order, so each row's
+# sum is the same sequence of operations as in tmz_e_update / tmz_h_update: the same numbers for
+# the same weights); the rows of a block are independent, so the loop over them runs in SIMD
+# lanes instead of one dependent chain of additions per row (the CSR kernels' limit: about
+# 26 ns per E row of 12 entries, measured).
+_RUN_BLOCK = 256
+
+
+@_jit
+def tmz_e_runs(q0, q1, run_row, run_len, run_pat, run_col, free, xptr, xoff, xw, yptr, yoff, yw, coef,
+               hy, hx, ezx, ezy, ez):
+    """Runs ``q0:q1`` of the free E rows: ``ezx = cax ezx + cbx (Dx hy)``, ``ezy = cay ezy - cby (Dy hx)``,
+    ``ez = ezx + ezy``, ``Dx``/``Dy`` the patterns ``(xptr, xoff, xw)``/``(yptr, yoff, yw)``, ``coef[p]`` =
+    ``(cax, cbx, cay, cby)``."""
+    sx = np.empty(_RUN_BLOCK)
+    sy = np.empty(_RUN_BLOCK)
+    for q in range(q0, q1):
+        p = run_pat[q]
+        cax = coef[p, 0]
+        cbx = coef[p, 1]
+        cay = coef[p, 2]
+        cby = coef[p, 3]
+        n = run_len[q]
+        for k0 in range(0, n, _RUN_BLOCK):
+            m = min(_RUN_BLOCK, n - k0)
+            i0 = free[run_row[q]] + k0
+            cx = run_col[q, 0] + k0
+            cy = run_col[q, 1] + k0
+            for k in range(m):
+                sx[k] = 0.0
+                sy[k] = 0.0
+            for s in range(xptr[p], xptr[p + 1]):
+                w = xw[s]
+                c = _u(cx + xoff[s])
+                for k in range(m):
+                    sx[k] += w * hy[c + _u(k)]
+            for s in range(yptr[p], yptr[p + 1]):
+                w = yw[s]
+                c = _u(cy + yoff[s])
+                for k in range(m):
+                    sy[k] += w * hx[c + _u(k)]
+            for k in range(m):
+                i = _u(i0 + k)
+                a = cax * ezx[i] + cbx * sx[k]
+                b = cay * ezy[i] - cby * sy[k]
+                ezx[i] = a
+                ezy[i] = b
+                ez[i] = a + b
+
+
+@_jit
+def tmz_h_runs(q0, q1, run_row, run_len, run_pat, run_col, ptr, off, w, coef, ez, h, sign, out):
+    """Runs ``q0:q1`` of H rows: ``out = da h - db (D ez)`` (``sign`` < 0) or ``da h + db (D ez)``, ``D`` the
+    patterns ``(ptr, off, w)``, ``coef[p]`` = ``(da, db)``."""
+    acc = np.empty(_RUN_BLOCK)
+    for q in range(q0, q1):
+        p = run_pat[q]
+        da = coef[p, 0]
+        db = coef[p, 1]
+        n = run_len[q]
+        for k0 in range(0, n, _RUN_BLOCK):
+            m = min(_RUN_BLOCK, n - k0)
+            r0 = run_row[q] + k0
+            c0 = run_col[q, 0] + k0
+            for k in range(m):
+                acc[k] = 0.0
+            for t in range(ptr[p], ptr[p + 1]):
+                wt = w[t]
+                c = _u(c0 + off[t])
+                for k in range(m):
+                    acc[k] += wt * ez[c + _u(k)]
+            if sign < 0:
+                for k in range(m):
+                    i = _u(r0 + k)
+                    out[i] = da * h[i] - db * acc[k]
+            else:
+                for k in range(m):
+                    i = _u(r0 + k)
+                    out[i] = da * h[i] + db * acc[k]
+
+
+@_jit
+def tmz_h_rows(r0, r1, rows, p, idx, dat, ez, h, da, db, sign, out):
+    """H rows ``rows[r0:r1]`` by CSR (``(p, idx, dat)`` holds those rows in order): as :func:`tmz_h_update`."""
+    for r in range(r0, r1):
+        i = _u(rows[r])
+        s = 0.0
+        for q in range(_u(p[r]), _u(p[r + 1])):
+            s += dat[q] * ez[_u(idx[q])]
+        if sign < 0:
+            out[i] = da[i] * h[i] - db[i] * s
+        else:
+            out[i] = da[i] * h[i] + db[i] * s

@@ -1,0 +1,235 @@
+"""Repeated-stencil runs of the TMz step operators: the lattice fast path of :class:`.solver.TMzSolver`.
+
+On a lattice (and any layout with repeated rows) most rows of the derivative
+matrices have the same column offsets, counted from the row's first stored
+column, and the same weights, and most particles the same update coefficients
+(vacuum, no PML). :func:`find_runs` groups the rows whose offsets, weights (to
+``rtol`` times the operator's largest entry) and coefficients (exactly) agree,
+and cuts them into *runs*: consecutive rows of one group whose output index and
+first column each advance by one per row. A run is then applied by a
+fixed-stencil kernel that streams its rows (a few numbers per run instead of
+an index and a weight per entry); the other rows keep their CSR form.
+
+The weights of a run's rows are those of its group's first row (its
+*representative*): a row's own weights differ from them by less than
+``rtol * max |D|``. :meth:`StencilRuns.snapped` gives the matrix with exactly
+these weights, which the numpy step uses, so the compiled and numpy steps
+agree bit for bit; both differ from the step with the assembled matrices by
+round-off only.
+
+Examples
+--------
+>>> import scipy.sparse as sp
+>>> D = sp.diags([-np.ones(9), np.ones(9)], [0, 1], shape=(9, 10)).tocsr()  # forward differences
+>>> runs = find_runs([D], np.arange(9), np.ones((9, 1)))
+>>> runs.run_row.tolist(), runs.run_len.tolist(), runs.rest.tolist()
+([0], [9], [])
+>>> runs.offsets[0].tolist(), runs.weights[0].tolist()
+([0, 1], [-1.0, 1.0])
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import ArrayLike
+
+__all__ = ["StencilRuns", "find_runs", "RTOL", "MIN_RUN"]
+
+#: Weights of rows in one group differ by less than this times the operator's largest |entry|.
+RTOL = 1e-13
+#: Shortest run applied by the stencil kernels (shorter ones stay in CSR form).
+MIN_RUN = 4
+
+_PRIME = np.uint64(0x100000001B3)  # FNV-1a multiplier (64 bit)
+_BASIS = np.uint64(0xCBF29CE484222325)
+_PAD = np.int64(-(2**62))  # offset/weight key of a slot beyond a row's entries
+
+
+@dataclass(frozen=True)
+class StencilRuns:
+    """Runs of repeated rows of one or several CSR operators with the same rows (see :func:`find_runs`).
+
+    Attributes
+    ----------
+    run_row, run_len, run_pat : (R,) int64 arrays
+        First row, number of rows and pattern of each run.
+    run_col : (R, M) int64 array
+        First stored column of each operator's row at the run's first row; row
+        ``run_row + k`` reads columns ``run_col + k + offsets``.
+    ptr : tuple of M (P + 1,) int64 arrays
+        Pattern ``p`` of operator ``m`` is ``offsets[m][ptr[m][p]:ptr[m][p + 1]]``, same for ``weights``.
+    offsets : tuple of M int64 arrays
+    weights : tuple of M float64 arrays
+    coef : (P, C) float64 array
+        The (common) coefficients of each pattern's rows.
+    rest : (n_rest,) int64 array
+        Rows in no run.
+    n_rows : int
+    """
+
+    run_row: np.ndarray
+    run_len: np.ndarray
+    run_pat: np.ndarray
+    run_col: np.ndarray
+    ptr: tuple
+    offsets: tuple
+    weights: tuple
+    coef: np.ndarray
+    rest: np.ndarray
+    n_rows: int
+
+    @property
+    def covered(self) -> int:
+        """Number of rows in runs."""
+        return int(self.run_len.sum())
+
+    def _row_entries(self, m: int, D: sp.csr_matrix):
+        """(positions in D's data, positions in the pattern weights) of every run row's entries."""
+        rows = np.repeat(self.run_row, self.run_len) + _ramp(self.run_len)
+        pats = np.repeat(self.run_pat, self.run_len)
+        K = np.diff(self.ptr[m])[pats]
+        local = _ramp(K)
+        return np.repeat(D.indptr[rows], K) + local, np.repeat(self.ptr[m][pats], K) + local
+
+    def snapped(self, m: int, D: sp.spmatrix) -> sp.csr_matrix:
+        """Operator ``m`` (``D``, the matrix the runs were found in) with each run row's weights replaced by its
+        pattern's (the numbers the stencil kernels use; the same stored order)."""
+        D = sp.csr_matrix(D)
+        data = np.array(D.data, dtype=np.float64)
+        dst, src = self._row_entries(m, D)
+        data[dst] = self.weights[m][src]
+        return sp.csr_matrix((data, D.indices, D.indptr), shape=D.shape)
+
+    def rest_csr(self, D: sp.spmatrix) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(indptr, indices, data)`` of the rows :attr:`rest` of ``D``, entries in their stored order."""
+        D = sp.csr_matrix(D)
+        K = np.diff(D.indptr)[self.rest]
+        indptr = np.zeros(len(self.rest) + 1, dtype=np.int64)
+        np.cumsum(K, out=indptr[1:])
+        pos = np.repeat(D.indptr[self.rest].astype(np.int64), K) + _ramp(K)
+        return indptr, np.ascontiguousarray(D.indices[pos], dtype=np.int64), np.ascontiguousarray(D.data[pos],
+                                                                                                   dtype=np.float64)
+
+
+def _ramp(counts: np.ndarray) -> np.ndarray:
+    """``concatenate([arange(c) for c in counts])``, vectorised."""
+    counts = np.asarray(counts, dtype=np.int64)
+    total = int(counts.sum())
+    start = np.cumsum(counts) - counts
+    return np.arange(total, dtype=np.int64) - np.repeat(start, counts)
+
+
+def _key_columns(mats, firsts, scales, coef_bits):
+    """The integer key of every row, one (n,) column at a time: per operator the entry count, then per slot
+    the offset from the first column and the weight in units of the operator's tolerance; the coefficients' bits."""
+    for D, first, q in zip(mats, firsts, scales):
+        K = np.diff(D.indptr).astype(np.int64)
+        yield K
+        start = D.indptr[:-1].astype(np.int64)
+        last = max(D.nnz - 1, 0)
+        for s in range(int(K.max(initial=0))):
+            has = s < K
+            pos = np.minimum(start + s, last)
+            yield np.where(has, D.indices[pos].astype(np.int64) - first, _PAD) if D.nnz else np.full(len(K), _PAD)
+            if not D.nnz:
+                yield np.full(len(K), _PAD)
+                continue
+            w = D.data[pos]
+            wq = np.rint(w / q).astype(np.int64) if q else np.ascontiguousarray(w, dtype=np.float64).view(np.int64)
+            yield np.where(has, wq, _PAD)
+    for c in coef_bits.T:
+        yield c
+
+
+def find_runs(mats: Sequence[sp.spmatrix], targets: ArrayLike, coefs: ArrayLike, *, rtol: float = RTOL,
+              min_run: int = MIN_RUN) -> StencilRuns:
+    """Runs of rows that share one stencil in every operator of ``mats`` and the same coefficients.
+
+    Parameters
+    ----------
+    mats : sequence of sparse matrices
+        ``M`` operators with the same number ``n`` of rows (the rows of one update).
+    targets : (n,) int array
+        The output index of each row (a run needs consecutive targets).
+    coefs : (n, C) float array
+        The update coefficients of each row (equal within a pattern, bit for bit).
+    rtol : float
+        Weights of one pattern differ by less than ``rtol`` times the operator's largest |entry|.
+    min_run : int
+        Runs shorter than this are left to the CSR rows (:attr:`StencilRuns.rest`).
+
+    Returns
+    -------
+    StencilRuns
+    """
+    mats = [sp.csr_matrix(D) for D in mats]
+    if not mats:
+        raise ValueError("mats must hold at least one operator")
+    n = mats[0].shape[0]
+    if any(D.shape[0] != n for D in mats):
+        raise ValueError(f"every operator in mats must have {n} rows, got {[D.shape[0] for D in mats]}")
+    targets = np.asarray(targets, dtype=np.int64)
+    if targets.shape != (n,):
+        raise ValueError(f"targets must have shape ({n},), got {targets.shape}")
+    coefs = np.ascontiguousarray(coefs, dtype=np.float64)
+    if coefs.ndim != 2 or coefs.shape[0] != n:
+        raise ValueError(f"coefs must have shape ({n}, C), got {coefs.shape}")
+    if not (rtol == 0.0 or 1e-18 <= rtol < 1e-6):
+        raise ValueError(f"rtol must be 0 (exact) or lie in [1e-18, 1e-6), got {rtol!r}")
+    if int(min_run) < 1:
+        raise ValueError(f"min_run must be at least 1, got {min_run!r}")
+    M = len(mats)
+    firsts, scales, nonempty = [], [], np.ones(n, dtype=bool)
+    for D in mats:
+        K = np.diff(D.indptr)
+        nonempty &= K > 0
+        firsts.append(np.where(K > 0, D.indices[np.minimum(D.indptr[:-1], max(D.nnz - 1, 0))], 0).astype(np.int64)
+                      if D.nnz else np.zeros(n, dtype=np.int64))
+        big = float(np.abs(D.data).max(initial=0.0))
+        scales.append(rtol * big)  # 0: exact equality (the weights' bits)
+    coef_bits = coefs.view(np.int64)
+    # group the rows by a 64-bit hash of their key, then check every row against its group's first row
+    h = np.full(n, _BASIS, dtype=np.uint64)
+    with np.errstate(over="ignore"):
+        for col in _key_columns(mats, firsts, scales, coef_bits):
+            h = (h ^ col.view(np.uint64)) * _PRIME
+    _, rep, group, count = np.unique(h, return_index=True, return_inverse=True, return_counts=True)
+    group = group.reshape(-1)
+    ok = nonempty & (count[group] >= min_run)
+    rep_row = rep[group]
+    for col in _key_columns(mats, firsts, scales, coef_bits):
+        ok &= col == col[rep_row]  # a hash collision leaves the row to the CSR form
+    # runs: consecutive rows of one group whose target and first columns advance by one
+    cont = np.zeros(n, dtype=bool)
+    if n > 1:
+        c = ok[1:] & ok[:-1] & (group[1:] == group[:-1]) & (targets[1:] == targets[:-1] + 1)
+        for f in firsts:
+            c &= f[1:] == f[:-1] + 1
+        cont[1:] = c
+    starts = np.flatnonzero(ok & ~cont)
+    run_id = np.cumsum(ok & ~cont) - 1
+    lengths = np.bincount(run_id[ok], minlength=len(starts)) if len(starts) else np.zeros(0, dtype=np.int64)
+    keep = lengths >= int(min_run)
+    run_row, run_len = starts[keep].astype(np.int64), lengths[keep].astype(np.int64)
+    in_run = np.zeros(n, dtype=bool)
+    in_run[np.repeat(run_row, run_len) + _ramp(run_len)] = True
+    used, run_pat = np.unique(group[run_row], return_inverse=True)
+    reps = rep[used]  # each pattern's representative row
+    ptrs, offs, ws = [], [], []
+    for D, first in zip(mats, firsts):
+        K = np.diff(D.indptr)[reps].astype(np.int64)
+        ptr = np.zeros(len(reps) + 1, dtype=np.int64)
+        np.cumsum(K, out=ptr[1:])
+        pos = np.repeat(D.indptr[reps].astype(np.int64), K) + _ramp(K)
+        ptrs.append(ptr)
+        offs.append(np.ascontiguousarray(D.indices[pos].astype(np.int64) - np.repeat(first[reps], K)))
+        ws.append(np.ascontiguousarray(D.data[pos], dtype=np.float64))
+    run_col = np.ascontiguousarray(np.column_stack([f[run_row] for f in firsts]).reshape(len(run_row), M))
+    return StencilRuns(run_row=run_row, run_len=run_len, run_pat=run_pat.reshape(-1).astype(np.int64),
+                       run_col=run_col.astype(np.int64), ptr=tuple(ptrs), offsets=tuple(offs), weights=tuple(ws),
+                       coef=np.ascontiguousarray(coefs[reps]), rest=np.flatnonzero(~in_run).astype(np.int64),
+                       n_rows=n)
