@@ -4,6 +4,9 @@ Run: .venv/bin/python benchmarks/spem_vs_yee.py [--full]
      .venv/bin/python benchmarks/spem_vs_yee.py --scattering [--full]   (plane wave on PEC, dielectric and
      coated cylinders, :mod:`manifold_sph.spem.scattering`, against the same scattered-field formulation,
      PML and DFT on the Yee grid; staircased, and for the dielectric also cell-averaged like SPEM's particles)
+     .venv/bin/python benchmarks/spem_vs_yee.py --cost [--sizes 1e4 9e4 1e6] [--repeat 7]   (ns per unknown
+     and step on lattices, in one run: the numpy Yee, SPEM's CSR step (``stencil=False``) and its stencil
+     runs (the default), on a PEC square cavity and on a plane wave with PML; see :func:`cost_main`)
 
 The cavity: radius r0 = 0.1 m, eps_r = 10, Ez(0) = 1 - r^2/r0^2, exact Bessel series
 (:func:`manifold_sph.spem.cases.cavity_exact`). Both methods report
@@ -140,7 +143,13 @@ def main():
     ap.add_argument("--full", action="store_true", help="add SPEM at 80 spacings per radius (set-up ~40 s); "
                     "with --scattering, jittered particles at 16 spacings per radius too")
     ap.add_argument("--scattering", action="store_true", help="the cylinder scattering cases instead of the cavity")
+    ap.add_argument("--cost", action="store_true", help="the cost per unknown and step table (lattices)")
+    ap.add_argument("--sizes", type=float, nargs="+", default=[1e4, 9e4, 1e6], help="--cost: unknowns (about)")
+    ap.add_argument("--repeat", type=int, default=7, help="--cost: timed repeats (the median is printed)")
     a = ap.parse_args()
+    if a.cost:
+        cost_main(a.sizes, a.repeat)
+        return
     if a.scattering:
         scattering_main(a.full)
         return
@@ -368,6 +377,135 @@ def run_yee_scattering(kind, n_radial, *, radius=0.1, ka=2.0, eps_r=4.0, core_ra
             "n_radial": n_radial, "unknowns": unknowns, "error": l2_error(phasor, exact),
             "ring_error": l2_error(phasor[ring], exact[ring]), "setup": setup, "run": run, "steps": steps,
             "ns_per_unknown_step": 1e9 * run / (steps * unknowns)}
+
+
+# ----------------------------------------------------------------------------- cost per unknown (issue 21)
+def _yee_pml_grid(n, d, pml_cells, freq):
+    """A numpy Yee step with split-field PML on every side and a hard line source (the update lines of
+    :func:`run_yee_scattering`, no scatterer): returns ``(step(k), unknowns, ez())``."""
+    from manifold_sph.spem.pml import PML
+    from manifold_sph.spem.sources import Sinusoid
+
+    size = (n - 2 * pml_cells) * d
+    x = np.arange(n + 1) * d - pml_cells * d
+    X, Y = np.meshgrid(x, x, indexing="ij")
+    pml = PML(pml_cells * d, interior=(0.0, size, 0.0, size))
+    sx, sy = (v.reshape(X.shape) for v in pml.sigma(np.column_stack([X.ravel(), Y.ravel()])))
+    sy_hx = pml.sigma(np.column_stack([X[:, :-1].ravel(), (Y[:, :-1] + d / 2).ravel()]))[1].reshape(n + 1, n)
+    sx_hy = pml.sigma(np.column_stack([(X[:-1, :] + d / 2).ravel(), Y[:-1, :].ravel()]))[0].reshape(n, n + 1)
+    dt = 0.99 / math.sqrt(2) * d / C0
+
+    def coef(sg, m):
+        a = sg * dt / (2 * m)
+        return (1 - a) / (1 + a), (dt / m) / (1 + a) / d
+
+    cax, cbx = (v[1:-1, 1:-1] for v in coef(sx, EPS0))
+    cay, cby = (v[1:-1, 1:-1] for v in coef(sy, EPS0))
+    dax, dbx = coef(sy_hx * MU0 / EPS0, MU0)
+    day, dby = coef(sx_hy * MU0 / EPS0, MU0)
+    f = {"ezx": np.zeros(X.shape), "ezy": np.zeros(X.shape), "hx": np.zeros((n + 1, n)), "hy": np.zeros((n, n + 1)),
+         "ez": np.zeros(X.shape)}
+    wave = Sinusoid(freq, ramp=2.0)
+    j_src = pml_cells + 1  # the line y = d inside the interior
+
+    def step(k):
+        ezx, ezy, hx, hy = f["ezx"], f["ezy"], f["hx"], f["hy"]
+        ezx[1:-1, 1:-1] = cax * ezx[1:-1, 1:-1] + cbx * (hy[1:, 1:-1] - hy[:-1, 1:-1])
+        ezy[1:-1, 1:-1] = cay * ezy[1:-1, 1:-1] - cby * (hx[1:-1, 1:] - hx[1:-1, :-1])
+        ezx[1:-1, j_src] = wave((k + 1) * dt)
+        ezy[1:-1, j_src] = 0.0
+        ez = ezx + ezy
+        f["hx"] = dax * hx - dbx * (ez[:, 1:] - ez[:, :-1])
+        f["hy"] = day * hy + dby * (ez[1:, :] - ez[:-1, :])
+        f["ez"] = ez
+
+    return step, (n + 1) ** 2 + 2 * n * (n + 1), lambda: f["ez"]
+
+
+def _median_ns(run, steps, unknowns, repeat):
+    run(max(2, steps // 10))  # warm-up (compilation, caches)
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        run(steps)
+        times.append(time.perf_counter() - t0)
+    return 1e9 * float(np.median(times)) / (steps * unknowns)
+
+
+def cost_main(sizes=(1e4, 9e4, 1e6), repeat=7, pml_cells=10):
+    """ns per unknown (Ez + Hx + Hy, the held PEC nodes included on both sides) and step, median of ``repeat``
+    timed runs of ``steps`` steps (about 3e7 / unknowns, at least 10), on square lattices of about ``sizes``
+    unknowns: the numpy Yee (:class:`YeeTMz` on a PEC square; the split-field PML update of
+    :func:`run_yee_scattering` with a hard line source), SPEM's previous compiled CSR step
+    (``TMzSolver(stencil=False)``) and its stencil runs (``stencil=True``, :mod:`manifold_sph.spem.stencil`) on
+    the same solver and Yee layout (default ``sbp`` coupling). ``rows in runs``: the share of E and H rows the
+    stencil kernels apply; ``rel diff``: max |Ez_stencil - Ez_csr| / max |Ez_csr| after 200 steps from the
+    same start."""
+    from manifold_sph.spem import PML, Sinusoid, Source, TMzSolver, yee_layout
+
+    print("ns per unknown and step (median of %d runs; unknowns = Ez + Hx + Hy on the lattice)" % repeat)
+    print(f"{'case':<10s} {'cells':>6s} {'unknowns':>9s} {'steps':>6s} {'Yee':>7s} {'CSR':>7s} {'stencil':>8s} "
+          f"{'st/Yee':>7s} {'CSR/Yee':>8s} {'runs %':>7s} {'rel diff':>9s} {'setup s':>8s}")
+    for target in sizes:
+        n = max(2 * pml_cells + 4, int(round(math.sqrt(float(target) / 3.0))))
+        d = 1e-3
+        for case in ("cavity", "planewave"):
+            if case == "cavity":
+                x = np.arange(n + 1) * d
+                X, Y = np.meshgrid(x, x, indexing="ij")
+                pec = (X <= 0) | (X >= n * d) | (Y <= 0) | (Y >= n * d)
+                yee = YeeTMz(n, d, pec)
+                yee.set_initial(np.exp(-((X - n * d / 2) ** 2 + (Y - n * d / 2) ** 2) / (0.1 * n * d) ** 2))
+                yee_unknowns = (n + 1) ** 2 + 2 * n * (n + 1)
+
+                def yee_run(k, yee=yee):
+                    for _ in range(k):
+                        yee.step()
+            else:
+                freq = C0 / (20 * d)  # 20 cells per wavelength
+                step, yee_unknowns, _ = _yee_pml_grid(n, d, pml_cells, freq)
+
+                def yee_run(k, step=step):
+                    for j in range(k):
+                        step(j)
+            steps = max(10, int(3e7 / yee_unknowns))
+            t_yee = _median_ns(yee_run, steps, yee_unknowns, repeat)
+            t0 = time.perf_counter()
+            if case == "cavity":
+                lay = yee_layout((0.0, n * d, 0.0, n * d), d)
+                s = TMzSolver(lay)
+                e = lay.e
+                start = np.exp(-((e[:, 0] - n * d / 2) ** 2 + (e[:, 1] - n * d / 2) ** 2) / (0.1 * n * d) ** 2)
+            else:
+                size = (n - 2 * pml_cells) * d
+                pml = PML(pml_cells * d, interior=(0.0, size, 0.0, size))
+                lay = yee_layout(pml.outer_bounds(), d)
+                e = lay.e
+                band = np.flatnonzero((np.abs(e[:, 1] - d) <= 0.5 * d) & ~lay.e_fixed)
+                wave = Sinusoid(C0 / (20 * d), ramp=2.0)
+                s = TMzSolver(lay, pml=pml, sources=[Source(band, lambda t, wave=wave: wave(t))])
+                start = np.zeros(len(e))
+            s._step_plan()  # the runs are found on the first step; counted as set-up here
+            setup = time.perf_counter() - t0
+            pl = s._step_plan()
+            rows = pl.e.n_rows + sum(r.n_rows for r, _ in pl.h)
+            covered = pl.e.covered + sum(r.covered for r, _ in pl.h)
+            fields = {}
+            for mode in (False, True):
+                s.stencil = mode
+                s.set_initial(start)
+                s.run(200)
+                fields[mode] = s.e_field.copy()
+            diff = float(np.abs(fields[True] - fields[False]).max() / np.abs(fields[False]).max())
+            t = {}
+            for mode in (False, True):
+                s.stencil = mode
+                s.set_initial(start)
+                t[mode] = _median_ns(lambda k: s.run(k), steps, lay.n_particles, repeat)
+            print(f"{case:<10s} {n:>6d} {lay.n_particles:>9d} {steps:>6d} {t_yee:>7.2f} {t[False]:>7.2f} "
+                  f"{t[True]:>8.2f} {t[True] / t_yee:>7.2f} {t[False] / t_yee:>8.2f} {100 * covered / rows:>7.1f} "
+                  f"{diff:>9.1e} {setup:>8.1f}", flush=True)
+            del s
 
 
 if __name__ == "__main__":

@@ -1275,50 +1275,59 @@ def winding_rows(lo, hi, Q, P, An, eps2, label, order, cstart, ccen, crad2, aptr
 
 
 # ------------------------------------------------ TMz stencil runs (spem.stencil)
-# Rows of the TMz step whose operators repeat one stencil (spem.stencil.find_runs) are applied
-# run by run: a run's rows read columns ``run_col + k + offsets`` with the pattern's weights and
-# coefficients, so no index or weight is streamed per entry. The sums are formed for a block of
-# up to _RUN_BLOCK rows at once, weight by weight (in the pattern's stored order, so each row's
-# sum is the same sequence of operations as in tmz_e_update / tmz_h_update: the same numbers for
-# the same weights); the rows of a block are independent, so the loop over them runs in SIMD
-# lanes instead of one dependent chain of additions per row (the CSR kernels' limit: about
-# 26 ns per E row of 12 entries, measured).
+# The TMz step of spem.TMzSolver with stencil runs, one call per half step (the arrays are packed by
+# spem.stencil.pack_e / pack_h). Rows whose operators repeat one stencil are applied run by run: a
+# run's rows read columns ``col + k + offsets`` with the pattern's weights and coefficients, so no
+# index or weight is streamed per entry. The sums are formed for a block of up to _RUN_BLOCK rows at
+# once, weight by weight in the pattern's stored order: each row's sum is the same sequence of
+# operations as in tmz_e_update / tmz_h_update (the same numbers for the same weights), and the rows
+# of a block are independent, so the loop over them runs in SIMD lanes instead of one dependent
+# chain of additions per row (the CSR kernels' limit, about 26 ns per E row of 12 entries,
+# measured). The other rows follow in CSR form.
 _RUN_BLOCK = 256
 
 
 @_jit
-def tmz_e_runs(q0, q1, run_row, run_len, run_pat, run_col, free, xptr, xoff, xw, yptr, yoff, yw, coef,
-               hy, hx, ezx, ezy, ez):
-    """Runs ``q0:q1`` of the free E rows: ``ezx = cax ezx + cbx (Dx hy)``, ``ezy = cay ezy - cby (Dy hx)``,
-    ``ez = ezx + ezy``, ``Dx``/``Dy`` the patterns ``(xptr, xoff, xw)``/``(yptr, yoff, yw)``, ``coef[p]`` =
-    ``(cax, cbx, cay, cby)``."""
+def tmz_e_half(q0, q1, r0, r1, held, runs, pat, off, w, coef, rrow, rptr, ridx, rdat, rcoef, h, ezx, ezy, ez):
+    """E half step: ``ezx = cax ezx + cbx (Dx h)``, ``ezy = cay ezy - cby (Dy h)``, ``ez = ezx + ezy``.
+
+    ``h`` is the stacked ``[hx, hy]``. Runs ``q0:q1``: ``runs[q]`` = (first E index, rows, pattern, first
+    column of Dx, of Dy), pattern ``p``'s Dx entries ``pat[p, 0]:pat[p, 1]`` and Dy entries
+    ``pat[p, 2]:pat[p, 3]`` of ``(off, w)``, coefficients ``coef[p]`` = (cax, cbx, cay, cby). CSR rows
+    ``r0:r1``: E index ``rrow[r]``, Dx entries ``rptr[2 r]:rptr[2 r + 1]``, Dy entries ``rptr[2 r + 1]:
+    rptr[2 r + 2]`` of ``(ridx, rdat)``, coefficients ``rcoef[r]``. ``held`` (the E particles not updated):
+    ``ez = ezx + ezy`` only (with ``q0 == 0``)."""
+    if q0 == 0:
+        for t in range(held.size):
+            i = _u(held[t])
+            ez[i] = ezx[i] + ezy[i]
     sx = np.empty(_RUN_BLOCK)
     sy = np.empty(_RUN_BLOCK)
     for q in range(q0, q1):
-        p = run_pat[q]
+        p = runs[q, 2]
         cax = coef[p, 0]
         cbx = coef[p, 1]
         cay = coef[p, 2]
         cby = coef[p, 3]
-        n = run_len[q]
+        n = runs[q, 1]
         for k0 in range(0, n, _RUN_BLOCK):
             m = min(_RUN_BLOCK, n - k0)
-            i0 = free[run_row[q]] + k0
-            cx = run_col[q, 0] + k0
-            cy = run_col[q, 1] + k0
+            i0 = runs[q, 0] + k0
+            cx = runs[q, 3] + k0
+            cy = runs[q, 4] + k0
             for k in range(m):
                 sx[k] = 0.0
                 sy[k] = 0.0
-            for s in range(xptr[p], xptr[p + 1]):
-                w = xw[s]
-                c = _u(cx + xoff[s])
+            for s in range(pat[p, 0], pat[p, 1]):
+                wt = w[s]
+                c = _u(cx + off[s])
                 for k in range(m):
-                    sx[k] += w * hy[c + _u(k)]
-            for s in range(yptr[p], yptr[p + 1]):
-                w = yw[s]
-                c = _u(cy + yoff[s])
+                    sx[k] += wt * h[c + _u(k)]
+            for s in range(pat[p, 2], pat[p, 3]):
+                wt = w[s]
+                c = _u(cy + off[s])
                 for k in range(m):
-                    sy[k] += w * hx[c + _u(k)]
+                    sy[k] += wt * h[c + _u(k)]
             for k in range(m):
                 i = _u(i0 + k)
                 a = cax * ezx[i] + cbx * sx[k]
@@ -1326,48 +1335,52 @@ def tmz_e_runs(q0, q1, run_row, run_len, run_pat, run_col, free, xptr, xoff, xw,
                 ezx[i] = a
                 ezy[i] = b
                 ez[i] = a + b
+    for r in range(r0, r1):
+        i = _u(rrow[r])
+        x = 0.0
+        for t in range(_u(rptr[2 * r]), _u(rptr[2 * r + 1])):
+            x += rdat[t] * h[_u(ridx[t])]
+        y = 0.0
+        for t in range(_u(rptr[2 * r + 1]), _u(rptr[2 * r + 2])):
+            y += rdat[t] * h[_u(ridx[t])]
+        a = rcoef[r, 0] * ezx[i] + rcoef[r, 1] * x
+        b = rcoef[r, 2] * ezy[i] - rcoef[r, 3] * y
+        ezx[i] = a
+        ezy[i] = b
+        ez[i] = a + b
 
 
 @_jit
-def tmz_h_runs(q0, q1, run_row, run_len, run_pat, run_col, ptr, off, w, coef, ez, h, sign, out):
-    """Runs ``q0:q1`` of H rows: ``out = da h - db (D ez)`` (``sign`` < 0) or ``da h + db (D ez)``, ``D`` the
-    patterns ``(ptr, off, w)``, ``coef[p]`` = ``(da, db)``."""
+def tmz_h_half(q0, q1, r0, r1, runs, pat, off, w, coef, rrow, rptr, ridx, rdat, rcoef, ez, h, out):
+    """H half step on the stacked ``h = [hx, hy]``: ``out = da h + dbs (D ez)``, ``dbs`` = -db for Hx, +db for Hy.
+
+    Runs ``q0:q1``: ``runs[q]`` = (first row, rows, pattern, first column), pattern ``p``'s entries
+    ``pat[p, 0]:pat[p, 1]`` of ``(off, w)``, ``coef[p]`` = (da, dbs). CSR rows ``r0:r1``: row ``rrow[r]``,
+    entries ``rptr[r]:rptr[r + 1]`` of ``(ridx, rdat)``, ``rcoef[r]``. ``out`` may be ``h`` (each row reads
+    only its own ``h``)."""
     acc = np.empty(_RUN_BLOCK)
     for q in range(q0, q1):
-        p = run_pat[q]
+        p = runs[q, 2]
         da = coef[p, 0]
         db = coef[p, 1]
-        n = run_len[q]
+        n = runs[q, 1]
         for k0 in range(0, n, _RUN_BLOCK):
             m = min(_RUN_BLOCK, n - k0)
-            r0 = run_row[q] + k0
-            c0 = run_col[q, 0] + k0
+            i0 = runs[q, 0] + k0
+            c0 = runs[q, 3] + k0
             for k in range(m):
                 acc[k] = 0.0
-            for t in range(ptr[p], ptr[p + 1]):
+            for t in range(pat[p, 0], pat[p, 1]):
                 wt = w[t]
                 c = _u(c0 + off[t])
                 for k in range(m):
                     acc[k] += wt * ez[c + _u(k)]
-            if sign < 0:
-                for k in range(m):
-                    i = _u(r0 + k)
-                    out[i] = da * h[i] - db * acc[k]
-            else:
-                for k in range(m):
-                    i = _u(r0 + k)
-                    out[i] = da * h[i] + db * acc[k]
-
-
-@_jit
-def tmz_h_rows(r0, r1, rows, p, idx, dat, ez, h, da, db, sign, out):
-    """H rows ``rows[r0:r1]`` by CSR (``(p, idx, dat)`` holds those rows in order): as :func:`tmz_h_update`."""
+            for k in range(m):
+                i = _u(i0 + k)
+                out[i] = da * h[i] + db * acc[k]
     for r in range(r0, r1):
-        i = _u(rows[r])
-        s = 0.0
-        for q in range(_u(p[r]), _u(p[r + 1])):
-            s += dat[q] * ez[_u(idx[q])]
-        if sign < 0:
-            out[i] = da[i] * h[i] - db[i] * s
-        else:
-            out[i] = da[i] * h[i] + db[i] * s
+        i = _u(rrow[r])
+        x = 0.0
+        for t in range(_u(rptr[r]), _u(rptr[r + 1])):
+            x += rdat[t] * ez[_u(ridx[t])]
+        out[i] = rcoef[r, 0] * h[i] + rcoef[r, 1] * x

@@ -224,6 +224,13 @@ def leapfrog_growth(lam: ArrayLike, dt: float) -> np.ndarray:
     return np.maximum(np.abs(0.5 * (b + disc)), np.abs(0.5 * (b - disc)))
 
 
+def _refs(arrays):
+    """Reference counts of ``arrays`` (CPython), to tell whether anyone else holds them."""
+    import sys
+
+    return tuple(sys.getrefcount(a) for a in arrays)
+
+
 class _Leapfrog:
     """Shared run loop: probes, snapshots, progress."""
 
@@ -736,27 +743,30 @@ class TMzSolver(_Leapfrog):
         return self.sources
 
     def _step_plan(self):
-        """The stencil runs and CSR remainder of the E and H updates (:mod:`.stencil`), found for the current
-        operators and coefficients and rebuilt when one of them is replaced (``set_dt``)."""
+        """The stencil runs and CSR remainder of the E and H half steps (:mod:`.stencil`), packed for
+        :func:`.._jit.tmz_e_half` / :func:`.._jit.tmz_h_half`; found for the current operators and
+        coefficients, rebuilt when one of them is replaced (``set_dt``). The H rows are those of the
+        stacked ``[Dy_hx; Dx_hy]`` acting on ``[hx, hy]``."""
         from types import SimpleNamespace
 
-        from .stencil import find_runs
+        from .stencil import find_runs, pack_e, pack_h
 
         key = (self.Dx_e, self.Dy_e, self.Dy_hx, self.Dx_hy, self._cax, self._cbx, self._cay, self._cby,
                self.da_x, self.db_x, self.da_y, self.db_y)
         cached = getattr(self, "_plan", None)
         if cached is not None and all(a is b for a, b in zip(cached[0], key)):
             return cached[1]
-        e = find_runs([self.Dx_e, self.Dy_e], self.free, np.column_stack([self._cax, self._cbx, self._cay, self._cby]))
-        r = e.rest
-        plan = SimpleNamespace(
-            e=e, e_free=np.ascontiguousarray(self.free[r], dtype=np.int64), e_x=e.rest_csr(self.Dx_e),
-            e_y=e.rest_csr(self.Dy_e), e_coef=tuple(np.ascontiguousarray(c[r]) for c in (self._cax, self._cbx,
-                                                                                          self._cay, self._cby)),
-            h=[], snapped=None)
-        for D, da, db in ((self.Dy_hx, self.da_x, self.db_x), (self.Dx_hy, self.da_y, self.db_y)):
-            runs = find_runs([D], np.arange(D.shape[0]), np.column_stack([da, db]))
-            plan.h.append((runs, runs.rest_csr(D)))
+        n_hx = len(self.layout.hx)
+        coef_e = np.column_stack([self._cax, self._cbx, self._cay, self._cby])
+        e = find_runs([self.Dx_e, self.Dy_e], self.free, coef_e)
+        A, B = sp.csr_matrix(self.Dy_hx), sp.csr_matrix(self.Dx_hy)
+        S = sp.csr_matrix((np.concatenate([A.data, B.data]), np.concatenate([A.indices, B.indices]),
+                           np.concatenate([A.indptr, B.indptr[1:] + A.nnz])), shape=(A.shape[0] + B.shape[0], self.n_e))
+        coef_h = np.column_stack([np.concatenate([self.da_x, self.da_y]), np.concatenate([-self.db_x, self.db_y])])
+        h = find_runs([S], np.arange(S.shape[0]), coef_h)
+        plan = SimpleNamespace(e=e, h=h, S=S, n_hx=n_hx, e_args=pack_e(e, self.Dx_e, self.Dy_e, self.free, coef_e,
+                                                                       self.n_e, n_hx),
+                               h_args=pack_h(h, S, coef_h), ez=np.empty(self.n_e), buf=None, refs=None, snapped=None)
         self._plan = (key, plan)
         return plan
 
@@ -767,36 +777,43 @@ class TMzSolver(_Leapfrog):
             return self.Dx_e, self.Dy_e, self.Dy_hx, self.Dx_hy
         plan = self._step_plan()
         if plan.snapped is None:
-            (rx, _), (ry, _) = plan.h
-            plan.snapped = (plan.e.snapped(0, self.Dx_e), plan.e.snapped(1, self.Dy_e), rx.snapped(0, self.Dy_hx),
-                            ry.snapped(0, self.Dx_hy))
+            S = plan.h.snapped(0, plan.S)
+            plan.snapped = (plan.e.snapped(0, self.Dx_e), plan.e.snapped(1, self.Dy_e), S[:plan.n_hx], S[plan.n_hx:])
         return plan.snapped
 
+    def _stacked_h(self, pl):
+        """``(h, out)``: the stacked ``[hx, hy]`` the H half step reads and the array it writes; ``self.hx``,
+        ``self.hy`` become views of ``out``. ``out`` is ``h`` itself (an update in place) when the solver
+        holds the only references to ``h`` and its views (CPython reference counts); otherwise a new
+        array, so that an ``hx`` or ``hy`` kept from an earlier step keeps its values, as with the numpy
+        step (fresh arrays of a million unknowns cost about 5 ns per unknown in page faults, measured)."""
+        import sys
+
+        buf = pl.buf
+        mine = buf is not None and self.hx is buf[1] and self.hy is buf[2]
+        if mine and hasattr(sys, "getrefcount") and _refs(buf) == pl.refs:
+            return buf[0], buf[0]
+        h = buf[0] if mine else np.concatenate([self.hx, self.hy])
+        new = np.empty(len(h))
+        pl.buf = (new, new[:pl.n_hx], new[pl.n_hx:])
+        del new
+        self.hx, self.hy = pl.buf[1], pl.buf[2]
+        pl.refs = _refs(pl.buf) if hasattr(sys, "getrefcount") else None
+        return h, pl.buf[0]
+
     def _step_stencil(self):
-        """The compiled step with the stencil runs (:meth:`_step_plan`): the numbers of the numpy step on
-        :meth:`_step_operators`."""
+        """The compiled step with the stencil runs (:meth:`_step_plan`), one kernel call per half step: the
+        numbers of the numpy step on :meth:`_step_operators`."""
         pl = self._step_plan()
-        e = pl.e
-        ez = self.ezx + self.ezy  # fixed particles: their (held) values
-        _jit.tmz_e_runs(0, len(e.run_row), e.run_row, e.run_len, e.run_pat, e.run_col, self.free, e.ptr[0],
-                        e.offsets[0], e.weights[0], e.ptr[1], e.offsets[1], e.weights[1], e.coef, self.hy, self.hx,
-                        self.ezx, self.ezy, ez)
-        if len(pl.e_free):
-            _jit.tmz_e_update(pl.e_free, *pl.e_x, *pl.e_y, self.hy, self.hx, *pl.e_coef, self.ezx, self.ezy, ez)
+        ea, ha = pl.e_args, pl.h_args
+        h, out = self._stacked_h(pl)
+        ez = pl.ez
+        _jit.tmz_e_half(0, len(ea[1]), 0, len(ea[6]), *ea, h, self.ezx, self.ezy, ez)
         self.t = (self.n + 1) * self.dt
         self.n += 1
         for s in self._drive_sources():
             ez[s.indices] = self.ezx[s.indices] + self.ezy[s.indices]
-        out = []
-        for (runs, rest), h, da, db, sign in zip(pl.h, (self.hx, self.hy), (self.da_x, self.da_y),
-                                                  (self.db_x, self.db_y), (-1.0, 1.0)):
-            new = np.empty_like(h)  # a new array, as the numpy step's
-            _jit.tmz_h_runs(0, len(runs.run_row), runs.run_row, runs.run_len, runs.run_pat, runs.run_col,
-                            runs.ptr[0], runs.offsets[0], runs.weights[0], runs.coef, ez, h, sign, new)
-            if len(runs.rest):
-                _jit.tmz_h_rows(0, len(runs.rest), runs.rest, *rest, ez, h, da, db, sign, new)
-            out.append(new)
-        self.hx, self.hy = out
+        _jit.tmz_h_half(0, len(ha[0]), 0, len(ha[5]), *ha, ez, h, out)
 
     def step(self) -> None:
         """One leap-frog step: Ez to t + dt, then H to t + 3 dt / 2."""

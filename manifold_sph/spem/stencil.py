@@ -37,7 +37,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike
 
-__all__ = ["StencilRuns", "find_runs", "RTOL", "MIN_RUN"]
+__all__ = ["StencilRuns", "find_runs", "pack_e", "pack_h", "RTOL", "MIN_RUN"]
 
 #: Weights of rows in one group differ by less than this times the operator's largest |entry|.
 RTOL = 1e-13
@@ -233,3 +233,64 @@ def find_runs(mats: Sequence[sp.spmatrix], targets: ArrayLike, coefs: ArrayLike,
                        run_col=run_col.astype(np.int64), ptr=tuple(ptrs), offsets=tuple(offs), weights=tuple(ws),
                        coef=np.ascontiguousarray(coefs[reps]), rest=np.flatnonzero(~in_run).astype(np.int64),
                        n_rows=n)
+
+
+def _interleave(parts, shifts, n):
+    """CSR rows ``r`` of several operators (``parts``: (indptr, indices, data) of the same ``n`` rows) one
+    after the other: row ``r``'s entries of part ``m`` are ``ptr[M r + m]:ptr[M r + m + 1]``, columns + ``shifts[m]``."""
+    M = len(parts)
+    K = np.column_stack([np.diff(p[0]) for p in parts]).reshape(n, M) if n else np.zeros((0, M), dtype=np.int64)
+    ptr = np.zeros(M * n + 1, dtype=np.int64)
+    np.cumsum(K.ravel(), out=ptr[1:])
+    total = int(ptr[-1])
+    idx = np.empty(total, dtype=np.int64)
+    dat = np.empty(total, dtype=np.float64)
+    for m, ((_, ind, val), shift) in enumerate(zip(parts, shifts)):
+        dest = np.repeat(ptr[m:M * n:M], K[:, m]) + _ramp(K[:, m])
+        idx[dest] = ind + shift
+        dat[dest] = val
+    return ptr, idx, dat
+
+
+def pack_e(runs: StencilRuns, Dx: sp.spmatrix, Dy: sp.spmatrix, free: np.ndarray, coefs: np.ndarray, n_e: int,
+           shift_x: int, shift_y: int = 0) -> tuple:
+    """The arrays of :func:`manifold_sph._jit.tmz_e_half` for the E rows (``free``) of ``Dx``, ``Dy`` and their
+    runs (``find_runs([Dx, Dy], free, coefs)``); ``Dx`` reads the stacked H at ``column + shift_x``, ``Dy`` at
+    ``column + shift_y``.
+
+    Returns
+    -------
+    tuple
+        ``(held, runs, pat, off, w, coef, rrow, rptr, ridx, rdat, rcoef)``.
+    """
+    free = np.asarray(free, dtype=np.int64)
+    held = np.setdiff1d(np.arange(n_e, dtype=np.int64), free)
+    table = np.column_stack([free[runs.run_row], runs.run_len, runs.run_pat, runs.run_col[:, 0] + shift_x,
+                             runs.run_col[:, 1] + shift_y]).reshape(-1, 5).astype(np.int64)
+    nx = len(runs.offsets[0])
+    px, py = runs.ptr
+    pat = np.column_stack([px[:-1], px[1:], py[:-1] + nx, py[1:] + nx]).reshape(-1, 4).astype(np.int64)
+    off = np.concatenate([runs.offsets[0], runs.offsets[1]]).astype(np.int64)
+    w = np.concatenate([runs.weights[0], runs.weights[1]]).astype(np.float64)
+    rest = runs.rest
+    rptr, ridx, rdat = _interleave([runs.rest_csr(Dx), runs.rest_csr(Dy)], (shift_x, shift_y), len(rest))
+    return (held, np.ascontiguousarray(table), np.ascontiguousarray(pat), off, w, np.ascontiguousarray(runs.coef),
+            np.ascontiguousarray(free[rest]), rptr, ridx, rdat, np.ascontiguousarray(coefs[rest], dtype=np.float64))
+
+
+def pack_h(runs: StencilRuns, D: sp.spmatrix, coefs: np.ndarray) -> tuple:
+    """The arrays of :func:`manifold_sph._jit.tmz_h_half` for the rows of ``D`` and their runs
+    (``find_runs([D], arange(n), coefs)``).
+
+    Returns
+    -------
+    tuple
+        ``(runs, pat, off, w, coef, rrow, rptr, ridx, rdat, rcoef)``.
+    """
+    table = np.column_stack([runs.run_row, runs.run_len, runs.run_pat, runs.run_col[:, 0]]).reshape(-1, 4)
+    ptr = runs.ptr[0]
+    pat = np.column_stack([ptr[:-1], ptr[1:]]).reshape(-1, 2).astype(np.int64)
+    rptr, ridx, rdat = runs.rest_csr(D)
+    return (np.ascontiguousarray(table, dtype=np.int64), np.ascontiguousarray(pat), runs.offsets[0],
+            runs.weights[0], np.ascontiguousarray(runs.coef), np.ascontiguousarray(runs.rest), rptr, ridx, rdat,
+            np.ascontiguousarray(coefs[runs.rest], dtype=np.float64))
