@@ -149,3 +149,40 @@ def test_joint_layouts_fill_the_holes_of_the_h_set():
     sq = joint_poisson_layout((0.0, 1.0, 0.0, 1.0), 0.1, seed=1)
     assert np.array_equal(sq.e, poisson_layout((0.0, 1.0, 0.0, 1.0), 0.1, seed=1).e)
     assert sq.hx.min() >= 0.04 - 1e-12 and sq.hx.max() <= 0.96 + 1e-12
+
+
+def test_band_correction_stays_near_the_walls_of_a_lattice():
+    """On a lattice the kernel estimates meet the conditions away from the walls: the default band
+    correction leaves those rows of G as fitted, and still gives a skew-adjoint pair with G exact for
+    quadratics and D for linear fields; the whole-operator correction (band_layers=None) changes them."""
+    dr = 1.0 / 40
+    h = 1.5 * dr
+    lay = make_layout("yee", (0.0, 1.0, 0.0, 1.0), dr)
+    free = ~lay.e_fixed
+    fidx = np.flatnonzero(free)
+    G0 = mimetic.quadratic_gradient(lay.hy, lay.e, h, scale=dr, degree=3)[0]
+    x, y = lay.hy[:, 0], lay.hy[:, 1]
+    inner = np.minimum.reduce([x, 1 - x, y, 1 - y]) > 0.3
+    changed = {}
+    for layers in (2, None):
+        ops = mimetic_operators(lay.e, free, [(lay.hy, 0)], h=h, scale=dr, fast=True, band_layers=layers)
+        (G, D), = ops.pairs
+        assert ops.residual < 1e-7
+        np.testing.assert_allclose(G @ _quadratic(lay.e), -1.0 + 2.0 * x - 2.0 * y, atol=1e-6)
+        np.testing.assert_allclose(D @ (2.0 * x - y + 1.0), 2.0, atol=1e-6)
+        lhs = ops.vol_e[fidx][:, None] * D.toarray()
+        rhs = -(ops.vol_h[0][:, None] * G[:, fidx].toarray()).T
+        np.testing.assert_allclose(lhs, rhs, atol=1e-12 * np.abs(rhs).max())
+        diff = abs(G - G0).max(axis=1).toarray().ravel()
+        changed[layers] = diff > 1e-10 * abs(G0).max()
+    assert not changed[2][inner].any()
+    assert changed[2].mean() < 0.7
+    assert changed[None][inner].mean() > 0.5
+
+
+def test_band_layers_is_checked():
+    lay = make_layout("yee", (0.0, 1.0, 0.0, 1.0), 0.1)
+    with pytest.raises(ValueError, match="band_layers"):
+        mimetic_operators(lay.e, ~lay.e_fixed, [(lay.hy, 0)], h=0.15, scale=0.1, band_layers=0)
+    with pytest.raises(ValueError, match="band_layers"):
+        mimetic_operators(lay.e, ~lay.e_fixed, [(lay.hy, 0)], h=0.15, scale=0.1, band_layers="wide")

@@ -94,6 +94,29 @@ CORRECTION_DEGREE = 3
 FAST = (2, 2.0)
 #: Floor of the kernel weights of the gradient correction (relative to the centre value).
 WEIGHT_FLOOR = 1e-2
+#: The correction touches only the unknowns within this many rings of the conditions the kernel estimates
+#: miss (a ring: the unknowns of every condition that shares one with the previous ring); None: all.
+BAND_LAYERS: int | None = 2
+#: A condition counts as met below this (dimensionless: volumes ~1, spacing 1).
+BAND_TOL = 1e-9
+#: The band's correction is kept when it meets every condition to this (and keeps the volumes positive); the
+#: whole operator is corrected otherwise (its own residual, with the solve's regularisation: 1e-10 to 4e-9).
+BAND_ACCEPT = 1e-7
+
+
+def _band(A: sp.csr_matrix, on: np.ndarray, bad: np.ndarray, layers: int) -> tuple[np.ndarray, np.ndarray]:
+    """Correctable unknowns within ``layers`` rings of the ``bad`` conditions, and the conditions they touch."""
+    P = A.copy()
+    P.data = np.ones_like(P.data)
+    P = P[:, on]
+    rows = bad.astype(np.float64)
+    cols = np.zeros(P.shape[1])
+    for _ in range(max(int(layers), 1)):
+        cols = (P.T @ rows > 0).astype(np.float64)
+        rows = (P @ cols > 0).astype(np.float64)
+    cor = np.zeros(len(on), bool)
+    cor[np.flatnonzero(on)[cols > 0]] = True
+    return cor, np.flatnonzero(rows > 0)
 
 
 @dataclass
@@ -210,7 +233,8 @@ def quadratic_gradient(rows: np.ndarray, cols: np.ndarray, h: float, *, kernel: 
 def mimetic_operators(e: np.ndarray, free: np.ndarray, h_sets: list[tuple[np.ndarray, int]], h: float, *,
                       kernel: str | Kernel | type[Kernel] = "cubic",
                       scale: float = 1.0, vol_e0: np.ndarray | None = None, vol_h0: list[np.ndarray] | None = None,
-                      fit_volumes: bool = True, degree: int | None = None, fast: bool = False) -> MimeticOperators:
+                      fit_volumes: bool = True, degree: int | None = None, fast: bool = False,
+                      band_layers: int | None | str = "auto") -> MimeticOperators:
     """The skew-adjoint, second-order pairs ``(G, D)`` for each ``(H points, axis)`` in ``h_sets``.
 
     Parameters
@@ -232,8 +256,17 @@ def mimetic_operators(e: np.ndarray, free: np.ndarray, h_sets: list[tuple[np.nda
     fast : bool
         Correct only pairs closer than 2 spacings and keep only quadratic exactness of ``G`` (:data:`FAST`;
         default: :data:`CORRECTION_DEGREE`, :data:`CORRECTION_RADIUS`, cubic-exact ``G``).
+    band_layers : int, None or "auto"
+        Correct only the unknowns within this many rings of the conditions the kernel estimates miss
+        (:func:`_band`): on lattices with walls, a band along the walls instead of the whole domain. The
+        whole operator is corrected when the band's correction misses a condition by more than
+        :data:`BAND_ACCEPT` or a volume turns non-positive (and when the band covers everything: irregular
+        layouts). None: always the whole operator; "auto": :data:`BAND_LAYERS`.
     """
     c_degree, c_radius = FAST if fast else (CORRECTION_DEGREE, CORRECTION_RADIUS)
+    if not (band_layers is None or band_layers == "auto"
+            or (isinstance(band_layers, (int, np.integer)) and not isinstance(band_layers, bool) and band_layers >= 1)):
+        raise ValueError(f"band_layers must be a positive int, None (the whole operator) or 'auto', got {band_layers!r}")
     degree = GRADIENT_DEGREE if degree is None else degree
     if degree not in (2, 3):
         raise ValueError(f"degree must be 2 or 3, got {degree!r}")
@@ -315,16 +348,28 @@ def mimetic_operators(e: np.ndarray, free: np.ndarray, h_sets: list[tuple[np.nda
     near = np.concatenate([np.linalg.norm(e[j] - h_sets[k][0][i], axis=1) < c_radius * scale
                            for k, (g, i, j, w) in enumerate(grads)])
     on = np.r_[near, np.ones(n_u - o_vh, bool)]
-    AW = A[:, on] @ sp.diags(wt[on])
-    K = (AW @ A[:, on].T).tocsc()
-    K = K + sp.identity(K.shape[0], format="csc") * (1e-13 * K.diagonal().max())
     res = -(A @ u0)
-    # K is symmetric positive definite: no pivoting, symmetric ordering (half the fill of a general LU)
-    lam = splu(K, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True}).solve(res)
-    delta = np.zeros(n_u)
-    delta[on] = AW.T @ lam
-    u = u0 + delta
-    after = A @ u
+    layers = BAND_LAYERS if band_layers == "auto" else band_layers
+    u = None
+    while u is None:
+        rows = np.arange(A.shape[0])
+        cor = on
+        if layers is not None:  # correct only the unknowns within `layers` rings of the unmet conditions
+            cor, rows = _band(A, on, np.abs(res) > BAND_TOL, layers)
+            if cor.sum() > 0.9 * on.sum():  # irregular layouts: (nearly) everything, the whole operator
+                cor, rows, layers = on, np.arange(A.shape[0]), None
+        Ab = A[rows][:, cor] if layers is not None else A[:, cor]
+        AW = Ab @ sp.diags(wt[cor])
+        K = (AW @ Ab.T).tocsc()
+        K = K + sp.identity(K.shape[0], format="csc") * (1e-13 * K.diagonal().max())
+        # K is symmetric positive definite: no pivoting, symmetric ordering (half the fill of a general LU)
+        lam = splu(K, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True}).solve(res[rows])
+        delta = np.zeros(n_u)
+        delta[cor] = AW.T @ lam
+        u = u0 + delta
+        after = A @ u
+        if layers is not None and not (np.abs(after).max() < BAND_ACCEPT and np.all(u[o_vh:] > 0)):
+            u, layers = None, None  # the band cannot meet the conditions: the whole operator
     ve = u[o_ve:]
     vh = [u[o_vh + offs_h[s]: o_vh + offs_h[s + 1]] for s in range(len(sets))]
     v_all = np.r_[np.concatenate(vh), ve]
