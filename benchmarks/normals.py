@@ -7,7 +7,31 @@ normals, outward). Columns, for the default and for ``degree=4``: points, share 
 normals within 10 degrees of the mesh's, median angle (unsigned), particles more than
 30 degrees off, and for closed meshes the share pointing inward, for open or
 multi-shell ones the share agreeing in sign with the mesh; the sign agreement among
-the particles within 30 degrees; time of :func:`manifold_sph.estimate_normals`.
+the particles within 30 degrees; then the median angle to a second reference, the normals
+of the mesh's Loop subdivision limit surface at the vertices (``limit med``, and the count
+more than 30 degrees off), and to a third, the normals with Max's weights (``Max med``);
+time of :func:`manifold_sph.estimate_normals`.
+
+The references. The area-weighted vertex normal is itself a first-order estimate of the
+surface normal on a coarse mesh. The second reference, :func:`loop_limit_normals`, is exact:
+the normal at each vertex of the limit surface of Loop subdivision (trimesh's rules:
+Loop's interior masks, cubic B-spline boundary curves), the cross product of the two limit
+tangents given by the tangent masks over the vertex's one-ring (cos/sin masks inside; on the
+boundary the along-boundary mask and the cross-boundary left eigenvector of the one-ring
+subdivision matrix); vertices that are not one manifold fan keep the area-weighted normal
+(cow 1, teapot 1, beetle 45, suzanne 4, beetle-alt 2, beast 4; none elsewhere). Checked
+against trimesh's subdivision (``--check-loop``): the area-weighted normal of an original
+vertex after m levels converges to it, interior median 0.19 / 0.046 / 0.011 / 0.0028 deg at
+m = 1..4 on the cow (max 21 -> 7.7 at a valence-3 vertex), boundary median 0.70 / 0.35 / 0.17
+/ 0.087 deg on the teapot (first order there, as expected). The limit surface approximates,
+it does not interpolate: its normal at a vertex is that of the smoothed surface near it.
+Max's weights (Max 1999, :func:`max_normals`) are exact when a vertex and its one-ring lie on
+a sphere; a second-order interpolating reference, but from one ring, noisy on skinny
+triangles. Spread of the references (area-weighted against limit: median / 90th percentile;
+against Max: median / 90th percentile, deg): cow 0.81 / 3.06, 4.05 / 15.7; homer 0.31 / 1.30,
+1.55 / 6.08; rocker-arm 0.72 / 2.35, 2.84 / 9.35; cheburashka 0.11 / 0.72, 0.86 / 3.76; teapot
+0.18 / 0.86, 1.02 / 4.90; beetle 1.20 / 6.35, 6.97 / 47.9; bunny 0.02 / 0.73, 0.49 / 2.12; Igea 0.06 /
+0.49, 0.28 / 1.52; limit only: spot 0.22, suzanne 2.37, beetle-alt 0.05; beast 0.41.
 
 Then the normal error (mean angle) against resolution on the Fibonacci sphere, a
 Poisson-disk sphere and a Poisson-disk torus, with the fitted order, for the default
@@ -28,7 +52,8 @@ orient="visible" on the models (inward or disagreeing normals, default -> visibl
 33 -> 65 (seen from inside through its openings); spot 3 -> 3, suzanne 30 -> 42. About
 3 s more on 10,000 points (48 convex hulls).
 
-Run: ``python benchmarks/normals.py`` (a few minutes on 2 busy cores; ``--quick`` skips
+Run: ``python benchmarks/normals.py`` (a few minutes on 2 busy cores; ``--check-loop`` prints
+the limit-normal check and the spread of the references only; ``--quick`` skips
 Igea and the largest analytic clouds; ``--visible`` prints the model table (and with
 ``--models`` that of the given meshes) for the default and ``orient="visible"``). ``python benchmarks/normals.py --models a.obj b.ply``
 prints the model table (default settings) for any meshes instead: your own, or other public
@@ -93,8 +118,13 @@ MODELS = [DATA / "models" / f for f in ("cow.obj", "homer.obj", "rocker-arm.obj"
 SCANS = [DATA / "scans" / "stanford-bunny.obj", DATA / "scans" / "igea.ply"]
 
 
-def mesh_reference(path):
-    """Distinct vertex positions (those used by faces), area-weighted unit normals, closed?, shells."""
+def mesh_reference(path, limit=False):
+    """Distinct vertex positions (those used by faces), area-weighted unit normals, closed?, shells.
+
+    With ``limit=True`` also the Loop limit normals at those vertices (:func:`loop_limit_normals`;
+    area-weighted where the vertex is not a manifold fan) and the mask of those that are limit
+    normals; with ``limit="all"`` then also the normals with Max's weights (:func:`max_normals`).
+    """
     V, F = read_mesh(str(path))
     U, inv = np.unique(V, axis=0, return_inverse=True)
     F = inv.ravel()[F]
@@ -112,7 +142,208 @@ def mesh_reference(path):
     closed = bool(np.all(counts == 2))
     A = sp.coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(len(U), len(U)))
     shells = csgraph.connected_components(A, directed=False)[0] - int((~used).sum())
-    return U[keep], N[keep] / length[keep, None], closed, shells
+    ref = N / np.where(length > 0, length, 1.0)[:, None]
+    if not limit:
+        return U[keep], ref[keep], closed, shells
+    lim, good, _, _ = loop_limit_normals(U, F, ref)
+    if limit == "all":
+        return U[keep], ref[keep], closed, shells, lim[keep], good[keep], max_normals(U, F)[keep]
+    return U[keep], ref[keep], closed, shells, lim[keep], good[keep]
+
+
+def max_normals(U, F):
+    """Vertex normals with Max's weights (1999): each face's ``u x v / (|u|^2 |v|^2)`` at the vertex,
+    ``u``, ``v`` its two edges from the vertex; exact when the vertex and its one-ring lie on a
+    sphere (the area-weighted normal is not). Unit; zero where undefined."""
+    N = np.zeros_like(U)
+    for a in range(3):
+        u = U[F[:, (a + 1) % 3]] - U[F[:, a]]
+        v = U[F[:, (a + 2) % 3]] - U[F[:, a]]
+        den = np.einsum("ij,ij->i", u, u) * np.einsum("ij,ij->i", v, v)
+        np.add.at(N, F[:, a], np.cross(u, v) / np.where(den > 0, den, np.inf)[:, None])
+    length = np.linalg.norm(N, axis=1)
+    return N / np.where(length > 0, length, 1.0)[:, None]
+
+
+def loop_limit_normals(U, F, area_normals):
+    """Unit normals of the Loop subdivision limit surface at the vertices, exactly (limit tangent masks).
+
+    Loop subdivision as trimesh's ``subdivide_loop`` does it (Loop's interior rules; boundary
+    edges and vertices follow the cubic B-spline of the boundary: 1/2 1/2 and 1/8 3/4 1/8).
+    The limit normal at a vertex is the cross product of its two limit tangents, each a mask
+    over the vertex's one-ring: at an interior vertex of valence ``n`` with the ring
+    ``p_0 .. p_{n-1}`` in order, ``sum_j cos(2 pi j / n) p_j`` and ``sum_j sin(2 pi j / n) p_j``
+    (whatever Loop's centre weight beta); at a boundary vertex with ``k`` faces and the ring
+    ``r_0 .. r_k`` (``r_0``, ``r_k`` on the boundary) ``r_0 - r_k`` along the boundary, and
+    across it the left eigenvector, of the largest eigenvalue other than 1 and that of the
+    along mask, of the one-ring subdivision matrix (k = 1: ``r_0 + r_1 - 2 v``; k = 2:
+    ``r_1 - v``, as in Hoppe et al. 1994; k >= 3 differs from their mask, which is no
+    eigenvector of these rules). Signs follow the area-weighted normals ``area_normals``.
+    Vertices whose faces do not form one fan (non-manifold, or an edge used twice in one
+    direction) keep ``area_normals``. Checked against repeated subdivision
+    (``--check-loop``): the area-weighted normal of the original vertex after ``m`` levels
+    converges to this one, by 4x per level inside and 2x per level on the boundary.
+
+    Returns the normals, the mask of vertices with a limit normal, the mask of boundary
+    vertices among them, and the mask of those whose limit normal opposed ``area_normals``.
+    """
+    nv = len(U)
+    # directed ring pairs: at vertex v of face (a, b, c) (counter-clockwise), b -> c
+    v = F.ravel()
+    fr = F[:, [1, 2, 0]].ravel()
+    to = F[:, [2, 0, 1]].ravel()
+    key = v.astype(np.int64) * nv + fr
+    order = np.argsort(key, kind="stable")
+    key, fr_s, to_s, v_s = key[order], fr[order], to[order], v[order]
+    dup_out = np.zeros(nv, bool)
+    dup_out[v_s[1:][key[1:] == key[:-1]]] = True
+    ikey = v.astype(np.int64) * nv + to
+    ik = np.sort(ikey)
+    dup_in = np.zeros(nv, bool)
+    dup_in[(ik[1:][ik[1:] == ik[:-1]]) // nv] = True
+    faces_at = np.bincount(v, minlength=nv)
+    # number of distinct neighbours
+    nb = np.unique(np.r_[key, ikey])
+    valence = np.bincount(nb // nv, minlength=nv)
+    # start of each ring: for boundary vertices the neighbour with an outgoing but no incoming pair
+    has_in = np.isin(key, ik)  # (v, from) with from also a 'to' of v
+    start = np.full(nv, -1)
+    bstart = ~has_in
+    nstart = np.bincount(v_s[bstart], minlength=nv)
+    start[v_s[bstart]] = fr_s[bstart]
+    first = np.full(nv, -1)
+    first[v_s[::-1]] = fr_s[::-1]
+    boundary = nstart == 1
+    interior = (nstart == 0) & (valence == faces_at)
+    boundary &= valence == faces_at + 1
+    ok = (interior | boundary) & ~dup_out & ~dup_in & (faces_at > 0)
+    start = np.where(boundary, start, first)
+    K = int(valence[ok].max()) + 1
+    ring = np.full((nv, K), -1)
+    cur = start.copy()
+    ring[:, 0] = cur
+    for j in range(1, K):
+        q = np.where(cur >= 0, np.arange(nv) * nv + np.maximum(cur, 0), -1)
+        pos = np.clip(np.searchsorted(key, q), 0, len(key) - 1)
+        hit = (key[pos] == q) & (cur >= 0)
+        cur = np.where(hit, to_s[pos], -1)
+        ring[:, j] = cur
+    # ring length check: interior rings close after valence steps
+    length = (ring >= 0).sum(axis=1)
+    ok &= np.where(interior, (length >= valence + 1) & (ring[np.arange(nv), np.minimum(valence, K - 1)] == start), length == valence)
+    nrm = area_normals.copy()
+    P = np.vstack([U, np.zeros((1, 3))])
+    R = P[np.where(ring >= 0, ring, nv)]
+    j = np.arange(K)[None, :]
+    # interior: t1 = sum cos(2 pi j / n) p_j, t2 = sum sin(2 pi j / n) p_j over j < n
+    n_int = np.maximum(valence, 1)[:, None]
+    wmask = (j < n_int)
+    t1 = np.einsum("nk,nki->ni", np.where(wmask, np.cos(2 * np.pi * j / n_int), 0.0), R)
+    t2 = np.einsum("nk,nki->ni", np.where(wmask, np.sin(2 * np.pi * j / n_int), 0.0), R)
+    ni = np.cross(t1, t2)
+    # boundary: ring r_0..r_k (k faces); along r_0 - r_k; across: the left eigenvector of the
+    # largest other eigenvalue of the one-ring subdivision matrix (boundary B-spline rules)
+    kf = faces_at
+    rk = R[np.arange(nv), np.clip(kf, 0, K - 1)]
+    along = R[:, 0] - rk
+    across = np.zeros((nv, 3))
+    for k in np.unique(kf[boundary]):
+        m = _across_mask(int(k))
+        rows = np.flatnonzero(boundary & (kf == k))
+        across[rows] = m[0] * U[rows] + np.einsum("k,nki->ni", m[1:], R[rows, : k + 1])
+    nb_ = np.cross(along, across)
+    lim = np.where(boundary[:, None], nb_, ni)
+    L = np.linalg.norm(lim, axis=1)
+    good = ok & (L > 0)
+    lim = lim / np.where(L > 0, L, 1)[:, None]
+    s = np.sign(np.einsum("ij,ij->i", lim, area_normals))
+    flipped = good & (s < 0)
+    nrm[good] = lim[good] * np.where(s[good] < 0, -1.0, 1.0)[:, None]
+    return nrm, good, boundary & good, flipped
+
+
+def _across_mask(k):
+    """Cross-boundary limit tangent mask (v, r_0..r_k) of Loop subdivision with boundary B-spline rules."""
+    m = k + 2
+    S = np.zeros((m, m))
+    S[0, 0], S[0, 1], S[0, k + 1] = 0.75, 0.125, 0.125
+    for i in range(k + 1):
+        row = 1 + i
+        if i == 0 or i == k:
+            S[row, 0] = S[row, row] = 0.5
+        else:
+            S[row, 0] = S[row, row] = 0.375
+            S[row, row - 1] = S[row, row + 1] = 0.125
+    w, vl = np.linalg.eig(S.T)
+    w, vl = w.real, vl.real
+    along = np.zeros(m); along[1], along[k + 1] = 1.0, -1.0
+    along /= np.linalg.norm(along)
+    other = np.abs(w - 1.0) > 1e-9
+    vl = vl / np.linalg.norm(vl, axis=0)
+    par = np.abs(along @ vl) > 1 - 1e-9
+    cand = np.flatnonzero(other & ~par)
+    lam = w[cand].max()
+    top = cand[np.abs(w[cand] - lam) < 1e-9]
+    j = top[np.argmin(np.abs(along @ vl[:, top]))]
+    return vl[:, j]
+
+
+def reference_table(paths):
+    """How far the references are apart: the area-weighted vertex normals against the Loop limit
+    normals (vertices with a limit normal, boundary ones among them, area-weighted fallbacks;
+    median, 90th percentile, count beyond 10 degrees) and against the normals with Max's weights."""
+    print(f"{'model':14s} {'points':>7s} {'limit':>7s} {'boundary':>8s} {'fallback':>8s} {'median':>7s} {'p90':>7s} {'>10deg':>7s} "
+          f"{'Max med':>8s} {'Max p90':>8s}")
+    for path in paths:
+        if not path.exists():
+            continue
+        V, F = read_mesh(str(path))
+        P, ref, _, _, lim, good, mx = mesh_reference(path, limit="all")
+        U, inv = np.unique(V, axis=0, return_inverse=True)
+        G = inv.ravel()[F]
+        G = G[(G[:, 0] != G[:, 1]) & (G[:, 1] != G[:, 2]) & (G[:, 0] != G[:, 2])]
+        nb = int(loop_limit_normals(U, G, np.ones_like(U))[2].sum())
+        a = np.degrees(np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", ref, lim)), 0.0, 1.0)))
+        b = np.degrees(np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", ref, mx)), 0.0, 1.0)))
+        print(f"{path.stem:14s} {len(P):7d} {int(good.sum()):7d} {nb:8d} {int((~good).sum()):8d} {np.median(a):6.2f}d "
+              f"{np.percentile(a, 90):6.2f}d {int((a > 10).sum()):7d} {np.median(b):7.2f}d {np.percentile(b, 90):7.2f}d", flush=True)
+
+
+def check_loop(paths, levels=4):
+    """The exact limit normals against the area-weighted normals of the original vertices after
+    ``levels`` rounds of trimesh's Loop subdivision (meshes with no edge shared by more than
+    two faces: trimesh renumbers the vertices of the others). Median and largest angle, interior and boundary."""
+    import trimesh.remesh
+
+    for path in paths:
+        if not path.exists():
+            continue
+        V, F = read_mesh(str(path))
+        U, inv = np.unique(V, axis=0, return_inverse=True)
+        F = inv.ravel()[F]
+        F = F[(F[:, 0] != F[:, 1]) & (F[:, 1] != F[:, 2]) & (F[:, 0] != F[:, 2])]
+
+        def area_normals(X, G):
+            c = np.cross(X[G[:, 1]] - X[G[:, 0]], X[G[:, 2]] - X[G[:, 0]])
+            N = np.zeros_like(X)
+            for a in range(3):
+                np.add.at(N, G[:, a], c)
+            return N / np.maximum(np.linalg.norm(N, axis=1), 1e-300)[:, None]
+
+        _, counts = np.unique(np.sort(np.r_[F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]], axis=1), axis=0, return_counts=True)
+        if counts.max() > 2:
+            print(f"{path.stem:14s} edges shared by more than 2 faces: trimesh subdivides piece by piece and renumbers; skipped")
+            continue
+        lim, good, bnd, _ = loop_limit_normals(U, F, area_normals(U, F))
+        X, G = U, F
+        for m in range(1, levels + 1):
+            X, G = trimesh.remesh.subdivide_loop(X, G)
+            a = np.degrees(np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", area_normals(X, G)[: len(U)], lim)), 0.0, 1.0)))
+            inner, edge = good & ~bnd, good & bnd
+            line = f"{path.stem:14s} level {m}: interior median {np.median(a[inner]):.4f} max {a[inner].max():.4f} deg"
+            if edge.any():
+                line += f"; boundary median {np.median(a[edge]):.4f} max {a[edge].max():.4f} deg"
+            print(line, flush=True)
 
 
 def model_table(paths, variants=(("default", {}), ("degree=4", {"degree": 4}))):
@@ -120,12 +351,12 @@ def model_table(paths, variants=(("default", {}), ("degree=4", {"degree": 4}))):
     particles whose direction is more than 30 degrees off (their sign is moot: thin or
     coarsely sampled parts), ``sign ok`` the orientation among the others."""
     print(f"{'model':14s} {'normals':>9s} {'points':>7s} {'shells':>6s} {'<10deg':>7s} {'median':>7s} {'>30deg':>7s} "
-          f"{'orientation':>22s} {'sign ok':>8s} {'time':>7s}")
+          f"{'orientation':>22s} {'sign ok':>8s} {'limit med':>9s} {'>30deg':>6s} {'Max med':>7s} {'time':>7s}")
     for path in paths:
         if not path.exists():
             print(f"{path.stem:14s} (missing, skipped)")
             continue
-        P, ref, closed, shells = mesh_reference(path)
+        P, ref, closed, shells, lim, _, mx = mesh_reference(path, limit="all")
         for label, kw in variants:
             t = time.perf_counter()
             n = estimate_normals(P, **kw)
@@ -134,8 +365,11 @@ def model_table(paths, variants=(("default", {}), ("degree=4", {"degree": 4}))):
             ang = np.degrees(np.arccos(np.clip(np.abs(d), 0.0, 1.0)))
             orient = f"{100 * np.mean(d < 0):6.2f} % inward" if closed and shells == 1 else f"{100 * np.mean(d > 0):6.2f} % agree (open)"
             sure = ang <= 30
+            a_lim = np.degrees(np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", n, lim)), 0.0, 1.0)))
+            a_max = np.degrees(np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", n, mx)), 0.0, 1.0)))
             print(f"{path.stem:14s} {label:>9s} {len(P):7d} {shells:6d} {100 * np.mean(ang < 10):6.1f}% {np.median(ang):6.2f}d "
-                  f"{int((~sure).sum()):7d} {orient:>22s} {100 * np.mean(d[sure] > 0):7.2f}% {t:6.2f}s", flush=True)
+                  f"{int((~sure).sum()):7d} {orient:>22s} {100 * np.mean(d[sure] > 0):7.2f}% {np.median(a_lim):8.2f}d "
+                  f"{int((a_lim > 30).sum()):6d} {np.median(a_max):6.2f}d {t:6.2f}s", flush=True)
 
 
 def orders(quick=False):
@@ -211,6 +445,10 @@ def synthetic():
 
 if __name__ == "__main__":
     variants = (("default", {}),) + ((("visible", {"orient": "visible"}),) if "--visible" in sys.argv else ())
+    if "--check-loop" in sys.argv:  # the limit normals against repeated subdivision, and the two references
+        check_loop(MODELS, levels=4)
+        reference_table(MODELS + SCANS)
+        raise SystemExit
     if "--models" in sys.argv:  # any meshes: python benchmarks/normals.py --models a.obj b.ply ...
         model_table([Path(a) for a in sys.argv[sys.argv.index("--models") + 1:] if a != "--visible"], variants=variants)
         raise SystemExit
