@@ -29,7 +29,7 @@ from ._sparse import RowBlocks
 from ._validation import as_field, as_positive_field, check_bool, check_in, check_int, check_positive
 from .area import AreaElements, area_elements, check_area_method
 from .assembly import Assembled, ColumnAreas, assemble
-from .frames import offsets_array
+from .frames import offsets_array, tangent_frames
 from .kernels import get_kernel
 from .neighbors import Neighborhood, adaptive_smoothing_length, smoothing_length_for_count
 from .schemes import get_scheme
@@ -350,6 +350,48 @@ class OperatorSet:
         """Offsets ``n_i . (x_j - x_i)`` of pairs along the row particle's normal, or None (flat domains)."""
         return None
 
+    #: Nearest points whose principal plane gives the second tangent plane of a cell left open (:meth:`_refit_open`).
+    _REFIT_K = 12
+
+    def _refit_open(self, rows: np.ndarray, tol: np.ndarray):
+        """Cells of ``rows`` (cells left open by the hull) again, in the principal plane of each one's nearest points.
+
+        A cell clipped by its neighbourhood's hull on a closed surface means the neighbours on one
+        side were lifted out of reach: its normal is badly tilted (the rims of thin ears, thin tubes).
+        The normal of the least-squares plane of the ``_REFIT_K`` nearest points (oriented like the
+        given one) gives a second cell, with the ``_WIDER_K`` nearest neighbours that pass the normal
+        filter against it. Returns ``(keep, indptr, cols, cells)`` with ``keep`` (bool, per row) the
+        rows whose new cell closed (neither open nor degenerate), or None for planar domains. On an
+        open surface's boundary no plane closes the cell, and those rows keep theirs.
+        """
+        pts, nrm = getattr(self, "points", None), getattr(self, "normals", None)
+        tree = getattr(self, "_tree", None)
+        if tree is None or pts is None or nrm is None or np.shape(pts)[1] != 3:
+            return None
+        n = pts.shape[0]
+        k = min(self._REFIT_K, n)
+        _, near = tree.query(pts[rows], k=k)
+        q = pts[near] - pts[near].mean(axis=1, keepdims=True)
+        _, vec = np.linalg.eigh(np.einsum("rkd,rke->rde", q, q))
+        m = vec[:, :, 0]
+        m *= np.where(np.einsum("rd,rd->r", m, nrm[rows]) < 0, -1.0, 1.0)[:, None]
+        kk = min(self._WIDER_K, n)
+        dist, idx = tree.query(pts[rows], k=kk)
+        keep = np.einsum("rkd,rd->rk", nrm[idx], m) > getattr(self, "normal_threshold", 0.0)
+        keep[:, 0] = True  # the particle itself (distance 0) comes first
+        counts = keep.sum(axis=1)
+        owner = np.repeat(np.arange(rows.size), counts)
+        cols = idx[keep]
+        d = pts[cols] - pts[rows][owner]
+        u, v = tangent_frames(m)
+        xy = np.stack([np.einsum("pd,pd->p", d, u[owner]), np.einsum("pd,pd->p", d, v[owner])], axis=1)
+        z = np.einsum("pd,pd->p", d, m[owner])
+        indptr = np.concatenate([[0], np.cumsum(counts)])
+        radius = dist[:, -1] if kk < n else np.full(rows.size, np.inf)
+        cells = voronoi_cells(indptr, xy, radius, height=z, height_tol=tol)
+        closed = ((cells.flags & (BOUNDARY | DEGENERATE)) == 0) & (cells.area > 0)
+        return closed, indptr, cols, cells
+
     def _stable(self) -> dict:
         """Voronoi stiffness and mass, built once (see :mod:`manifold_sph.voronoi`)."""
         if "stable" in self._cache:
@@ -379,6 +421,22 @@ class OperatorSet:
                 weights = np.concatenate([weights[keep], more.weights])
                 area[redo], flags[redo] = more.area, more.flags
                 n_widened = int(redo.size)
+        n_refitted = 0
+        open_ = np.flatnonzero(flags & BOUNDARY)
+        if open_.size and z is not None:
+            refit = self._refit_open(open_, tol[open_])
+            if refit is not None and refit[0].any():
+                closed, indptr3, cols3, more = refit
+                good = open_[closed]
+                mark = np.zeros(n, dtype=bool)
+                mark[good] = True
+                take = np.repeat(closed, np.diff(indptr3))
+                keep = ~mark[rows]
+                rows = np.concatenate([rows[keep], np.repeat(open_, np.diff(indptr3))[take]])
+                cols = np.concatenate([cols[keep], cols3[take]])
+                weights = np.concatenate([weights[keep], more.weights[take]])
+                area[good], flags[good] = more.area[closed], more.flags[closed]
+                n_refitted = int(good.size)
         area_was_zero = area <= 0
         degenerate = np.flatnonzero(area_was_zero)
         if degenerate.size:  # no cell: a mass from the neighbours' cells, and no flux of its own
@@ -397,6 +455,7 @@ class OperatorSet:
         report = {
             "boundary": int(np.count_nonzero(flags & BOUNDARY)),
             "widened": n_widened,
+            "refitted": n_refitted,
             "unclosed": int(np.count_nonzero(flags & INCOMPLETE)),
             "degenerate": int(degenerate.size),
             "near_duplicate": int(np.count_nonzero(flags & NEAR_DUPLICATE)),
@@ -416,7 +475,9 @@ class OperatorSet:
         """Counts from the stable Laplacian's Voronoi cells.
 
         ``boundary``: cells clipped by the neighbourhood's hull (open boundary);
-        ``widened``: cells recomputed with a wider neighbour search; ``unclosed``:
+        ``widened``: cells recomputed with a wider neighbour search; ``refitted``: cells left
+        open by the hull that closed in the principal plane of the particle's nearest points
+        (a badly tilted normal on a closed surface); ``unclosed``:
         cells that even the wider search may not have closed (kept clipped to the
         hull); ``degenerate``: particles without a cell; ``near_duplicate``:
         particles with a neighbour closer than 1e-3 of their cell's size.
