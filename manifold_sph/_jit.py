@@ -1288,12 +1288,14 @@ _RUN_BLOCK = 256
 
 
 @_jit
-def tmz_e_half(q0, q1, r0, r1, held, runs, pat, off, w, coef, rrow, rptr, ridx, rdat, rcoef, h, ezx, ezy, ez):
+def tmz_e_half(q0, q1, r0, r1, held, runs, pat, off, w, rw, coef, rrow, rptr, ridx, rdat, rcoef, h, ezx, ezy, ez):
     """E half step: ``ezx = cax ezx + cbx (Dx h)``, ``ezy = cay ezy - cby (Dy h)``, ``ez = ezx + ezy``.
 
     ``h`` is the stacked ``[hx, hy]``. Runs ``q0:q1``: ``runs[q]`` = (first E index, rows, pattern, first
-    column of Dx, of Dy), pattern ``p``'s Dx entries ``pat[p, 0]:pat[p, 1]`` and Dy entries
-    ``pat[p, 2]:pat[p, 3]`` of ``(off, w)``, coefficients ``coef[p]`` = (cax, cbx, cay, cby). CSR rows
+    column of Dx, of Dy, Dx row weights, Dy row weights), pattern ``p``'s Dx entries ``pat[p, 0]:pat[p, 1]``
+    and Dy entries ``pat[p, 2]:pat[p, 3]`` of ``(off, w)``, coefficients ``coef[p]`` = (cax, cbx, cay, cby);
+    row weights -1: the pattern's ``w``, else row ``k``'s weight ``s`` (of ``n`` rows) is
+    ``rw[start + s n + k]`` (a weighted run). CSR rows
     ``r0:r1``: E index ``rrow[r]``, Dx entries ``rptr[2 r]:rptr[2 r + 1]``, Dy entries ``rptr[2 r + 1]:
     rptr[2 r + 2]`` of ``(ridx, rdat)``, coefficients ``rcoef[r]``. ``held`` (the E particles not updated):
     ``ez = ezx + ezy`` only (with ``q0 == 0``)."""
@@ -1318,16 +1320,28 @@ def tmz_e_half(q0, q1, r0, r1, held, runs, pat, off, w, coef, rrow, rptr, ridx, 
             for k in range(m):
                 sx[k] = 0.0
                 sy[k] = 0.0
+            wx = runs[q, 5]
+            wy = runs[q, 6]
             for s in range(pat[p, 0], pat[p, 1]):
-                wt = w[s]
                 c = _u(cx + off[s])
-                for k in range(m):
-                    sx[k] += wt * h[c + _u(k)]
+                if wx < 0:
+                    wt = w[s]
+                    for k in range(m):
+                        sx[k] += wt * h[c + _u(k)]
+                else:
+                    b = _u(wx + (s - pat[p, 0]) * n + k0)
+                    for k in range(m):
+                        sx[k] += rw[b + _u(k)] * h[c + _u(k)]
             for s in range(pat[p, 2], pat[p, 3]):
-                wt = w[s]
                 c = _u(cy + off[s])
-                for k in range(m):
-                    sy[k] += wt * h[c + _u(k)]
+                if wy < 0:
+                    wt = w[s]
+                    for k in range(m):
+                        sy[k] += wt * h[c + _u(k)]
+                else:
+                    b = _u(wy + (s - pat[p, 2]) * n + k0)
+                    for k in range(m):
+                        sy[k] += rw[b + _u(k)] * h[c + _u(k)]
             for k in range(m):
                 i = _u(i0 + k)
                 a = cax * ezx[i] + cbx * sx[k]
@@ -1351,11 +1365,12 @@ def tmz_e_half(q0, q1, r0, r1, held, runs, pat, off, w, coef, rrow, rptr, ridx, 
 
 
 @_jit
-def tmz_h_half(q0, q1, r0, r1, runs, pat, off, w, coef, rrow, rptr, ridx, rdat, rcoef, ez, h, out):
+def tmz_h_half(q0, q1, r0, r1, runs, pat, off, w, rw, coef, rrow, rptr, ridx, rdat, rcoef, ez, h, out):
     """H half step on the stacked ``h = [hx, hy]``: ``out = da h + dbs (D ez)``, ``dbs`` = -db for Hx, +db for Hy.
 
-    Runs ``q0:q1``: ``runs[q]`` = (first row, rows, pattern, first column), pattern ``p``'s entries
-    ``pat[p, 0]:pat[p, 1]`` of ``(off, w)``, ``coef[p]`` = (da, dbs). CSR rows ``r0:r1``: row ``rrow[r]``,
+    Runs ``q0:q1``: ``runs[q]`` = (first row, rows, pattern, first column, row weights), pattern ``p``'s
+    entries ``pat[p, 0]:pat[p, 1]`` of ``(off, w)``, ``coef[p]`` = (da, dbs), row weights as in
+    :func:`tmz_e_half`. CSR rows ``r0:r1``: row ``rrow[r]``,
     entries ``rptr[r]:rptr[r + 1]`` of ``(ridx, rdat)``, ``rcoef[r]``. ``out`` may be ``h`` (each row reads
     only its own ``h``)."""
     acc = np.empty(_RUN_BLOCK)
@@ -1370,11 +1385,17 @@ def tmz_h_half(q0, q1, r0, r1, runs, pat, off, w, coef, rrow, rptr, ridx, rdat, 
             c0 = runs[q, 3] + k0
             for k in range(m):
                 acc[k] = 0.0
+            wr = runs[q, 4]
             for t in range(pat[p, 0], pat[p, 1]):
-                wt = w[t]
                 c = _u(c0 + off[t])
-                for k in range(m):
-                    acc[k] += wt * ez[c + _u(k)]
+                if wr < 0:
+                    wt = w[t]
+                    for k in range(m):
+                        acc[k] += wt * ez[c + _u(k)]
+                else:
+                    b = _u(wr + (t - pat[p, 0]) * n + k0)
+                    for k in range(m):
+                        acc[k] += rw[b + _u(k)] * ez[c + _u(k)]
             for k in range(m):
                 i = _u(i0 + k)
                 out[i] = da * h[i] + db * acc[k]

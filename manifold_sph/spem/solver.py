@@ -29,6 +29,7 @@ ValueError: dt = 1e-10 s violates the CFL condition S = sqrt(2) c dt / h_min = 6
 from __future__ import annotations
 
 import math
+import sys
 import time as _time
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
@@ -224,11 +225,8 @@ def leapfrog_growth(lam: ArrayLike, dt: float) -> np.ndarray:
     return np.maximum(np.abs(0.5 * (b + disc)), np.abs(0.5 * (b - disc)))
 
 
-def _refs(arrays):
-    """Reference counts of ``arrays`` (CPython), to tell whether anyone else holds them."""
-    import sys
-
-    return tuple(sys.getrefcount(a) for a in arrays)
+#: CPython's reference count (None elsewhere: the compiled step then never updates H in place).
+_refcount = getattr(sys, "getrefcount", None)
 
 
 class _Leapfrog:
@@ -747,15 +745,19 @@ class TMzSolver(_Leapfrog):
         :func:`.._jit.tmz_e_half` / :func:`.._jit.tmz_h_half`; found for the current operators and
         coefficients, rebuilt when one of them is replaced (``set_dt``). The H rows are those of the
         stacked ``[Dy_hx; Dx_hy]`` acting on ``[hx, hy]``."""
-        from types import SimpleNamespace
+        cached = getattr(self, "_plan", None)
+        if cached is not None:  # (chained identity tests: this runs on every step)
+            k = cached[0]
+            if (k[0] is self.Dx_e and k[1] is self.Dy_e and k[2] is self.Dy_hx and k[3] is self.Dx_hy
+                    and k[4] is self._cax and k[5] is self._cbx and k[6] is self._cay and k[7] is self._cby
+                    and k[8] is self.da_x and k[9] is self.db_x and k[10] is self.da_y and k[11] is self.db_y):
+                return cached[1]
+        from types import SimpleNamespace  # (below the cached return: an import costs microseconds per step)
 
         from .stencil import find_runs, pack_e, pack_h
 
         key = (self.Dx_e, self.Dy_e, self.Dy_hx, self.Dx_hy, self._cax, self._cbx, self._cay, self._cby,
                self.da_x, self.db_x, self.da_y, self.db_y)
-        cached = getattr(self, "_plan", None)
-        if cached is not None and all(a is b for a, b in zip(cached[0], key)):
-            return cached[1]
         n_hx = len(self.layout.hx)
         coef_e = np.column_stack([self._cax, self._cbx, self._cay, self._cby])
         e = find_runs([self.Dx_e, self.Dy_e], self.free, coef_e)
@@ -787,19 +789,18 @@ class TMzSolver(_Leapfrog):
         holds the only references to ``h`` and its views (CPython reference counts); otherwise a new
         array, so that an ``hx`` or ``hy`` kept from an earlier step keeps its values, as with the numpy
         step (fresh arrays of a million unknowns cost about 5 ns per unknown in page faults, measured)."""
-        import sys
-
         buf = pl.buf
         mine = buf is not None and self.hx is buf[1] and self.hy is buf[2]
-        if mine and hasattr(sys, "getrefcount") and _refs(buf) == pl.refs:
+        if mine and _refcount is not None and (_refcount(buf[0]), _refcount(buf[1]), _refcount(buf[2])) == pl.refs:
             return buf[0], buf[0]
         h = buf[0] if mine else np.concatenate([self.hx, self.hy])
         new = np.empty(len(h))
-        pl.buf = (new, new[:pl.n_hx], new[pl.n_hx:])
+        pl.buf = buf = (new, new[:pl.n_hx], new[pl.n_hx:])
         del new
-        self.hx, self.hy = pl.buf[1], pl.buf[2]
-        pl.refs = _refs(pl.buf) if hasattr(sys, "getrefcount") else None
-        return h, pl.buf[0]
+        self.hx, self.hy = buf[1], buf[2]
+        if _refcount is not None:  # the counts when only the solver holds them (the same frame as the test above)
+            pl.refs = (_refcount(buf[0]), _refcount(buf[1]), _refcount(buf[2]))
+        return h, buf[0]
 
     def _step_stencil(self):
         """The compiled step with the stencil runs (:meth:`_step_plan`), one kernel call per half step: the
@@ -808,12 +809,12 @@ class TMzSolver(_Leapfrog):
         ea, ha = pl.e_args, pl.h_args
         h, out = self._stacked_h(pl)
         ez = pl.ez
-        _jit.tmz_e_half(0, len(ea[1]), 0, len(ea[6]), *ea, h, self.ezx, self.ezy, ez)
+        _jit.tmz_e_half(0, len(ea[1]), 0, len(ea[7]), *ea, h, self.ezx, self.ezy, ez)
         self.t = (self.n + 1) * self.dt
         self.n += 1
         for s in self._drive_sources():
             ez[s.indices] = self.ezx[s.indices] + self.ezy[s.indices]
-        _jit.tmz_h_half(0, len(ha[0]), 0, len(ha[5]), *ha, ez, h, out)
+        _jit.tmz_h_half(0, len(ha[0]), 0, len(ha[6]), *ha, ez, h, out)
 
     def step(self) -> None:
         """One leap-frog step: Ez to t + dt, then H to t + 3 dt / 2."""

@@ -64,6 +64,10 @@ class StencilRuns:
         Pattern ``p`` of operator ``m`` is ``offsets[m][ptr[m][p]:ptr[m][p + 1]]``, same for ``weights``.
     offsets : tuple of M int64 arrays
     weights : tuple of M float64 arrays
+    run_w : (R, M) int64 array
+        -1 for a stencil run (the pattern's weights); for a weighted run, where its rows' weights start in
+        ``row_weights[m]``: row ``run_row + k``'s weight ``s`` is ``row_weights[m][run_w + s run_len + k]``.
+    row_weights : tuple of M float64 arrays
     coef : (P, C) float64 array
         The (common) coefficients of each pattern's rows.
     rest : (n_rest,) int64 array
@@ -76,8 +80,10 @@ class StencilRuns:
     run_pat: np.ndarray
     run_col: np.ndarray
     ptr: tuple
+    run_w: np.ndarray
     offsets: tuple
     weights: tuple
+    row_weights: tuple
     coef: np.ndarray
     rest: np.ndarray
     n_rows: int
@@ -88,16 +94,17 @@ class StencilRuns:
         return int(self.run_len.sum())
 
     def _row_entries(self, m: int, D: sp.csr_matrix):
-        """(positions in D's data, positions in the pattern weights) of every run row's entries."""
-        rows = np.repeat(self.run_row, self.run_len) + _ramp(self.run_len)
-        pats = np.repeat(self.run_pat, self.run_len)
+        """(positions in D's data, positions in the pattern weights) of every stencil-run row's entries."""
+        st = self.run_w[:, m] < 0
+        rows = np.repeat(self.run_row[st], self.run_len[st]) + _ramp(self.run_len[st])
+        pats = np.repeat(self.run_pat[st], self.run_len[st])
         K = np.diff(self.ptr[m])[pats]
         local = _ramp(K)
         return np.repeat(D.indptr[rows], K) + local, np.repeat(self.ptr[m][pats], K) + local
 
     def snapped(self, m: int, D: sp.spmatrix) -> sp.csr_matrix:
-        """Operator ``m`` (``D``, the matrix the runs were found in) with each run row's weights replaced by its
-        pattern's (the numbers the stencil kernels use; the same stored order)."""
+        """Operator ``m`` (``D``, the matrix the runs were found in) with each stencil-run row's weights replaced
+        by its pattern's (the numbers the kernels use; the same stored order)."""
         D = sp.csr_matrix(D)
         data = np.array(D.data, dtype=np.float64)
         dst, src = self._row_entries(m, D)
@@ -123,31 +130,67 @@ def _ramp(counts: np.ndarray) -> np.ndarray:
     return np.arange(total, dtype=np.int64) - np.repeat(start, counts)
 
 
-def _key_columns(mats, firsts, scales, coef_bits):
+def _key_columns(mats, firsts, scales, coef_bits, with_weights):
     """The integer key of every row, one (n,) column at a time: per operator the entry count, then per slot
-    the offset from the first column and the weight in units of the operator's tolerance; the coefficients' bits."""
+    the offset from the first column and (``with_weights``) the weight in units of the operator's tolerance;
+    the coefficients' bits."""
     for D, first, q in zip(mats, firsts, scales):
         K = np.diff(D.indptr).astype(np.int64)
         yield K
+        if not D.nnz:
+            continue
         start = D.indptr[:-1].astype(np.int64)
-        last = max(D.nnz - 1, 0)
+        last = D.nnz - 1
         for s in range(int(K.max(initial=0))):
             has = s < K
             pos = np.minimum(start + s, last)
-            yield np.where(has, D.indices[pos].astype(np.int64) - first, _PAD) if D.nnz else np.full(len(K), _PAD)
-            if not D.nnz:
-                yield np.full(len(K), _PAD)
-                continue
-            w = D.data[pos]
-            wq = np.rint(w / q).astype(np.int64) if q else np.ascontiguousarray(w, dtype=np.float64).view(np.int64)
-            yield np.where(has, wq, _PAD)
+            yield np.where(has, D.indices[pos].astype(np.int64) - first, _PAD)
+            if with_weights:
+                w = D.data[pos]
+                wq = np.rint(w / q).astype(np.int64) if q else np.ascontiguousarray(w, dtype=np.float64).view(np.int64)
+                yield np.where(has, wq, _PAD)
     for c in coef_bits.T:
         yield c
 
 
+def _group_runs(mats, firsts, scales, coef_bits, targets, eligible, with_weights, min_run):
+    """Runs among the ``eligible`` rows: ``(run_row, run_len, representative row of each run's group)``."""
+    n = len(targets)
+    # group the rows by a 64-bit hash of their key, then check every row against its group's first row
+    h = np.full(n, _BASIS, dtype=np.uint64)
+    with np.errstate(over="ignore"):
+        h = (h ^ eligible.astype(np.uint64)) * _PRIME
+        for col in _key_columns(mats, firsts, scales, coef_bits, with_weights):
+            h = (h ^ col.view(np.uint64)) * _PRIME
+    _, rep, group, count = np.unique(h, return_index=True, return_inverse=True, return_counts=True)
+    group = group.reshape(-1)
+    ok = eligible & (count[group] >= min_run)
+    rep_row = rep[group]
+    for col in _key_columns(mats, firsts, scales, coef_bits, with_weights):
+        ok &= col == col[rep_row]  # a hash collision leaves the row out
+    # runs: consecutive rows of one group whose target and first columns advance by one
+    cont = np.zeros(n, dtype=bool)
+    if n > 1:
+        c = ok[1:] & ok[:-1] & (group[1:] == group[:-1]) & (targets[1:] == targets[:-1] + 1)
+        for f in firsts:
+            c &= f[1:] == f[:-1] + 1
+        cont[1:] = c
+    starts = np.flatnonzero(ok & ~cont)
+    run_id = np.cumsum(ok & ~cont) - 1
+    lengths = np.bincount(run_id[ok], minlength=len(starts)) if len(starts) else np.zeros(0, dtype=np.int64)
+    keep = lengths >= int(min_run)
+    run_row = starts[keep].astype(np.int64)
+    return run_row, lengths[keep].astype(np.int64), rep_row[run_row]
+
+
 def find_runs(mats: Sequence[sp.spmatrix], targets: ArrayLike, coefs: ArrayLike, *, rtol: float = RTOL,
-              min_run: int = MIN_RUN) -> StencilRuns:
+              min_run: int = MIN_RUN, row_weights: bool = True) -> StencilRuns:
     """Runs of rows that share one stencil in every operator of ``mats`` and the same coefficients.
+
+    First the rows whose offsets, weights (to ``rtol``) and coefficients agree (*stencil runs*: the
+    weights of the group's first row); then, with ``row_weights``, among the other rows those whose
+    offsets and coefficients agree (*weighted runs*: each row keeps its own weights, stored per run so
+    that the kernels read them in order, with no column indices).
 
     Parameters
     ----------
@@ -158,9 +201,12 @@ def find_runs(mats: Sequence[sp.spmatrix], targets: ArrayLike, coefs: ArrayLike,
     coefs : (n, C) float array
         The update coefficients of each row (equal within a pattern, bit for bit).
     rtol : float
-        Weights of one pattern differ by less than ``rtol`` times the operator's largest |entry|.
+        Weights of one stencil differ by less than ``rtol`` times the operator's largest |entry|
+        (0: bit for bit).
     min_run : int
         Runs shorter than this are left to the CSR rows (:attr:`StencilRuns.rest`).
+    row_weights : bool
+        Also form the weighted runs.
 
     Returns
     -------
@@ -189,48 +235,53 @@ def find_runs(mats: Sequence[sp.spmatrix], targets: ArrayLike, coefs: ArrayLike,
         nonempty &= K > 0
         firsts.append(np.where(K > 0, D.indices[np.minimum(D.indptr[:-1], max(D.nnz - 1, 0))], 0).astype(np.int64)
                       if D.nnz else np.zeros(n, dtype=np.int64))
-        big = float(np.abs(D.data).max(initial=0.0))
-        scales.append(rtol * big)  # 0: exact equality (the weights' bits)
+        scales.append(rtol * float(np.abs(D.data).max(initial=0.0)))  # 0: exact equality (the weights' bits)
     coef_bits = coefs.view(np.int64)
-    # group the rows by a 64-bit hash of their key, then check every row against its group's first row
-    h = np.full(n, _BASIS, dtype=np.uint64)
-    with np.errstate(over="ignore"):
-        for col in _key_columns(mats, firsts, scales, coef_bits):
-            h = (h ^ col.view(np.uint64)) * _PRIME
-    _, rep, group, count = np.unique(h, return_index=True, return_inverse=True, return_counts=True)
-    group = group.reshape(-1)
-    ok = nonempty & (count[group] >= min_run)
-    rep_row = rep[group]
-    for col in _key_columns(mats, firsts, scales, coef_bits):
-        ok &= col == col[rep_row]  # a hash collision leaves the row to the CSR form
-    # runs: consecutive rows of one group whose target and first columns advance by one
-    cont = np.zeros(n, dtype=bool)
-    if n > 1:
-        c = ok[1:] & ok[:-1] & (group[1:] == group[:-1]) & (targets[1:] == targets[:-1] + 1)
-        for f in firsts:
-            c &= f[1:] == f[:-1] + 1
-        cont[1:] = c
-    starts = np.flatnonzero(ok & ~cont)
-    run_id = np.cumsum(ok & ~cont) - 1
-    lengths = np.bincount(run_id[ok], minlength=len(starts)) if len(starts) else np.zeros(0, dtype=np.int64)
-    keep = lengths >= int(min_run)
-    run_row, run_len = starts[keep].astype(np.int64), lengths[keep].astype(np.int64)
+    args = (mats, firsts, scales, coef_bits, targets)
+    row1, len1, rep1 = _group_runs(*args, nonempty, True, min_run)
     in_run = np.zeros(n, dtype=bool)
-    in_run[np.repeat(run_row, run_len) + _ramp(run_len)] = True
-    used, run_pat = np.unique(group[run_row], return_inverse=True)
-    reps = rep[used]  # each pattern's representative row
-    ptrs, offs, ws = [], [], []
+    in_run[np.repeat(row1, len1) + _ramp(len1)] = True
+    if row_weights:
+        row2, len2, rep2 = _group_runs(*args, nonempty & ~in_run, False, min_run)
+        in_run[np.repeat(row2, len2) + _ramp(len2)] = True
+    else:
+        row2, len2, rep2 = (np.zeros(0, dtype=np.int64),) * 3
+    used1, pat1 = np.unique(rep1, return_inverse=True)
+    used2, pat2 = np.unique(rep2, return_inverse=True)
+    reps = np.concatenate([used1, used2]).astype(np.int64)  # each pattern's representative row
+    run_row = np.concatenate([row1, row2])
+    run_len = np.concatenate([len1, len2])
+    run_pat = np.concatenate([pat1.reshape(-1), pat2.reshape(-1) + len(used1)]).astype(np.int64)
+    ptrs, offs, ws, run_w, rws = [], [], [], [], []
     for D, first in zip(mats, firsts):
-        K = np.diff(D.indptr)[reps].astype(np.int64)
+        K = np.diff(D.indptr).astype(np.int64)
+        Kr = K[reps]
         ptr = np.zeros(len(reps) + 1, dtype=np.int64)
-        np.cumsum(K, out=ptr[1:])
-        pos = np.repeat(D.indptr[reps].astype(np.int64), K) + _ramp(K)
+        np.cumsum(Kr, out=ptr[1:])
+        pos = np.repeat(D.indptr[reps].astype(np.int64), Kr) + _ramp(Kr)
         ptrs.append(ptr)
-        offs.append(np.ascontiguousarray(D.indices[pos].astype(np.int64) - np.repeat(first[reps], K)))
+        offs.append(np.ascontiguousarray(D.indices[pos].astype(np.int64) - np.repeat(first[reps], Kr)))
         ws.append(np.ascontiguousarray(D.data[pos], dtype=np.float64))
-    run_col = np.ascontiguousarray(np.column_stack([f[run_row] for f in firsts]).reshape(len(run_row), M))
-    return StencilRuns(run_row=run_row, run_len=run_len, run_pat=run_pat.reshape(-1).astype(np.int64),
-                       run_col=run_col.astype(np.int64), ptr=tuple(ptrs), offsets=tuple(offs), weights=tuple(ws),
+        # weighted runs: run q's weights (K, len) by slot, then row: rw[base + s len + k]
+        K2 = K[row2]
+        size = K2 * len2
+        base = np.cumsum(size) - size
+        rows = np.repeat(row2, len2) + _ramp(len2)
+        k = _ramp(len2)
+        Krow = np.repeat(K2, len2)
+        s_ = _ramp(Krow)
+        dest = np.repeat(np.repeat(base, len2) + k, Krow) + s_ * np.repeat(np.repeat(len2, len2), Krow)
+        src = np.repeat(D.indptr[rows].astype(np.int64), Krow) + s_
+        rw = np.empty(int(size.sum()), dtype=np.float64)
+        rw[dest] = D.data[src]
+        rws.append(rw)
+        run_w.append(np.concatenate([np.full(len(row1), -1, dtype=np.int64), base.astype(np.int64)]))
+    order = np.argsort(run_row, kind="stable")
+    run_col = np.column_stack([f[run_row] for f in firsts]).reshape(len(run_row), M)
+    return StencilRuns(run_row=run_row[order], run_len=run_len[order], run_pat=run_pat[order],
+                       run_col=np.ascontiguousarray(run_col[order], dtype=np.int64),
+                       run_w=np.ascontiguousarray(np.column_stack(run_w).reshape(len(run_row), M)[order]),
+                       ptr=tuple(ptrs), offsets=tuple(offs), weights=tuple(ws), row_weights=tuple(rws),
                        coef=np.ascontiguousarray(coefs[reps]), rest=np.flatnonzero(~in_run).astype(np.int64),
                        n_rows=n)
 
@@ -261,12 +312,15 @@ def pack_e(runs: StencilRuns, Dx: sp.spmatrix, Dy: sp.spmatrix, free: np.ndarray
     Returns
     -------
     tuple
-        ``(held, runs, pat, off, w, coef, rrow, rptr, ridx, rdat, rcoef)``.
+        ``(held, runs, pat, off, w, rw, coef, rrow, rptr, ridx, rdat, rcoef)``.
     """
     free = np.asarray(free, dtype=np.int64)
     held = np.setdiff1d(np.arange(n_e, dtype=np.int64), free)
+    wx, wy = runs.run_w[:, 0], runs.run_w[:, 1]
     table = np.column_stack([free[runs.run_row], runs.run_len, runs.run_pat, runs.run_col[:, 0] + shift_x,
-                             runs.run_col[:, 1] + shift_y]).reshape(-1, 5).astype(np.int64)
+                             runs.run_col[:, 1] + shift_y, wx,
+                             np.where(wy < 0, -1, wy + len(runs.row_weights[0]))]).reshape(-1, 7).astype(np.int64)
+    rw = np.concatenate(runs.row_weights).astype(np.float64)
     nx = len(runs.offsets[0])
     px, py = runs.ptr
     pat = np.column_stack([px[:-1], px[1:], py[:-1] + nx, py[1:] + nx]).reshape(-1, 4).astype(np.int64)
@@ -274,7 +328,7 @@ def pack_e(runs: StencilRuns, Dx: sp.spmatrix, Dy: sp.spmatrix, free: np.ndarray
     w = np.concatenate([runs.weights[0], runs.weights[1]]).astype(np.float64)
     rest = runs.rest
     rptr, ridx, rdat = _interleave([runs.rest_csr(Dx), runs.rest_csr(Dy)], (shift_x, shift_y), len(rest))
-    return (held, np.ascontiguousarray(table), np.ascontiguousarray(pat), off, w, np.ascontiguousarray(runs.coef),
+    return (held, np.ascontiguousarray(table), np.ascontiguousarray(pat), off, w, rw, np.ascontiguousarray(runs.coef),
             np.ascontiguousarray(free[rest]), rptr, ridx, rdat, np.ascontiguousarray(coefs[rest], dtype=np.float64))
 
 
@@ -285,12 +339,13 @@ def pack_h(runs: StencilRuns, D: sp.spmatrix, coefs: np.ndarray) -> tuple:
     Returns
     -------
     tuple
-        ``(runs, pat, off, w, coef, rrow, rptr, ridx, rdat, rcoef)``.
+        ``(runs, pat, off, w, rw, coef, rrow, rptr, ridx, rdat, rcoef)``.
     """
-    table = np.column_stack([runs.run_row, runs.run_len, runs.run_pat, runs.run_col[:, 0]]).reshape(-1, 4)
+    table = np.column_stack([runs.run_row, runs.run_len, runs.run_pat, runs.run_col[:, 0],
+                             runs.run_w[:, 0]]).reshape(-1, 5)
     ptr = runs.ptr[0]
     pat = np.column_stack([ptr[:-1], ptr[1:]]).reshape(-1, 2).astype(np.int64)
     rptr, ridx, rdat = runs.rest_csr(D)
     return (np.ascontiguousarray(table, dtype=np.int64), np.ascontiguousarray(pat), runs.offsets[0],
-            runs.weights[0], np.ascontiguousarray(runs.coef), np.ascontiguousarray(runs.rest), rptr, ridx, rdat,
+            runs.weights[0], runs.row_weights[0], np.ascontiguousarray(runs.coef), np.ascontiguousarray(runs.rest), rptr, ridx, rdat,
             np.ascontiguousarray(coefs[runs.rest], dtype=np.float64))
