@@ -11,6 +11,11 @@ Prints JSON lines:
 - energy: the leap-frog modified energy over 10^4 steps on a Poisson square (relative drift);
 - planewave (``--only planewave``): the plane wave with PML (0.2 m square, 20 and 40 particles per
   wavelength, jittered and Poisson) with set-up and run seconds.
+- scattering (``--only scattering``): the dielectric (eps_r 4) and coated cylinders at ka = 2 (Yee-style
+  lattice with a conforming wall, cell-averaged eps_r, PML; :func:`manifold_sph.spem.scattering.run_scattering`,
+  20 periods) with ``mimetic_fast`` (h/dr 1.5, the correction in a band along the walls) and ``sbp``, against
+  the staircased Yee grid and Yee with the same cell-averaged eps_r of ``benchmarks/spem_vs_yee.py``, in the
+  same run: error at equal unknowns and CPU at equal error.
 
 "mimetic-fast" is the ``fast`` variant of :func:`manifold_sph.spem.mimetic.mimetic_operators` (the
 correction keeps quadratic exactness and touches only pairs closer than 2 spacings), switched on here
@@ -120,7 +125,7 @@ def energy_drift(coupling, steps=10000, cells=15, seed=1):
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
-    ap.add_argument("--only", choices=("phase", "cavity", "energy", "planewave"), default=None)
+    ap.add_argument("--only", choices=("phase", "cavity", "energy", "planewave", "scattering"), default=None)
     ap.add_argument("--couplings", default="sbp,mimetic,mimetic-fast")
     ap.add_argument("--layouts", default="jittered,poisson,poisson-joint")
     args = ap.parse_args()
@@ -170,6 +175,38 @@ def main():
                 errs = [r["error_centre"] for r in rows if "error" in r]
                 print(json.dumps({"run": "planewave with PML, 0.2 m", "layout": layout, "coupling": coupling,
                                   "rows": rows, "order_centre": order(errs, [20.0, 40.0][: len(errs)])}), flush=True)
+
+    if args.only == "scattering":
+        scattering(args.quick)
+
+
+def scattering(quick=False):
+    """Cylinder scattering, mimetic (fast, band) and sbp against the staircased and the cell-averaged Yee."""
+    import importlib.util
+    from pathlib import Path
+
+    spec = importlib.util.spec_from_file_location("spem_vs_yee", Path(__file__).with_name("spem_vs_yee.py"))
+    vs = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(vs)
+    sizes = (4, 8) if quick else (4, 8, 16)
+    for kind in ("dielectric", "coated"):
+        yee = [vs.run_yee_scattering(kind, n, periods=20.0) for n in (4, 8, 16, 32, 64)[: 3 if quick else 5]]
+        avg = [vs.run_yee_scattering(kind, n, periods=20.0, eps_mode="average") for n in (4, 8, 16, 32)[: 3 if quick else 4]]
+        runs = {"mimetic-fast": dict(coupling="mimetic", h_ratio=1.5, mimetic_fast=True), "sbp": dict(coupling="sbp")}
+        for name, kw in runs.items():
+            rows = [vs.run_spem_scattering(kind, n, periods=20.0, **kw) for n in sizes]
+            for r in rows:
+                r["method"] = f"SPEM {name}"
+            print(json.dumps({"run": "scattering", "case": kind, "coupling": name,
+                              "rows": [{k: (float(f"{v:.3e}") if isinstance(v, float) else v) for k, v in r.items()}
+                                       for r in rows],
+                              "order": order([r["error"] for r in rows], sizes)}), flush=True)
+            print(f"{kind}, SPEM {name} against the staircased Yee:")
+            vs._compare(rows, yee, "Yee")
+            print(f"{kind}, SPEM {name} against Yee with the same cell-averaged eps:")
+            vs._compare(rows, avg, "Yee-avg")
+        for r in yee + avg:
+            print(json.dumps({k: (float(f"{v:.3e}") if isinstance(v, float) else v) for k, v in r.items()}), flush=True)
 
 
 if __name__ == "__main__":

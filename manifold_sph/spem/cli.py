@@ -155,6 +155,10 @@ def run(args: argparse.Namespace) -> int:
 
     if args.case in SCATTERING_CASES or any(getattr(args, n, None) is not None for n in _SCATTERING_OPTIONS):
         return _run_scattering(args)
+    if getattr(args, "mimetic_fast", False):
+        print("manifold-sph spem: error: --mimetic-fast applies only to the cases scatter-pec, scatter-dielectric, "
+              "scatter-coated", file=sys.stderr)
+        return 2
     try:
         kw = _kwargs(args)
         _check_target(args.png, args.overwrite)
@@ -192,6 +196,8 @@ def _add_scattering_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--periods", type=_positive(float), default=None,
                    help="scatter-*: periods of the drive (default 20; the last 2 are Fourier-analysed); "
                         "tez-cavity: periods before the error is taken (default 1)")
+    g.add_argument("--mimetic-fast", action="store_true",
+                   help="scatter-*, with --coupling mimetic: the faster correction (G exact for quadratics)")
 
 
 def _run_scattering(args: argparse.Namespace) -> int:
@@ -214,6 +220,8 @@ def _run_scattering(args: argparse.Namespace) -> int:
             for name in ("ka", "core_radius"):
                 if getattr(args, name) is not None:
                     raise ValueError(f"--{name.replace('_', '-')} does not apply to case 'tez-cavity'")
+            if args.mimetic_fast:
+                raise ValueError("--mimetic-fast does not apply to case 'tez-cavity'")
             for name, key in (("n_radial", "n"), ("eps_r", "eps_r"), ("h_ratio", "h_ratio"), ("periods", "periods")):
                 if getattr(args, name) is not None:
                     kw[key] = getattr(args, name)
@@ -229,6 +237,10 @@ def _run_scattering(args: argparse.Namespace) -> int:
             if "eps_r" in kw and kind == "pec":
                 raise ValueError("--eps-r does not apply to scatter-pec")
             kw.setdefault("periods", 20.0)
+            if args.mimetic_fast:
+                if kw["coupling"] != "mimetic":
+                    raise ValueError("--mimetic-fast applies only with --coupling mimetic")
+                kw["mimetic_fast"] = True
             result = run_scattering(kind, **kw)
     except (ValueError, TypeError) as exc:
         print(f"manifold-sph spem: error: {exc}", file=sys.stderr)

@@ -63,7 +63,7 @@ from .._validation import as_points, check_in, check_int, check_positive
 from .constants import C0
 from .layouts import Layout, _supported, jitter, yee_layout
 from .pml import PML
-from .solver import COUPLINGS, DEFAULT_COUPLING, DEFAULT_H_RATIO, TMzSolver
+from .solver import COUPLINGS, DEFAULT_COUPLING, TMzSolver
 from .sources import Source
 
 if TYPE_CHECKING:
@@ -407,7 +407,7 @@ def run_scattering(kind: str = "dielectric", *, n_radial: int = 8, radius: float
                    eps_r: float = 4.0, core_radius: float | None = None, layout: str = "yee", amplitude: float = 0.2,
                    seed: int | None = 0, margin: float = 0.5, pml_thickness: float = 0.5, pml_order: int = 3,
                    pml_reflection: float = 1e-6, periods: float = 12.0, ramp: float = 3.0, dft_periods: float = 2.0,
-                   coupling: str = DEFAULT_COUPLING, h_ratio: float = DEFAULT_H_RATIO,
+                   coupling: str = DEFAULT_COUPLING, h_ratio: float | None = None,
                    kernel: str | Kernel | type[Kernel] = "cubic", form: str = "fpm", courant: float = 0.9,
                    sbp_layers: int | None | str = "auto", n_sub: int = 8,
                    mimetic_fast: bool = False) -> ScatteringResult:
@@ -439,8 +439,10 @@ def run_scattering(kind: str = "dielectric", *, n_radial: int = 8, radius: float
         "coated": the PEC core (default ``radius / 2``).
     layout : {"yee", "jittered"}
     coupling : {"sbp", "mimetic", "adjoint", "direct"}
-        As :class:`.TMzSolver` ("direct" is refused where it would grow;
-        "mimetic" needs ``h_ratio`` 1.5 or more).
+        As :class:`.TMzSolver` ("direct" is refused where it would grow).
+    h_ratio : float, optional
+        ``h / dr``; default the coupling's (0.7; 1.5 with "mimetic", which
+        needs about that much support).
     sbp_layers : int, None or "auto"
         As :class:`.TMzSolver`. "auto" (default): None (the whole operator is
         corrected) with a conductor, where a band of 2 rings stalls next to the
