@@ -125,7 +125,8 @@ def energy_drift(coupling, steps=10000, cells=15, seed=1):
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
-    ap.add_argument("--only", choices=("phase", "cavity", "energy", "planewave", "scattering"), default=None)
+    ap.add_argument("--only", choices=("phase", "cavity", "energy", "planewave", "scattering", "cavity-vs-yee"),
+                    default=None)
     ap.add_argument("--couplings", default="sbp,mimetic,mimetic-fast")
     ap.add_argument("--layouts", default="jittered,poisson,poisson-joint")
     args = ap.parse_args()
@@ -178,16 +179,47 @@ def main():
 
     if args.only == "scattering":
         scattering(args.quick)
+    if args.only == "cavity-vs-yee":
+        cavity_vs_yee(args.quick)
 
 
-def scattering(quick=False):
-    """Cylinder scattering, mimetic (fast, band) and sbp against the staircased and the cell-averaged Yee."""
+def _vs_yee():
     import importlib.util
     from pathlib import Path
 
     spec = importlib.util.spec_from_file_location("spem_vs_yee", Path(__file__).with_name("spem_vs_yee.py"))
     vs = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(vs)
+    return vs
+
+
+def cavity_vs_yee(quick=False):
+    """The circular cavity on the lattice disk (conforming wall), mimetic-fast and sbp, against the staircased Yee."""
+    from manifold_sph.spem.cases import run_cavity
+
+    vs = _vs_yee()
+    yee = [vs.run_yee_cavity(n) for n in (10, 20, 40, 80, 160)[: 3 if quick else 5]]
+    for r in yee:
+        r["case"] = "cavity"
+        print(json.dumps({k: (float(f"{v:.3e}") if isinstance(v, float) else v) for k, v in r.items()}), flush=True)
+    for name, kw in {"mimetic-fast": dict(coupling="mimetic", mimetic_fast=True), "sbp": dict(coupling="sbp")}.items():
+        rows = []
+        for n in (10, 20) if quick else (10, 20, 40):
+            r = run_cavity(n_radial=n, **kw)
+            rows.append({"method": f"SPEM {name}", "case": "cavity", "n_radial": n, "unknowns": r.particles,
+                         "error": r.error, "setup": r.seconds - r.step_seconds, "run": r.step_seconds,
+                         "steps": r.steps})
+        print(json.dumps({"run": "cavity vs Yee", "coupling": name,
+                          "rows": [{k: (float(f"{v:.3e}") if isinstance(v, float) else v) for k, v in r.items()}
+                                   for r in rows], "order": order([r["error"] for r in rows], [r["n_radial"] for r in rows])}),
+              flush=True)
+        print(f"cavity, SPEM {name} against the staircased Yee:")
+        vs._compare(rows, yee, "Yee")
+
+
+def scattering(quick=False):
+    """Cylinder scattering, mimetic (fast, band) and sbp against the staircased and the cell-averaged Yee."""
+    vs = _vs_yee()
     sizes = (4, 8) if quick else (4, 8, 16)
     for kind in ("dielectric", "coated"):
         yee = [vs.run_yee_scattering(kind, n, periods=20.0) for n in (4, 8, 16, 32, 64)[: 3 if quick else 5]]

@@ -136,7 +136,7 @@ def run_cavity(*, r0: float = 0.1, eps_r: float = 10.0, n_radial: int = 40, peri
                h_ratio: float | None = None,
                courant: float = 0.9, coupling: str = DEFAULT_COUPLING, spectrum_periods: float = 0.0, frames: int = 0,
                sbp_layers: int | None = None, seed: int | np.random.Generator | None = 0,
-               progress: bool = False) -> CavityResult:
+               progress: bool = False, mimetic_fast: bool = False) -> CavityResult:
     """Circular PEC cavity ([2] sec. 4.3), ``Ez(0) = 1 - r^2/r0^2``, compared with the Bessel series.
 
     ``dr = r0 / n_radial``. The error is taken over every E particle after
@@ -148,6 +148,7 @@ def run_cavity(*, r0: float = 0.1, eps_r: float = 10.0, n_radial: int = 40, peri
     keeps converging where a local band stalls; :data:`.operators.SBP_LAYERS`). ``layout`` "jittered" and
     "poisson" are seeded random disks (:func:`.layouts.disk_layout`; "poisson-joint": the Poisson E set with
     its H set relaxed into the E gaps, for the "mimetic" coupling); ``h_ratio`` defaults to the coupling's.
+    ``mimetic_fast``: as :class:`.TMzSolver` (``coupling="mimetic"`` only).
     """
     r0 = check_positive("r0", r0)
     eps_r = check_positive("eps_r", eps_r)
@@ -159,7 +160,7 @@ def run_cavity(*, r0: float = 0.1, eps_r: float = 10.0, n_radial: int = 40, peri
     f1 = cavity_frequency(r0, eps_r)
     T1 = 1.0 / f1
     s = TMzSolver(lay, h_ratio=h_ratio, kernel=kernel, form=form, coupling=coupling, eps_r=eps_r, courant=courant,
-                  sbp_layers=sbp_layers)
+                  sbp_layers=sbp_layers, mimetic_fast=mimetic_fast)
     dt, steps = _fitted(s, periods * T1)
     r = np.hypot(lay.e[:, 0] - c[0], lay.e[:, 1] - c[1])
     s.set_initial(np.clip(1.0 - r**2 / r0**2, 0.0, None))
