@@ -19,7 +19,10 @@ One table, same run, same points:
    against the limit of the cotan FEM of the model's own mesh under midpoint
    subdivision (Richardson extrapolation of two levels), for the cotan FEM of the mesh
    itself, ours (normals estimated, and the mesh's area-weighted normals) and
-   robust-laplacian; ``vs mesh`` is the median against the unsubdivided cotan FEM.
+   robust-laplacian; ``vs mesh`` is the median against the unsubdivided cotan FEM;
+   ``open/refit`` counts our cells still clipped by the neighbourhood's hull (all spurious on a
+   closed model) and the open cells that closed when computed again in the principal plane of
+   the particle's nearest points (``Surface.stable_report``).
 
 Usage: ``python benchmarks/spectra.py [--quick] [--sizes 2000,8000] [--models-only]
 [--model path.obj] [--json out.json]``.
@@ -212,24 +215,23 @@ def model_rows(extra=()):
         K, m = cotan(V, F)
         coarse = sym_eigs(K, m, 21)[1:]
         limit = subdivision_limit(V, F)
-        cand = [("cotan FEM (the mesh)", coarse, 0.0)]
-        t = time.perf_counter()
-        s = quiet(Surface, V, scheme="msph", area="shepard")
-        lam, _ = s.eigs(21)
-        cand.append(("stable (est. normals)", lam[1:], time.perf_counter() - t))
-        t = time.perf_counter()
-        s = quiet(Surface, V, N, scheme="msph", area="shepard")
-        lam, _ = s.eigs(21)
-        cand.append(("stable (mesh normals)", lam[1:], time.perf_counter() - t))
+        cand = [("cotan FEM (the mesh)", coarse, 0.0, "")]
+        for label, normals in (("stable (est. normals)", None), ("stable (mesh normals)", N)):
+            t = time.perf_counter()
+            s = quiet(Surface, V, normals, scheme="msph", area="shepard")
+            lam, _ = s.eigs(21)
+            r = s.stable_report
+            cand.append((label, lam[1:], time.perf_counter() - t, f"{r['boundary']}/{r['refitted']}"))
         if robust_laplacian is not None:
             t = time.perf_counter()
             L, M = robust_laplacian.point_cloud_laplacian(V)
-            cand.append(("robust-laplacian", sym_eigs(L, M.diagonal(), 21)[1:], time.perf_counter() - t))
-        for label, lam, tt in cand:
+            cand.append(("robust-laplacian", sym_eigs(L, M.diagonal(), 21)[1:], time.perf_counter() - t, ""))
+        for label, lam, tt, cells in cand:
             med, mx = errors(lam, limit)
             med_c, _ = errors(lam, coarse)
-            rows.append(dict(cloud=name, n=len(V), method=label, median=med, max=mx, median_vs_mesh=med_c, seconds=tt))
-            print(f"{name:18s} {len(V):7d} {label:22s} {med:10.2e} {mx:10.2e} {med_c:10.2e} {tt:8.2f}", flush=True)
+            rows.append(dict(cloud=name, n=len(V), method=label, median=med, max=mx, median_vs_mesh=med_c, seconds=tt,
+                             open_refitted=cells))
+            print(f"{name:18s} {len(V):7d} {label:22s} {med:10.2e} {mx:10.2e} {med_c:10.2e} {tt:8.2f} {cells:>11s}", flush=True)
     return rows
 
 
@@ -248,8 +250,9 @@ def main(argv=None):
     print(f"{'cloud':18s} {'N':>7s} {'method':20s} {'median':>10s} {'max':>10s} {'build s':>8s} {'eigs s':>8s}")
     rows = [] if args.models_only else sphere_rows(sizes, args.strong_max)
     print(f"\n{'model':18s} {'N':>7s} {'method':22s} {'median':>10s} {'max':>10s} {'vs mesh':>10s} {'seconds':>8s}"
-          "   (20 smallest eigenvalues against the subdivision limit of the mesh's cotan FEM;"
-          " 'vs mesh': median against the mesh's own cotan FEM)")
+          f" {'open/refit':>11s}   (20 smallest eigenvalues against the subdivision limit of the mesh's cotan FEM;"
+          " 'vs mesh': median against the mesh's own cotan FEM; 'open/refit': stable_report's cells still"
+          " clipped by the hull / cells closed in the plane of the nearest points)")
     rows += model_rows(args.model)
     if args.json:
         path = Path(args.json)
