@@ -260,8 +260,8 @@ def mimetic_operators(e: np.ndarray, free: np.ndarray, h_sets: list[tuple[np.nda
         Correct only the unknowns within this many rings of the conditions the kernel estimates miss
         (:func:`_band`): on lattices with walls, a band along the walls instead of the whole domain. The
         whole operator is corrected when the band's correction misses a condition by more than
-        :data:`BAND_ACCEPT` or a volume turns non-positive (and when the band covers everything: irregular
-        layouts). None: always the whole operator; "auto": :data:`BAND_LAYERS`.
+        :data:`BAND_ACCEPT` or a volume turns non-positive (the band is the whole operator when it covers
+        everything: irregular layouts). None: always the whole operator; "auto": :data:`BAND_LAYERS`.
     """
     c_degree, c_radius = FAST if fast else (CORRECTION_DEGREE, CORRECTION_RADIUS)
     if not (band_layers is None or band_layers == "auto"
@@ -356,7 +356,7 @@ def mimetic_operators(e: np.ndarray, free: np.ndarray, h_sets: list[tuple[np.nda
         cor = on
         if layers is not None:  # correct only the unknowns within `layers` rings of the unmet conditions
             cor, rows = _band(A, on, np.abs(res) > BAND_TOL, layers)
-            if cor.sum() > 0.9 * on.sum():  # irregular layouts: (nearly) everything, the whole operator
+            if cor.sum() == on.sum():  # irregular layouts: everything, the whole operator
                 cor, rows, layers = on, np.arange(A.shape[0]), None
         Ab = A[rows][:, cor] if layers is not None else A[:, cor]
         AW = Ab @ sp.diags(wt[cor])
