@@ -422,19 +422,26 @@ def _yee_pml_grid(n, d, pml_cells, freq):
     return step, (n + 1) ** 2 + 2 * n * (n + 1), lambda: f["ez"]
 
 
-def _median_ns(run, steps, unknowns, repeat):
-    run(max(2, steps // 10))  # warm-up (compilation, caches)
-    times = []
+def _interleaved_ns(runs, steps, unknowns, repeat):
+    """Median ns per unknown and step of each ``run(k)`` in ``runs``, timed in turn ``repeat`` times (so that a
+    change of the machine's load hits every method alike); each run gets an untimed step before its timed ones
+    (warm-up, and the switch between SPEM's two step kinds)."""
+    times = [[] for _ in runs]
+    for run in runs:
+        run(max(2, steps // 10))  # warm-up (compilation, caches)
     for _ in range(repeat):
-        t0 = time.perf_counter()
-        run(steps)
-        times.append(time.perf_counter() - t0)
-    return 1e9 * float(np.median(times)) / (steps * unknowns)
+        for j, (run, u) in enumerate(zip(runs, unknowns)):
+            run(1)
+            t0 = time.perf_counter()
+            run(steps)
+            times[j].append((time.perf_counter() - t0) / (steps * u))
+    return [1e9 * float(np.median(t)) for t in times]
 
 
 def cost_main(sizes=(1e4, 9e4, 1e6), repeat=7, pml_cells=10):
     """ns per unknown (Ez + Hx + Hy, the held PEC nodes included on both sides) and step, median of ``repeat``
-    timed runs of ``steps`` steps (about 3e7 / unknowns, at least 10), on square lattices of about ``sizes``
+    timed runs of ``steps`` steps (about 3e7 / unknowns, at least 10; the three methods timed in turn in each
+    repeat, the same solver switching between its two step kinds), on square lattices of about ``sizes``
     unknowns: the numpy Yee (:class:`YeeTMz` on a PEC square; the split-field PML update of
     :func:`run_yee_scattering` with a hard line source), SPEM's previous compiled CSR step
     (``TMzSolver(stencil=False)``) and its stencil runs (``stencil=True``, :mod:`manifold_sph.spem.stencil`) on
@@ -469,7 +476,6 @@ def cost_main(sizes=(1e4, 9e4, 1e6), repeat=7, pml_cells=10):
                     for j in range(k):
                         step(j)
             steps = max(10, int(3e7 / yee_unknowns))
-            t_yee = _median_ns(yee_run, steps, yee_unknowns, repeat)
             t0 = time.perf_counter()
             if case == "cavity":
                 lay = yee_layout((0.0, n * d, 0.0, n * d), d)
@@ -497,13 +503,16 @@ def cost_main(sizes=(1e4, 9e4, 1e6), repeat=7, pml_cells=10):
                 s.run(200)
                 fields[mode] = s.e_field.copy()
             diff = float(np.abs(fields[True] - fields[False]).max() / np.abs(fields[False]).max())
-            t = {}
-            for mode in (False, True):
+            s.set_initial(start)
+
+            def spem_run(k, mode, s=s):
                 s.stencil = mode
-                s.set_initial(start)
-                t[mode] = _median_ns(lambda k: s.run(k), steps, lay.n_particles, repeat)
-            print(f"{case:<10s} {n:>6d} {lay.n_particles:>9d} {steps:>6d} {t_yee:>7.2f} {t[False]:>7.2f} "
-                  f"{t[True]:>8.2f} {t[True] / t_yee:>7.2f} {t[False] / t_yee:>8.2f} {100 * covered / rows:>7.1f} "
+                s.run(k)
+
+            t_yee, t_csr, t_st = _interleaved_ns([yee_run, lambda k: spem_run(k, False), lambda k: spem_run(k, True)],
+                                                 steps, [yee_unknowns, lay.n_particles, lay.n_particles], repeat)
+            print(f"{case:<10s} {n:>6d} {lay.n_particles:>9d} {steps:>6d} {t_yee:>7.2f} {t_csr:>7.2f} "
+                  f"{t_st:>8.2f} {t_st / t_yee:>7.2f} {t_csr / t_yee:>8.2f} {100 * covered / rows:>7.1f} "
                   f"{diff:>9.1e} {setup:>8.1f}", flush=True)
             del s
 

@@ -1288,14 +1288,16 @@ _RUN_BLOCK = 256
 
 
 @_jit
-def tmz_e_half(q0, q1, r0, r1, held, runs, pat, off, w, rw, coef, rrow, rptr, ridx, rdat, rcoef, h, ezx, ezy, ez):
+def tmz_e_half(q0, q1, r0, r1, held, runs, pat, off, w, rw, coef, rc, rrow, rptr, ridx, rdat, rcoef, h, ezx, ezy,
+               ez):
     """E half step: ``ezx = cax ezx + cbx (Dx h)``, ``ezy = cay ezy - cby (Dy h)``, ``ez = ezx + ezy``.
 
     ``h`` is the stacked ``[hx, hy]``. Runs ``q0:q1``: ``runs[q]`` = (first E index, rows, pattern, first
     column of Dx, of Dy, Dx row weights, Dy row weights), pattern ``p``'s Dx entries ``pat[p, 0]:pat[p, 1]``
     and Dy entries ``pat[p, 2]:pat[p, 3]`` of ``(off, w)``, coefficients ``coef[p]`` = (cax, cbx, cay, cby);
     row weights -1: the pattern's ``w``, else row ``k``'s weight ``s`` (of ``n`` rows) is
-    ``rw[start + s n + k]`` (a weighted run). CSR rows
+    ``rw[start + s n + k]`` (a weighted run), whose coefficients are ``rc[runs[q, 7] + k]`` (the
+    pattern's when ``runs[q, 7]`` is -1). CSR rows
     ``r0:r1``: E index ``rrow[r]``, Dx entries ``rptr[2 r]:rptr[2 r + 1]``, Dy entries ``rptr[2 r + 1]:
     rptr[2 r + 2]`` of ``(ridx, rdat)``, coefficients ``rcoef[r]``. ``held`` (the E particles not updated):
     ``ez = ezx + ezy`` only (with ``q0 == 0``)."""
@@ -1342,13 +1344,24 @@ def tmz_e_half(q0, q1, r0, r1, held, runs, pat, off, w, rw, coef, rrow, rptr, ri
                     b = _u(wy + (s - pat[p, 2]) * n + k0)
                     for k in range(m):
                         sy[k] += rw[b + _u(k)] * h[c + _u(k)]
-            for k in range(m):
-                i = _u(i0 + k)
-                a = cax * ezx[i] + cbx * sx[k]
-                b = cay * ezy[i] - cby * sy[k]
-                ezx[i] = a
-                ezy[i] = b
-                ez[i] = a + b
+            c0 = runs[q, 7]
+            if c0 < 0:
+                for k in range(m):
+                    i = _u(i0 + k)
+                    a = cax * ezx[i] + cbx * sx[k]
+                    b = cay * ezy[i] - cby * sy[k]
+                    ezx[i] = a
+                    ezy[i] = b
+                    ez[i] = a + b
+            else:
+                for k in range(m):
+                    i = _u(i0 + k)
+                    j = _u(c0 + k0 + k)
+                    a = rc[j, 0] * ezx[i] + rc[j, 1] * sx[k]
+                    b = rc[j, 2] * ezy[i] - rc[j, 3] * sy[k]
+                    ezx[i] = a
+                    ezy[i] = b
+                    ez[i] = a + b
     for r in range(r0, r1):
         i = _u(rrow[r])
         x = 0.0
@@ -1365,12 +1378,12 @@ def tmz_e_half(q0, q1, r0, r1, held, runs, pat, off, w, rw, coef, rrow, rptr, ri
 
 
 @_jit
-def tmz_h_half(q0, q1, r0, r1, runs, pat, off, w, rw, coef, rrow, rptr, ridx, rdat, rcoef, ez, h, out):
+def tmz_h_half(q0, q1, r0, r1, runs, pat, off, w, rw, coef, rc, rrow, rptr, ridx, rdat, rcoef, ez, h, out):
     """H half step on the stacked ``h = [hx, hy]``: ``out = da h + dbs (D ez)``, ``dbs`` = -db for Hx, +db for Hy.
 
-    Runs ``q0:q1``: ``runs[q]`` = (first row, rows, pattern, first column, row weights), pattern ``p``'s
-    entries ``pat[p, 0]:pat[p, 1]`` of ``(off, w)``, ``coef[p]`` = (da, dbs), row weights as in
-    :func:`tmz_e_half`. CSR rows ``r0:r1``: row ``rrow[r]``,
+    Runs ``q0:q1``: ``runs[q]`` = (first row, rows, pattern, first column, row weights, row coefficients),
+    pattern ``p``'s entries ``pat[p, 0]:pat[p, 1]`` of ``(off, w)``, ``coef[p]`` = (da, dbs), row weights
+    and coefficients (``rc``) as in :func:`tmz_e_half`. CSR rows ``r0:r1``: row ``rrow[r]``,
     entries ``rptr[r]:rptr[r + 1]`` of ``(ridx, rdat)``, ``rcoef[r]``. ``out`` may be ``h`` (each row reads
     only its own ``h``)."""
     acc = np.empty(_RUN_BLOCK)
@@ -1396,9 +1409,16 @@ def tmz_h_half(q0, q1, r0, r1, runs, pat, off, w, rw, coef, rrow, rptr, ridx, rd
                     b = _u(wr + (t - pat[p, 0]) * n + k0)
                     for k in range(m):
                         acc[k] += rw[b + _u(k)] * ez[c + _u(k)]
-            for k in range(m):
-                i = _u(i0 + k)
-                out[i] = da * h[i] + db * acc[k]
+            c1 = runs[q, 5]
+            if c1 < 0:
+                for k in range(m):
+                    i = _u(i0 + k)
+                    out[i] = da * h[i] + db * acc[k]
+            else:
+                for k in range(m):
+                    i = _u(i0 + k)
+                    j = _u(c1 + k0 + k)
+                    out[i] = rc[j, 0] * h[i] + rc[j, 1] * acc[k]
     for r in range(r0, r1):
         i = _u(rrow[r])
         x = 0.0

@@ -63,6 +63,21 @@ def test_jittered_layout_has_almost_no_stencil_rows_and_the_same_numbers_bit_for
         np.testing.assert_array_equal(a, b)  # weighted runs and CSR rows keep every row's own weights
 
 
+def test_pml_corners_and_graded_materials_run_as_weighted_runs():
+    lay = yee_layout((0, A, 0, A), DR)
+    s = TMzSolver(lay, eps_r=lambda p: 1.0 + 100.0 * p[:, 0] * p[:, 1], pml=PML(0.005, interior=(0.005, 0.027, 0.005, 0.027)))
+    pl = s._step_plan()
+    assert (pl.e.run_c >= 0).any() and pl.e.covered == pl.e.n_rows  # every E row in a run, each its own eps
+    assert pl.h.covered > 0.9 * pl.h.n_rows
+    plain = TMzSolver(lay, eps_r=lambda p: 1.0 + 100.0 * p[:, 0] * p[:, 1], stencil=False,
+                      pml=PML(0.005, interior=(0.005, 0.027, 0.005, 0.027)))
+    start = np.exp(-((lay.e[:, 0] - 0.012) ** 2 + (lay.e[:, 1] - 0.016) ** 2) / 0.003**2)
+    for t in (s, plain):
+        t.set_initial(start)
+    for a, b in zip(_fields(s, 150), _fields(plain, 150)):
+        assert _rel(a, b) < TOL
+
+
 def test_compiled_and_numpy_stencil_steps_agree_bit_for_bit(monkeypatch):
     if not _jit.ENABLED:
         pytest.skip("the compiled kernels are off")
@@ -149,6 +164,10 @@ def test_find_runs_on_a_difference_operator_with_a_boundary_row():
     W = sp.diags([-np.arange(1.0, n + 1), np.arange(1.0, n)], [0, 1], shape=(n, n)).tocsr()
     r = find_runs([W[: n - 1]], np.arange(n - 1), np.ones((n - 1, 1)))
     assert r.run_w[:, 0].tolist() == [0] and r.row_weights[0][: n - 1].tolist() == (-np.arange(1.0, n)).tolist()
+    # ... and their own coefficients (a graded material, a PML corner)
+    c = np.linspace(1.0, 2.0, n - 1)[:, None]
+    r = find_runs([W[: n - 1]], np.arange(n - 1), c)
+    assert r.run_c.tolist() == [0] and np.array_equal(r.row_coef, c) and len(r.rest) == 0
     r = find_runs([W[: n - 1]], np.arange(n - 1), np.ones((n - 1, 1)), row_weights=False)
     assert r.covered == 0 and len(r.rest) == n - 1
 

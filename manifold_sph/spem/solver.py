@@ -809,12 +809,12 @@ class TMzSolver(_Leapfrog):
         ea, ha = pl.e_args, pl.h_args
         h, out = self._stacked_h(pl)
         ez = pl.ez
-        _jit.tmz_e_half(0, len(ea[1]), 0, len(ea[7]), *ea, h, self.ezx, self.ezy, ez)
+        _jit.tmz_e_half(0, len(ea[1]), 0, len(ea[8]), *ea, h, self.ezx, self.ezy, ez)
         self.t = (self.n + 1) * self.dt
         self.n += 1
         for s in self._drive_sources():
             ez[s.indices] = self.ezx[s.indices] + self.ezy[s.indices]
-        _jit.tmz_h_half(0, len(ha[0]), 0, len(ha[6]), *ha, ez, h, out)
+        _jit.tmz_h_half(0, len(ha[0]), 0, len(ha[7]), *ha, ez, h, out)
 
     def step(self) -> None:
         """One leap-frog step: Ez to t + dt, then H to t + 3 dt / 2."""

@@ -68,8 +68,12 @@ class StencilRuns:
         -1 for a stencil run (the pattern's weights); for a weighted run, where its rows' weights start in
         ``row_weights[m]``: row ``run_row + k``'s weight ``s`` is ``row_weights[m][run_w + s run_len + k]``.
     row_weights : tuple of M float64 arrays
+    run_c : (R,) int64 array
+        -1 for a stencil run (the pattern's coefficients), else the run's first row in ``row_coef``.
+    row_coef : (N, C) float64 array
+        The coefficients of the weighted runs' rows, run after run.
     coef : (P, C) float64 array
-        The (common) coefficients of each pattern's rows.
+        The (common) coefficients of each stencil pattern's rows.
     rest : (n_rest,) int64 array
         Rows in no run.
     n_rows : int
@@ -81,6 +85,8 @@ class StencilRuns:
     run_col: np.ndarray
     ptr: tuple
     run_w: np.ndarray
+    run_c: np.ndarray
+    row_coef: np.ndarray
     offsets: tuple
     weights: tuple
     row_weights: tuple
@@ -189,8 +195,8 @@ def find_runs(mats: Sequence[sp.spmatrix], targets: ArrayLike, coefs: ArrayLike,
 
     First the rows whose offsets, weights (to ``rtol``) and coefficients agree (*stencil runs*: the
     weights of the group's first row); then, with ``row_weights``, among the other rows those whose
-    offsets and coefficients agree (*weighted runs*: each row keeps its own weights, stored per run so
-    that the kernels read them in order, with no column indices).
+    offsets agree (*weighted runs*: each row keeps its own weights and coefficients, stored per run so
+    that the kernels read them in order, with no column indices: PML corners, graded materials).
 
     Parameters
     ----------
@@ -242,7 +248,9 @@ def find_runs(mats: Sequence[sp.spmatrix], targets: ArrayLike, coefs: ArrayLike,
     in_run = np.zeros(n, dtype=bool)
     in_run[np.repeat(row1, len1) + _ramp(len1)] = True
     if row_weights:
-        row2, len2, rep2 = _group_runs(*args, nonempty & ~in_run, False, min_run)
+        # offsets only: each row keeps its weights and coefficients
+        row2, len2, rep2 = _group_runs(mats, firsts, scales, coef_bits[:, :0], targets, nonempty & ~in_run, False,
+                                       min_run)
         in_run[np.repeat(row2, len2) + _ramp(len2)] = True
     else:
         row2, len2, rep2 = (np.zeros(0, dtype=np.int64),) * 3
@@ -276,11 +284,14 @@ def find_runs(mats: Sequence[sp.spmatrix], targets: ArrayLike, coefs: ArrayLike,
         rw[dest] = D.data[src]
         rws.append(rw)
         run_w.append(np.concatenate([np.full(len(row1), -1, dtype=np.int64), base.astype(np.int64)]))
+    rows2 = np.repeat(row2, len2) + _ramp(len2)
+    run_c = np.concatenate([np.full(len(row1), -1, dtype=np.int64), (np.cumsum(len2) - len2).astype(np.int64)])
     order = np.argsort(run_row, kind="stable")
     run_col = np.column_stack([f[run_row] for f in firsts]).reshape(len(run_row), M)
     return StencilRuns(run_row=run_row[order], run_len=run_len[order], run_pat=run_pat[order],
                        run_col=np.ascontiguousarray(run_col[order], dtype=np.int64),
                        run_w=np.ascontiguousarray(np.column_stack(run_w).reshape(len(run_row), M)[order]),
+                       run_c=run_c[order], row_coef=np.ascontiguousarray(coefs[rows2]).reshape(len(rows2), coefs.shape[1]),
                        ptr=tuple(ptrs), offsets=tuple(offs), weights=tuple(ws), row_weights=tuple(rws),
                        coef=np.ascontiguousarray(coefs[reps]), rest=np.flatnonzero(~in_run).astype(np.int64),
                        n_rows=n)
@@ -312,14 +323,15 @@ def pack_e(runs: StencilRuns, Dx: sp.spmatrix, Dy: sp.spmatrix, free: np.ndarray
     Returns
     -------
     tuple
-        ``(held, runs, pat, off, w, rw, coef, rrow, rptr, ridx, rdat, rcoef)``.
+        ``(held, runs, pat, off, w, rw, coef, rc, rrow, rptr, ridx, rdat, rcoef)``.
     """
     free = np.asarray(free, dtype=np.int64)
     held = np.setdiff1d(np.arange(n_e, dtype=np.int64), free)
     wx, wy = runs.run_w[:, 0], runs.run_w[:, 1]
     table = np.column_stack([free[runs.run_row], runs.run_len, runs.run_pat, runs.run_col[:, 0] + shift_x,
                              runs.run_col[:, 1] + shift_y, wx,
-                             np.where(wy < 0, -1, wy + len(runs.row_weights[0]))]).reshape(-1, 7).astype(np.int64)
+                             np.where(wy < 0, -1, wy + len(runs.row_weights[0])), runs.run_c]).reshape(-1, 8)
+    table = table.astype(np.int64)
     rw = np.concatenate(runs.row_weights).astype(np.float64)
     nx = len(runs.offsets[0])
     px, py = runs.ptr
@@ -329,6 +341,7 @@ def pack_e(runs: StencilRuns, Dx: sp.spmatrix, Dy: sp.spmatrix, free: np.ndarray
     rest = runs.rest
     rptr, ridx, rdat = _interleave([runs.rest_csr(Dx), runs.rest_csr(Dy)], (shift_x, shift_y), len(rest))
     return (held, np.ascontiguousarray(table), np.ascontiguousarray(pat), off, w, rw, np.ascontiguousarray(runs.coef),
+            np.ascontiguousarray(runs.row_coef, dtype=np.float64).reshape(-1, 4),
             np.ascontiguousarray(free[rest]), rptr, ridx, rdat, np.ascontiguousarray(coefs[rest], dtype=np.float64))
 
 
@@ -339,13 +352,14 @@ def pack_h(runs: StencilRuns, D: sp.spmatrix, coefs: np.ndarray) -> tuple:
     Returns
     -------
     tuple
-        ``(runs, pat, off, w, rw, coef, rrow, rptr, ridx, rdat, rcoef)``.
+        ``(runs, pat, off, w, rw, coef, rc, rrow, rptr, ridx, rdat, rcoef)``.
     """
     table = np.column_stack([runs.run_row, runs.run_len, runs.run_pat, runs.run_col[:, 0],
-                             runs.run_w[:, 0]]).reshape(-1, 5)
+                             runs.run_w[:, 0], runs.run_c]).reshape(-1, 6)
     ptr = runs.ptr[0]
     pat = np.column_stack([ptr[:-1], ptr[1:]]).reshape(-1, 2).astype(np.int64)
     rptr, ridx, rdat = runs.rest_csr(D)
     return (np.ascontiguousarray(table, dtype=np.int64), np.ascontiguousarray(pat), runs.offsets[0],
-            runs.weights[0], runs.row_weights[0], np.ascontiguousarray(runs.coef), np.ascontiguousarray(runs.rest), rptr, ridx, rdat,
+            runs.weights[0], runs.row_weights[0], np.ascontiguousarray(runs.coef),
+            np.ascontiguousarray(runs.row_coef, dtype=np.float64).reshape(-1, 2), np.ascontiguousarray(runs.rest), rptr, ridx, rdat,
             np.ascontiguousarray(coefs[runs.rest], dtype=np.float64))
