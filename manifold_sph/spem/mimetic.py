@@ -153,6 +153,10 @@ def _monomials(z: np.ndarray, degree: int) -> np.ndarray:
     return np.stack(out, axis=1)
 
 
+#: Pairs per chunk of the gradient's coefficient gather (bounded scratch memory).
+_PAIR_CHUNK = 65536
+
+
 def _n_monomials(degree: int) -> int:
     return (degree + 1) * (degree + 2) // 2
 
@@ -208,7 +212,9 @@ def quadratic_gradient(rows: np.ndarray, cols: np.ndarray, h: float, *, kernel: 
             for c in range(a, m):
                 A[:, a, c] = A[:, c, a] = np.bincount(ii, weights=ww * P[:, a] * P[:, c], minlength=n)
         A[~todo] = np.eye(m)
-        cond = np.linalg.cond(A)
+        ev = np.abs(np.linalg.eigvalsh(A))  # A symmetric: its singular values (the 2-norm condition, not an SVD)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            cond = ev.max(axis=1) / ev.min(axis=1)
         bad = ~(cond < max_condition) | (count < m)
         if bad.any() and d == 3:
             deg[bad & todo] = 2  # refit these rows with quadratics
@@ -222,8 +228,13 @@ def quadratic_gradient(rows: np.ndarray, cols: np.ndarray, h: float, *, kernel: 
                 f"{cond[first]:.3g}; first: index {first} at {rows[first].tolist()}): their {col_name} neighbours "
                 f"are too few or collinear; increase h_ratio"
             )
-        Ainv = np.linalg.inv(A)
-        coef[sel] = np.einsum("pak,pk->pa", Ainv[ii][:, 1:3, :], P) * ww[:, None] / scale
+        B = np.ascontiguousarray(np.linalg.inv(A)[:, 1:3, :])  # the two gradient rows of each inverse
+        del A
+        out = np.empty((ii.size, 2))
+        for lo in range(0, ii.size, _PAIR_CHUNK):  # gathered per chunk: B[ii] whole is 16 m bytes a pair
+            hi = min(lo + _PAIR_CHUNK, ii.size)
+            out[lo:hi] = np.einsum("pak,pk->pa", B[ii[lo:hi]], P[lo:hi])
+        coef[sel] = out * ww[:, None] / scale
     shape = (n, len(cols))
     Gx = sp.csr_matrix((coef[:, 0], (i, j)), shape=shape)
     Gy = sp.csr_matrix((coef[:, 1], (i, j)), shape=shape)
