@@ -352,6 +352,9 @@ class OperatorSet:
 
     #: Nearest points whose principal plane gives the second tangent plane of a cell left open (:meth:`_refit_open`).
     _REFIT_K = 12
+    #: A refitted cell is kept only if neighbours holding this share of its flux weight have the
+    #: particle in their own cells too (a plane across two sheets of a thin part fails this).
+    _REFIT_SHARE = 0.8
 
     def _refit_open(self, rows: np.ndarray, tol: np.ndarray):
         """Cells of ``rows`` (cells left open by the hull) again, in the principal plane of each one's nearest points.
@@ -362,7 +365,8 @@ class OperatorSet:
         given one) gives a second cell, with the ``_WIDER_K`` nearest neighbours that pass the normal
         filter against it. Returns ``(keep, indptr, cols, cells)`` with ``keep`` (bool, per row) the
         rows whose new cell closed (neither open nor degenerate), or None for planar domains. On an
-        open surface's boundary no plane closes the cell, and those rows keep theirs.
+        open surface's boundary no plane closes the cell, and those rows keep theirs. The caller also
+        requires ``_REFIT_SHARE`` of the new cell's weight on neighbours that see the particle back.
         """
         pts, nrm = getattr(self, "points", None), getattr(self, "normals", None)
         tree = getattr(self, "_tree", None)
@@ -427,6 +431,13 @@ class OperatorSet:
             refit = self._refit_open(open_, tol[open_])
             if refit is not None and refit[0].any():
                 closed, indptr3, cols3, more = refit
+                # the new cell's neighbours must see the particle back in their own cells (weighted share)
+                W = sp.csr_matrix((weights, (rows, cols)), shape=(n, n))
+                owner = np.repeat(np.arange(open_.size), np.diff(indptr3))
+                back = np.asarray(W[cols3, open_[owner]]).ravel() > 0
+                wn = more.weights
+                share = np.bincount(owner, wn * back, open_.size) / np.maximum(np.bincount(owner, wn, open_.size), 1e-300)
+                closed = closed & (share >= self._REFIT_SHARE)
                 good = open_[closed]
                 mark = np.zeros(n, dtype=bool)
                 mark[good] = True
@@ -476,8 +487,9 @@ class OperatorSet:
 
         ``boundary``: cells clipped by the neighbourhood's hull (open boundary);
         ``widened``: cells recomputed with a wider neighbour search; ``refitted``: cells left
-        open by the hull that closed in the principal plane of the particle's nearest points
-        (a badly tilted normal on a closed surface); ``unclosed``:
+        open by the hull that closed in the principal plane of the particle's 12 nearest points,
+        with 80 % of their weight on neighbours whose cells hold the particle too (a badly tilted
+        normal on a closed surface); ``unclosed``:
         cells that even the wider search may not have closed (kept clipped to the
         hull); ``degenerate``: particles without a cell; ``near_duplicate``:
         particles with a neighbour closer than 1e-3 of their cell's size.
