@@ -111,6 +111,18 @@ def test_set_dt_rebuilds_the_runs_and_the_step_still_matches_csr():
         assert _rel(a, b) < TOL
 
 
+def test_threaded_stencil_step_gives_the_same_numbers(monkeypatch):
+    from manifold_sph.spem import solver
+
+    monkeypatch.setattr(solver, "THREADED_STEP", 100)  # thread this small lattice too
+    out = []
+    for workers in (1, 2):
+        s = _solver("yee", True, workers=workers)
+        out.append(_fields(s, 60))
+    for a, b in zip(*out):
+        np.testing.assert_array_equal(a, b)
+
+
 def test_h_is_updated_in_place_only_when_nobody_else_holds_it():
     lay = yee_layout((0, 0.03, 0, 0.03), DR)
     s = TMzSolver(lay)
