@@ -410,6 +410,30 @@ def test_visible_orientation_leaves_closed_surfaces_alone():
     np.testing.assert_allclose(n, c.normals, atol=1e-12)
 
 
+def test_sharper_refit_weights_where_the_residual_is_bias_not_noise(monkeypatch):
+    # step 5 refits with sharper Gaussian weights where the degree-3 fit explains much of the
+    # degree-2 residual (coarse, curved: bias) and keeps the base weights on noise. Measured mean
+    # errors, sharpened / base weights: Poisson torus 1000 points 0.31 / 0.38 deg, random torus
+    # 0.44 / 0.55, double torus 2000 points 0.89 / 1.16; random sphere of 2000 points with noise of
+    # 0.1 / 0.3 spacings (as drawn here) 2.32 / 2.28 and 12.09 / 11.80 deg (+1.7 % and +2.4 %)
+    from manifold_sph.scans import normals as mod
+
+    def mean_err(points, exact):  # direction only (signs are another test's business)
+        d = np.abs(dots(estimate_normals(points), exact))
+        return np.degrees(np.arccos(np.clip(d, 0, 1))).mean()
+
+    rng = np.random.default_rng(0)
+    sph = shapes.sphere(2000, sampling="random", seed=0)
+    h = np.sqrt(4 * np.pi / 2000)
+    cases = [(shapes.torus(1000).points, shapes.torus(1000).normals), (shapes.double_torus(2000).points, shapes.double_torus(2000).normals)]
+    noisy = [(sph.points + a * h * rng.standard_normal(sph.points.shape), sph.normals) for a in (0.1, 0.3)]
+    sharp = [mean_err(p, n) for p, n in cases + noisy]
+    monkeypatch.setattr(mod, "_SHARP_WEIGHT", mod._JET_WEIGHT)
+    base = [mean_err(p, n) for p, n in cases + noisy]
+    assert all(a <= 0.85 * b for a, b in zip(sharp[:2], base[:2])), (sharp, base)
+    assert all(a <= 1.06 * b for a, b in zip(sharp[2:], base[2:])), (sharp, base)
+
+
 def test_consensus_leaves_well_sampled_surfaces_alone(monkeypatch):
     # every normal agrees with the 8- and 20-point fits: nothing is undetermined, nothing changes
     c = shapes.torus(3000)
@@ -450,6 +474,8 @@ def _mesh_reference(name):
         # steps 2b and 4 as now); before: 2.7, 0.03, 0.01, 1.1 %, 6.2, 2.2, 3.2, 1.3 deg and 238,
         # 22, 18, 205 (before the consensus of step 7: 3.0, 0.02, 0, 1.1 %, 6.4, 2.2, 3.2, 1.3 deg
         # and 341, 34, 20, 206; MST+PCA: 13.9, 2.4, 0, 11.0 % and 9.7, 4.4, 6.4, 3.1 deg)
+        # with the sharper refit weights of step 5 (module notes): cow 1.76 %, 5.18 deg, 207; homer
+        # 0.02 %, 1.74, 21; rocker-arm 0, 2.77, 12; cheburashka 0.67 %, 1.03, 184
         ("cow.obj", 1.8, 5.7, 230),
         ("homer.obj", 0.1, 2.1, 25),
         ("rocker-arm.obj", 0.05, 3.1, 12),
@@ -459,7 +485,9 @@ def _mesh_reference(name):
         # 186, 0 (before step 7: 13.1, 3.1, 0 %, 2.7, 11.6, 0 deg and 845, 235, 0; MST+PCA: 10.8,
         # 3.0, 0 % and 6.3, 13.1, 0 deg)
         ("teapot.obj", 2.5, 2.3, 150),
-        ("beetle.obj", 3.0, 9.2, 165),
+        # with the sharper refit weights of step 5: teapot 1.95 deg, 133, 1.2 %; beetle 8.82 deg,
+        # 154, 3.05 % (35 of 1148 disagreeing, 33 before)
+        ("beetle.obj", 3.1, 9.2, 165),
         ("alligator.obj", 0.0, 0.01, 0),
     ],
 )

@@ -324,6 +324,11 @@ _ROW_TAN = 1.0  # steep: height above the plane over the distance along it (1: 4
 _ROW_LINE = 0.02  # particles whose 10 nearest have a middle PCA eigenvalue below this fraction of the largest
 _ROW_K_LINE = 96  # (on a line) are tested with this many
 _JET_WEIGHT = 4.0  # base jet fits weigh neighbour j by exp(-a (r_j / r_k)^2), r_k the farthest (measured)
+_SHARP_WEIGHT = 8.0  # step 5 refit: up to this exponent where the fit residual is structured (bias, not noise):
+_SHARP_RHO = (0.55, 0.7)  # where the degree-3 / degree-2 residual ratio (median over the neighbours) is below
+# the first (the full exponent) to above the second (the base one; pure noise reads about 0.8); measured
+_SHARP_LINE = 0.25  # ... unless the sharply weighted neighbours spread like a line (middle over largest
+# eigenvalue of their covariance below this: rows of a ring-sampled cloud; 0.12-0.15 there, models 0.3-0.8)
 _VIS_VIEWS = 48  # orient="visible": viewpoints (Fibonacci sphere, 3 bounding radii out)
 _VIS_GAMMA = 1.0  # hidden-point-removal flip radius 10**gamma times the farthest point (2: beetle worse, measured)
 _VIS_COS = 0.2  # a normal is flipped where it makes less than -this with the mean direction to its viewpoints
@@ -331,11 +336,46 @@ _VIS_MIN_VIEWS = 3  # ... seen from at least this many
 
 
 def _distance_weights(pts, neighbors, alpha=None):
-    """Gaussian weights ``exp(-alpha (r_j / r_max)^2)`` of the neighbours of every row (scale-free)."""
+    """Gaussian weights ``exp(-alpha (r_j / r_max)^2)`` of the neighbours of every row (scale-free).
+
+    ``alpha``: a number, or one per row (shape (N,))."""
     alpha = _JET_WEIGHT if alpha is None else alpha
     r2 = np.einsum("nki,nki->nk", pts[neighbors] - pts[neighbors[:, :1]], pts[neighbors] - pts[neighbors[:, :1]])
     rmax = r2.max(axis=1, keepdims=True)
-    return np.exp(-alpha * r2 / np.where(rmax > 0, rmax, 1.0))
+    return np.exp(-np.reshape(alpha, (-1, 1)) * r2 / np.where(rmax > 0, rmax, 1.0))
+
+
+def _sharpened_weights(pts, neighbors, frame, weights, residual2):
+    """Weights of the step-5 refit: sharper where the base fit's residual is bias, not noise.
+
+    ``residual2``: the relative residual of the degree-2 fit with ``weights`` in the frames of
+    ``frame``; the same neighbours are fitted at degree 3 in the same frames. Where the residual
+    ratio ``rho = res3 / res2`` (median over the row's neighbours) is small, the residual is
+    structure that a higher degree explains (a coarsely sampled, strongly curved part, where the
+    neighbourhood is too wide: bias), and the Gaussian exponent rises from ``_JET_WEIGHT``
+    (``rho`` above ``_SHARP_RHO[1]``) to ``_SHARP_WEIGHT`` (below ``_SHARP_RHO[0]``), linearly
+    between. Noise leaves ``rho`` near 0.8 (measured: 0.80-0.82 median, 0.68-0.76 at the 10th
+    percentile, on spheres with noise of 0.01-0.3 spacings), so noisy clouds keep the wide
+    weights. Where the sharply weighted neighbours spread like a line (``_SHARP_LINE``: the
+    rows of a ring- or scan-line-sampled cloud) the base weights stay. Scale-free, so the
+    order on smooth surfaces is kept (module notes, step 5).
+    """
+    res3 = np.zeros(pts.shape[0])
+    _jet_fit(pts, neighbors, frame, 3, weights=weights, residual=res3)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rho = np.where(residual2 > 0, res3 / residual2, 1.0)
+    rho = np.median(rho[neighbors], axis=1)
+    lo, hi = _SHARP_RHO
+    alpha = _JET_WEIGHT + (_SHARP_WEIGHT - _JET_WEIGHT) * np.clip((hi - rho) / (hi - lo), 0.0, 1.0)
+    sharp = _distance_weights(pts, neighbors, alpha)
+    # rows (scan lines, meridian circles): the sharper weights fall on the particle's own row,
+    # whose plane the fit would return; keep the base weights where their spread is line-like
+    L = pts[neighbors] - pts[:, None, :]
+    L -= np.einsum("nk,nki->ni", sharp, L)[:, None, :] / sharp.sum(axis=1)[:, None, None]
+    ev = np.linalg.eigvalsh(np.einsum("nk,nki,nkj->nij", sharp, L, L))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        line = ~(ev[:, 1] >= _SHARP_LINE * ev[:, 2])
+    return np.where(line[:, None], weights, sharp)
 
 
 def _knn(points: np.ndarray, k: int, tree: cKDTree | None = None):
@@ -1314,6 +1354,9 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: str | A
         base_res = np.zeros(N)
         base_w = _distance_weights(pts, idx[:, :kb]) if _JET_WEIGHT and weighted else None
         nrm = _jet_fit(pts, idx[:, :kb], v[:, :, 0], base_deg, weights=base_w, residual=base_res)
+        refit_w = base_w  # step 5: sharper where the residual is bias, not noise (_sharpened_weights)
+        if refine and base_w is not None and _SHARP_WEIGHT != _JET_WEIGHT and base_deg == 2 and kb >= _n_coefficients(3) + 2:
+            refit_w = _sharpened_weights(pts, idx[:, :kb], v[:, :, 0], base_w, base_res)
         across = np.zeros(N, dtype=bool)
         if refine and _ROW_STEEP and idx.shape[1] >= _ROW_K:
             nrm, across = _rows_step(pts, idx, nrm, w)
@@ -1323,7 +1366,7 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: str | A
     nrm, _, oconf = _orient(pts, nrm, idx, dist, orient, noise)
     if method == "jet":
         if refine:  # the normals of step 2b are kept (their neighbours lie on their own row)
-            nrm = np.where(across[:, None], nrm, _refit(pts, idx[:, :kb], nrm, base_deg, residual=base_res, weights=base_w))
+            nrm = np.where(across[:, None], nrm, _refit(pts, idx[:, :kb], nrm, base_deg, residual=base_res, weights=refit_w))
         one_sided = None
         if degree > 2:
             hi, one_sided = _high_order(pts, idx[:, :k], nrm, base_res, degree, refine)
