@@ -777,16 +777,21 @@ class TMzSolver(_Leapfrog):
         n_hx = len(self.layout.hx)
         coef_e = np.column_stack([self._cax, self._cbx, self._cay, self._cby])
         e = find_runs([self.Dx_e, self.Dy_e], self.free, coef_e)
-        A, B = sp.csr_matrix(self.Dy_hx), sp.csr_matrix(self.Dx_hy)
-        S = sp.csr_matrix((np.concatenate([A.data, B.data]), np.concatenate([A.indices, B.indices]),
-                           np.concatenate([A.indptr, B.indptr[1:] + A.nnz])), shape=(A.shape[0] + B.shape[0], self.n_e))
+        S = self._stacked_h_operator()
         coef_h = np.column_stack([np.concatenate([self.da_x, self.da_y]), np.concatenate([-self.db_x, self.db_y])])
         h = find_runs([S], np.arange(S.shape[0]), coef_h)
-        plan = SimpleNamespace(e=e, h=h, S=S, n_hx=n_hx, e_args=pack_e(e, self.Dx_e, self.Dy_e, self.free, coef_e,
+        plan = SimpleNamespace(e=e, h=h, n_hx=n_hx, e_args=pack_e(e, self.Dx_e, self.Dy_e, self.free, coef_e,
                                                                        self.n_e, n_hx),
                                h_args=pack_h(h, S, coef_h), ez=np.empty(self.n_e), buf=None, refs=None, snapped=None)
         self._plan = (key, plan)
         return plan
+
+    def _stacked_h_operator(self):
+        """``[Dy_hx; Dx_hy]`` (CSR, each row's entries in their stored order): the H rows of the stencil step."""
+        A, B = sp.csr_matrix(self.Dy_hx), sp.csr_matrix(self.Dx_hy)
+        return sp.csr_matrix((np.concatenate([A.data, B.data]), np.concatenate([A.indices, B.indices]),
+                              np.concatenate([A.indptr, B.indptr[1:] + A.nnz])),
+                             shape=(A.shape[0] + B.shape[0], self.n_e))
 
     def _step_operators(self):
         """``(Dx_e, Dy_e, Dy_hx, Dx_hy)`` as the step applies them: with :attr:`stencil`, each run row carries
@@ -795,7 +800,7 @@ class TMzSolver(_Leapfrog):
             return self.Dx_e, self.Dy_e, self.Dy_hx, self.Dx_hy
         plan = self._step_plan()
         if plan.snapped is None:
-            S = plan.h.snapped(0, plan.S)
+            S = plan.h.snapped(0, self._stacked_h_operator())
             plan.snapped = (plan.e.snapped(0, self.Dx_e), plan.e.snapped(1, self.Dy_e), S[:plan.n_hx], S[plan.n_hx:])
         return plan.snapped
 

@@ -297,6 +297,11 @@ def find_runs(mats: Sequence[sp.spmatrix], targets: ArrayLike, coefs: ArrayLike,
                        n_rows=n)
 
 
+def _small(idx):
+    """Column indices as int32 when they fit (half the memory and traffic of the CSR rows)."""
+    return idx.astype(np.int32) if idx.size == 0 or idx.max() < 2**31 - 1 else idx
+
+
 def _interleave(parts, shifts, n):
     """CSR rows ``r`` of several operators (``parts``: (indptr, indices, data) of the same ``n`` rows) one
     after the other: row ``r``'s entries of part ``m`` are ``ptr[M r + m]:ptr[M r + m + 1]``, columns + ``shifts[m]``."""
@@ -340,6 +345,7 @@ def pack_e(runs: StencilRuns, Dx: sp.spmatrix, Dy: sp.spmatrix, free: np.ndarray
     w = np.concatenate([runs.weights[0], runs.weights[1]]).astype(np.float64)
     rest = runs.rest
     rptr, ridx, rdat = _interleave([runs.rest_csr(Dx), runs.rest_csr(Dy)], (shift_x, shift_y), len(rest))
+    ridx = _small(ridx)
     return (held, np.ascontiguousarray(table), np.ascontiguousarray(pat), off, w, rw, np.ascontiguousarray(runs.coef),
             np.ascontiguousarray(runs.row_coef, dtype=np.float64).reshape(-1, 4),
             np.ascontiguousarray(free[rest]), rptr, ridx, rdat, np.ascontiguousarray(coefs[rest], dtype=np.float64))
@@ -359,6 +365,7 @@ def pack_h(runs: StencilRuns, D: sp.spmatrix, coefs: np.ndarray) -> tuple:
     ptr = runs.ptr[0]
     pat = np.column_stack([ptr[:-1], ptr[1:]]).reshape(-1, 2).astype(np.int64)
     rptr, ridx, rdat = runs.rest_csr(D)
+    ridx = _small(ridx)
     return (np.ascontiguousarray(table, dtype=np.int64), np.ascontiguousarray(pat), runs.offsets[0],
             runs.weights[0], runs.row_weights[0], np.ascontiguousarray(runs.coef),
             np.ascontiguousarray(runs.row_coef, dtype=np.float64).reshape(-1, 2), np.ascontiguousarray(runs.rest), rptr, ridx, rdat,
