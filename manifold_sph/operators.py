@@ -363,14 +363,28 @@ class OperatorSet:
         side were lifted out of reach: its normal is badly tilted (the rims of thin ears, thin tubes).
         The normal of the least-squares plane of the ``_REFIT_K`` nearest points (oriented like the
         given one) gives a second cell, with the ``_WIDER_K`` nearest neighbours that pass the normal
-        filter against it. Returns ``(keep, indptr, cols, cells)`` with ``keep`` (bool, per row) the
-        rows whose new cell closed (neither open nor degenerate), or None for planar domains. On an
-        open surface's boundary no plane closes the cell, and those rows keep theirs. The caller also
-        requires ``_REFIT_SHARE`` of the new cell's weight on neighbours that see the particle back.
+        filter against it. On an open surface's boundary no plane closes the cell, and those rows
+        keep theirs. The caller also requires ``_REFIT_SHARE`` of the new cell's weight on
+        neighbours that see the particle back.
+
+        Parameters
+        ----------
+        rows : ndarray of int, shape (R,)
+            Particles whose cells are open.
+        tol : ndarray, shape (R,)
+            Their tolerated heights (:func:`manifold_sph.voronoi.roughness`).
+
+        Returns
+        -------
+        tuple or None
+            ``(closed, indptr, cols, cells)``: ``closed`` (bool, shape (R,)) marks the rows whose new
+            cell closed (neither open nor degenerate); ``indptr`` (R + 1,) and ``cols`` the new pairs
+            in CSR layout; ``cells`` their :class:`~manifold_sph.voronoi.VoronoiCells`. None for
+            planar domains and clouds of fewer than 4 points.
         """
         pts, nrm = getattr(self, "points", None), getattr(self, "normals", None)
         tree = getattr(self, "_tree", None)
-        if tree is None or pts is None or nrm is None or np.shape(pts)[1] != 3:
+        if tree is None or pts is None or nrm is None or np.shape(pts)[1] != 3 or pts.shape[0] < 4:
             return None
         n = pts.shape[0]
         k = min(self._REFIT_K, n)
