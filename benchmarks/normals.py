@@ -56,8 +56,14 @@ suzanne 19.4 / 173 / 30 -> 19.9 / 177 / 32, beetle-alt 0.33 / 167 / 144 -> 0.30 
 0, beast 2.78 / 1867 / 2868 -> 2.49 / 1893 / 2871 (91.1 % agree either way). Orders: default
 2.92 / 3.04 / 2.05 (spheres unchanged, torus error 0.134 / 0.032 / 0.0078 deg, was 0.19 / 0.047 /
 0.012), degree 3 2.95 / 3.05 / 3.06, degree 4 6.1 / 6.3 / 4.4; synthetic clouds below unchanged
-(slabs 537 / 473, 160 / 86, 7 / 8 inward). Time: bunny 5.5 -> 7.2 s, Igea 17-26 -> 25-27 s
-(loaded machine, interleaved runs).
+(slabs 537 / 473, 160 / 86, 7 / 8 inward); uniformly random clouds: sphere +3 to +7 % mean error
+(1.47e-4 -> 1.52e-4 deg at 16,000 points; quadrics are fitted exactly at degree 2, sharper weights
+only lose points), order 3.03 -> 3.06, torus -25 % (1.43e-2 -> 1.03e-2 deg at 32,000), order 2.06 ->
+2.10, none inward. degree=4 (median / >30deg / inward or disagreeing): cow 5.58 / 235 / 1.58 % ->
+5.45 / 221 / 1.83 %, homer 1.93 / 29 -> 1.83 / 24, rocker-arm 2.91 / 25 -> 2.82 / 24, cheburashka
+1.05 / 185 -> 1.04 / 185, teapot 2.24 / 242 / 98.80 % -> 2.24 / 241 / 98.67 %, beetle 9.27 / 173 /
+97.04 % -> 9.46 / 177 / 97.13 %. Time: bunny 5.5 -> 7.2 s, Igea 17-26 -> 25-27 s (loaded machine,
+interleaved runs).
 
 Then the normal error (mean angle) against resolution on the Fibonacci sphere, a
 Poisson-disk sphere and a Poisson-disk torus, with the fitted order, for the default
