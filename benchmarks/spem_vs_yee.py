@@ -447,7 +447,7 @@ def cost_main(sizes=(1e4, 9e4, 1e6), repeat=7, pml_cells=10):
     (``TMzSolver(stencil=False)``) and its stencil runs (``stencil=True``, :mod:`manifold_sph.spem.stencil`) on
     the same solver and Yee layout (default ``sbp`` coupling). ``rows in runs``: the share of E and H rows the
     stencil kernels apply; ``rel diff``: max |Ez_stencil - Ez_csr| / max |Ez_csr| after 200 steps from the
-    same start."""
+    same start. Last, SPEM's two steps on the circular cavity (disk layout, 20 and 40 spacings per radius)."""
     from manifold_sph.spem import PML, Sinusoid, Source, TMzSolver, yee_layout
 
     print("ns per unknown and step (median of %d runs; unknowns = Ez + Hx + Hy on the lattice)" % repeat)
@@ -515,6 +515,28 @@ def cost_main(sizes=(1e4, 9e4, 1e6), repeat=7, pml_cells=10):
                   f"{t_st:>8.2f} {t_st / t_yee:>7.2f} {t_csr / t_yee:>8.2f} {100 * covered / rows:>7.1f} "
                   f"{diff:>9.1e} {setup:>8.1f}", flush=True)
             del s
+    # the circular cavity of the accuracy table (disk layout, eps_r 10, the whole operator corrected): its
+    # corrected rows all differ, so only weighted runs apply
+    from manifold_sph.spem import disk_layout
+
+    for n_radial in (20, 40):
+        r0 = 0.1
+        lay = disk_layout((r0, r0), r0, r0 / n_radial)
+        s = TMzSolver(lay, eps_r=10.0, sbp_layers=None)
+        pl = s._step_plan()
+        r = np.hypot(lay.e[:, 0] - r0, lay.e[:, 1] - r0)
+        s.set_initial(np.clip(1 - r**2 / r0**2, 0, None))
+
+        def spem_run(k, mode, s=s):
+            s.stencil = mode
+            s.run(k)
+
+        steps = max(10, int(3e7 / lay.n_particles))
+        t_csr, t_st = _interleaved_ns([lambda k: spem_run(k, False), lambda k: spem_run(k, True)], steps,
+                                      [lay.n_particles] * 2, repeat)
+        covered = 100 * (pl.e.covered + pl.h.covered) / (pl.e.n_rows + pl.h.n_rows)
+        print(f"{'disk n_r=' + str(n_radial):<10s} {'-':>6s} {lay.n_particles:>9d} {steps:>6d} {'-':>7s} {t_csr:>7.2f} "
+              f"{t_st:>8.2f} {'-':>7s} {'-':>8s} {covered:>7.1f} {'-':>9s} {'-':>8s}", flush=True)
 
 
 if __name__ == "__main__":
