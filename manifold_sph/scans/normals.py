@@ -136,7 +136,9 @@ Pipeline of :func:`estimate_normals` (default ``method="jet"``, ``degree=2``; st
    +5 % mean error (4000 points: 2.35 -> 2.47, 6.85 -> 7.12 deg), none more inward; the
    synthetic thin and ring-sampled clouds unchanged. Cost: one degree-3 fit more (bunny 5.5 ->
    7.2 s, Igea about 1.3x, loaded machine). A fixed exponent 8 everywhere: noisy spheres 2.3 ->
-   4.6 deg and cheburashka 45 -> 63 inward (through the base fit). Tried and not kept: choosing
+   4.6 deg and cheburashka 45 -> 63 inward (through the base fit). Up to 12 instead of 8: the
+   limit surfaces better (cow 4.57, cheburashka 0.80, bunny 0.98 deg), the models' vertices
+   mixed (cow 5.24, beetle 9.17, cheburashka 0.97) and noisy spheres 3 % worse. Tried and not kept: choosing
    between the exponent-4 and -8 normals by their difference against residual-based error bars
    (noisy spheres still +40 %), sector-balanced neighbours (nearest two in each of 6 tangent
    sectors) as the base fit (cow 6.15 -> 7.84 deg) or as extra step-7 candidates (within a few
