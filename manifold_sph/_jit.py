@@ -21,6 +21,13 @@ bound by memory traffic. Each function here does one step for the rows
   :func:`bicgstab_half`, :func:`bicgstab_step`: the passes of
   :func:`manifold_sph._sparse.bicgstab_csr` (the area elements' solve and the implicit
   steps), each a CSR product or vector update fused with the inner products after it.
+- :func:`ssor_count`, :func:`ssor_fill`, :func:`ssor_forward`, :func:`ssor_backward`,
+  :func:`ssor_upper_times`, :func:`ssor_residual`: the block-SSOR preconditioned area solve
+  (:func:`manifold_sph.area.bicgstab_ssor`);
+- :func:`tmz_e_update`, :func:`tmz_h_update`: the CSR leap-frog half steps of
+  :class:`manifold_sph.spem.TMzSolver`; :func:`tmz_e_half`, :func:`tmz_h_half`: the same on the
+  stencil runs of :mod:`manifold_sph.spem.stencil` (rows repeating one stencil, or sharing
+  their offsets) and a CSR remainder, one call per half step.
 
 Every function releases the GIL and writes only its rows' slices, so
 :func:`manifold_sph.threads.run_chunks` runs chunks on threads. Each has a numpy
@@ -71,7 +78,9 @@ __all__ = [
     "ssor_fill",
     "ssor_upper_times",
     "ssor_residual",
+    "tmz_e_half",
     "tmz_e_update",
+    "tmz_h_half",
     "tmz_h_update",
     "voronoi_rows",
     "winding_rows",
