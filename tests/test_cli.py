@@ -359,3 +359,12 @@ def test_png_into_missing_folder_fails_before_the_run(tmp_path, capsys, monkeypa
     (tmp_path / "d.png").mkdir()
     assert main(["convergence", "--sizes", "1002,2012", "--plot", str(tmp_path / "d.png"), "--overwrite"]) == 2
     assert "is a folder" in capsys.readouterr().err
+
+
+def test_spem_cavity_with_the_fast_mimetic_coupling(capsys):
+    """measured: 3.7e-3 at 10 spacings per radius (sbp 1.2e-2)"""
+    from manifold_sph.cli import main as cli_main
+
+    assert cli_main(["spem", "cavity", "--n-radial", "10", "--coupling", "mimetic", "--mimetic-fast", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["case"] == "cavity" and 0 < out["error"] < 5e-3

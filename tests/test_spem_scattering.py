@@ -244,8 +244,10 @@ def test_cli_mimetic_fast_only_where_it_applies(capsys):
 
     assert main(["scatter-dielectric", "--mimetic-fast"]) == 2  # the default coupling is sbp
     assert "only with --coupling mimetic" in capsys.readouterr().err
-    assert main(["cavity", "--mimetic-fast"]) == 2
-    assert "applies only to the cases scatter-pec" in capsys.readouterr().err
+    assert main(["cavity", "--mimetic-fast"]) == 2  # sbp
+    assert "only with --coupling mimetic" in capsys.readouterr().err
+    assert main(["waveguide", "--coupling", "mimetic", "--mimetic-fast"]) == 2
+    assert "applies only to the cases cavity, scatter-pec" in capsys.readouterr().err
     assert main(["tez-cavity", "--mimetic-fast"]) == 2
     assert "does not apply to case 'tez-cavity'" in capsys.readouterr().err
 

@@ -155,12 +155,15 @@ def run(args: argparse.Namespace) -> int:
 
     if args.case in SCATTERING_CASES or any(getattr(args, n, None) is not None for n in _SCATTERING_OPTIONS):
         return _run_scattering(args)
-    if getattr(args, "mimetic_fast", False):
-        print("manifold-sph spem: error: --mimetic-fast applies only to the cases scatter-pec, scatter-dielectric, "
-              "scatter-coated", file=sys.stderr)
-        return 2
     try:
         kw = _kwargs(args)
+        if getattr(args, "mimetic_fast", False):
+            if args.case != "cavity":
+                raise ValueError("--mimetic-fast applies only to the cases cavity, scatter-pec, scatter-dielectric, "
+                                 "scatter-coated")
+            if args.coupling != "mimetic":
+                raise ValueError("--mimetic-fast applies only with --coupling mimetic")
+            kw["mimetic_fast"] = True
         _check_target(args.png, args.overwrite)
         _check_target(args.gif, args.overwrite)
         result = run_case(args.case, **kw)
@@ -197,7 +200,7 @@ def _add_scattering_arguments(p: argparse.ArgumentParser) -> None:
                    help="scatter-*: periods of the drive (default 20; the last 2 are Fourier-analysed); "
                         "tez-cavity: periods before the error is taken (default 1)")
     g.add_argument("--mimetic-fast", action="store_true",
-                   help="scatter-*, with --coupling mimetic: the faster correction (G exact for quadratics)")
+                   help="cavity and scatter-*, with --coupling mimetic: the faster correction (G exact for quadratics)")
 
 
 def _run_scattering(args: argparse.Namespace) -> int:
