@@ -301,14 +301,15 @@ def scattering_layout(kind: str, radius: float, dr: float, half_width: float, *,
 class _Switched:
     """``w(tau) cos(w t - k x)`` with ``tau = t - (x - x0)/c`` and ``w`` a sin^2 ramp over ``ramp`` periods."""
 
-    def __init__(self, x, freq, x0, ramp):
+    def __init__(self, x, freq, x0, ramp, k=None):
         self.x, self.freq, self.x0, self.ramp = np.asarray(x, dtype=np.float64), freq, x0, ramp
+        self.k = 2 * np.pi * freq / C0 if k is None else k  # the spatial wavenumber (the drive's own by default)
 
     def __call__(self, t):
         tau = t - (self.x - self.x0) / C0
         tr = self.ramp / self.freq
         w = np.where(tau <= 0, 0.0, np.where(tau < tr, np.sin(0.5 * np.pi * np.clip(tau, 0, None) / tr) ** 2, 1.0))
-        return w * np.cos(2 * np.pi * self.freq * (t - self.x / C0))
+        return w * np.cos(2 * np.pi * self.freq * t - self.k * self.x)
 
 
 class _PECDrive:
@@ -410,7 +411,7 @@ def run_scattering(kind: str = "dielectric", *, n_radial: int = 8, radius: float
                    coupling: str = DEFAULT_COUPLING, h_ratio: float | None = None,
                    kernel: str | Kernel | type[Kernel] = "cubic", form: str = "fpm", courant: float = 0.9,
                    sbp_layers: int | None | str = "auto", n_sub: int = 8,
-                   mimetic_fast: bool = False) -> ScatteringResult:
+                   mimetic_fast: bool = False, time_correction: bool = False) -> ScatteringResult:
     """Plane-wave scattering by a circular cylinder with SPEM, compared with the exact series.
 
     The scattered-field formulation of the module docstring on Yee-style
@@ -451,6 +452,18 @@ def run_scattering(kind: str = "dielectric", *, n_radial: int = 8, radius: float
         (same error, 5x faster set-up).
     mimetic_fast : bool
         As :class:`.TMzSolver` (``coupling="mimetic"`` only).
+    time_correction : bool
+        Remove the leap-frog's time-dispersion error at the drive frequency
+        (default False). A steady leap-frog solution at ``w'`` with step ``dt``
+        is the semi-discrete (exact-in-time) solution at ``(2/dt) sin(w' dt/2)``;
+        with True, ``dt = 2 sin(pi/N) / w`` and the incident wave is driven (and
+        the DFT taken) at ``w' = 2 pi / (N dt)`` in time, ``N`` the steps per
+        period, while its spatial wavenumber stays ``w / c0``: the measured
+        phasor is then the semi-discrete one at ``w``, whatever the Courant
+        number. It costs nothing; the dielectric cylinder (mimetic, fast band,
+        ``h_ratio=1.2``, 20 periods) at 8 spacings per radius: 1.04e-2 ->
+        7.1e-3, the same 7.1e-3 at half the Courant number. The same correction
+        applies to any leap-frog (Yee included): it is a single-frequency device.
 
     Returns
     -------
@@ -470,6 +483,8 @@ def run_scattering(kind: str = "dielectric", *, n_radial: int = 8, radius: float
     ka = check_positive("ka", ka)
     check_in("layout", layout, ("yee", "jittered"))
     check_in("coupling", coupling, COUPLINGS)
+    if not isinstance(time_correction, (bool, np.bool_)):
+        raise TypeError(f"time_correction must be a bool, got {type(time_correction).__name__}")
     if isinstance(sbp_layers, str):
         check_in("sbp_layers", sbp_layers, ("auto",))
         sbp_layers = 2 if kind == "dielectric" else None
@@ -506,21 +521,34 @@ def run_scattering(kind: str = "dielectric", *, n_radial: int = 8, radius: float
             frac = np.where(frac + vac > 0, frac / np.maximum(frac + vac, 1e-300), 0.0)
         eps = 1.0 + (eps_r - 1.0) * frac
     x0 = -radius
-    sources = []
+    k0 = 2 * math.pi * freq / C0
+    sources, incs = [], []
     wall = np.flatnonzero(lay.e_fixed & (r_e < radius + 1e-9 * radius))
     if len(wall):
-        sources.append(Source(wall, _PECDrive(_Switched(e[wall, 0], freq, x0, ramp)), "hard"))
+        incs.append(_Switched(e[wall, 0], freq, x0, ramp, k0))
+        sources.append(Source(wall, _PECDrive(incs[-1]), "hard"))
     diel = np.flatnonzero((eps > 1.0) & ~lay.e_fixed)
     drive = None
     if len(diel):
-        drive = _VolumeDrive(_Switched(e[diel, 0], freq, x0, ramp), (eps[diel] - 1.0) / eps[diel])
+        incs.append(_Switched(e[diel, 0], freq, x0, ramp, k0))
+        drive = _VolumeDrive(incs[-1], (eps[diel] - 1.0) / eps[diel])
         sources.append(Source(diel, drive, "soft"))
     pml = PML(outer - inner, pml_order, pml_reflection, interior=(-inner, inner, -inner, inner))
     s = TMzSolver(lay, h_ratio=h_ratio, kernel=kernel, form=form, eps_r=eps, pml=pml, courant=courant,
                   sources=sources, coupling=coupling, sbp_layers=sbp_layers, mimetic_fast=mimetic_fast)
     T = 1.0 / freq
     per = int(math.ceil(T / s.dt - 1e-9))
-    s.set_dt(T / per)
+    w = 2 * math.pi * freq
+    if time_correction:
+        # leap-frog at the drive frequency w' and step dt answers like the semi-discrete system at
+        # (2/dt) sin(w' dt/2): choose w' dt = 2 pi / per and dt so that this is w
+        dt = 2.0 * math.sin(math.pi / per) / w
+        w = 2 * math.pi / (per * dt)
+        for inc in incs:
+            inc.freq = w / (2 * math.pi)
+        s.set_dt(dt)
+    else:
+        s.set_dt(T / per)
     if drive is not None:
         drive.dt = s.dt
     steps = int(round(periods * per))
@@ -530,7 +558,6 @@ def run_scattering(kind: str = "dielectric", *, n_radial: int = 8, radius: float
     ev = np.flatnonzero(free & (np.abs(e[:, 0]) <= inner) & (np.abs(e[:, 1]) <= inner))
     setup = time.perf_counter() - t_start
     acc = np.zeros(len(ev), dtype=complex)
-    w = 2 * math.pi * freq
     for n in range(steps):
         s.step()
         if n >= steps - n_dft:
