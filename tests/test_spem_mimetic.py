@@ -198,3 +198,58 @@ def test_lattice_cavity_with_the_band_correction():
     e20 = run_cavity(n_radial=20, coupling="mimetic", mimetic_fast=True).error
     assert e10 < 5e-3 and e20 < 5e-4
     assert np.log2(e10 / e20) > 2.5
+
+
+def test_localised_modes_reports_the_spurious_modes_of_the_poisson_square():
+    """The diagnostic: on the jittered square the lowest modes are the physical ones (none localised); on the
+    Poisson square (seed=2, 24 spacings) a mode on a handful of particles falls below the fundamental
+    (measured 1.96 (pi c)^2, participation 6.4, against 2.00 and about 450 for the fundamental)."""
+    from manifold_sph.spem.mimetic import localised_modes
+
+    exact = np.array([2.0, 5.0, 5.0, 8.0, 10.0, 10.0])
+    lay = make_layout("jittered", (0.0, 1.0, 0.0, 1.0), 1.0 / 16, seed=1)
+    free = ~lay.e_fixed
+    ops = mimetic_operators(lay.e, free, [(lay.hy, 0), (lay.hx, 1)], h=1.5 / 16, scale=1.0 / 16)
+    m = localised_modes(ops, free, k=6)
+    assert not m.localised.any() and m.lowest_localised == np.inf
+    np.testing.assert_allclose(m.eigenvalues / np.pi**2, exact, rtol=0.05)
+    assert m.participation.min() > 100
+    # the same eigenvalues as the solver's lossless operator (eps = mu = 1 scaled out)
+    s = TMzSolver(lay, coupling="mimetic")
+    ref = np.linalg.eigvalsh(-s._lossless_operator()[1].toarray())[:6] / 2.99792458e8**2
+    np.testing.assert_allclose(m.eigenvalues, ref, rtol=1e-8)
+
+    lay = make_layout("poisson", (0.0, 1.0, 0.0, 1.0), 1.0 / 24, seed=2)
+    free = ~lay.e_fixed
+    ops = mimetic_operators(lay.e, free, [(lay.hy, 0), (lay.hx, 1)], h=1.5 / 24, scale=1.0 / 24)
+    m = localised_modes(ops, free, k=3)
+    assert m.localised[0] and m.participation[0] < 10
+    fundamental = m.eigenvalues[~m.localised][0] / np.pi**2
+    assert abs(fundamental / 2.0 - 1.0) < 0.01 and m.participation[~m.localised][0] > 100
+    assert m.lowest_localised / np.pi**2 < fundamental  # the defect: a spurious mode below the fundamental
+    assert free[m.particles].all() and np.abs(m.vectors[:, 0]).max() > 0.4
+
+
+def test_localised_modes_sparse_path_and_refusals(monkeypatch):
+    from manifold_sph.spem.mimetic import localised_modes
+
+    lay = make_layout("poisson", (0.0, 1.0, 0.0, 1.0), 0.1, seed=1)
+    free = ~lay.e_fixed
+    ops = mimetic_operators(lay.e, free, [(lay.hy, 0), (lay.hx, 1)], h=0.15, scale=0.1, fast=True)
+    dense = localised_modes(ops, free, k=5)
+    monkeypatch.setattr(mimetic, "DENSE_MODES", 0)
+    lanczos = localised_modes(ops, free, k=5)
+    np.testing.assert_allclose(lanczos.eigenvalues, dense.eigenvalues, rtol=1e-8)
+    np.testing.assert_allclose(lanczos.participation, dense.participation, rtol=1e-5)
+    with pytest.raises(ValueError, match="k must"):
+        localised_modes(ops, free, k=0)
+    with pytest.raises(ValueError, match="k must"):
+        localised_modes(ops, free, k=int(free.sum()))
+    with pytest.raises(ValueError, match="free"):
+        localised_modes(ops, free[:-1], k=3)
+    with pytest.raises(ValueError, match="free"):
+        localised_modes(ops, free & (np.arange(len(free)) > 3), k=3)
+    with pytest.raises(ValueError, match="threshold"):
+        localised_modes(ops, free, k=3, threshold=-1.0)
+    with pytest.raises(TypeError, match="ops"):
+        localised_modes(ops.pairs, free, k=3)

@@ -68,7 +68,8 @@ from scipy.sparse.linalg import splu
 from ..kernels import Kernel, get_kernel
 from .operators import cross_pairs
 
-__all__ = ["MimeticOperators", "mimetic_operators", "quadratic_gradient", "kernel_volumes"]
+__all__ = ["MimeticOperators", "mimetic_operators", "quadratic_gradient", "kernel_volumes", "LocalisedModes",
+           "localised_modes"]
 
 #: Polynomial degree for which the gradient G is exact: 3 (cubic) by default. Measured on the TM22 mode of a
 #: Poisson square at 28 spacings (seed=1): the Rayleigh quotient is -2.2 % off with quadratic fits (h = 1.2 dr;
@@ -92,6 +93,8 @@ CORRECTION_RADIUS = np.inf
 CORRECTION_DEGREE = 3
 #: The faster variant (``fast=True``): ``(CORRECTION_DEGREE, CORRECTION_RADIUS) = (2, 2.0)``.
 FAST = (2, 2.0)
+#: The fit weights' ``r / dr`` is taken no smaller than this (a particle on top of another would take the whole fit).
+WEIGHT_CORE = 0.25
 #: Floor of the kernel weights of the gradient correction (relative to the centre value).
 WEIGHT_FLOOR = 1e-2
 #: The correction touches only the unknowns within this many rings of the conditions the kernel estimates
@@ -102,6 +105,12 @@ BAND_TOL = 1e-9
 #: The band's correction is kept when it meets every condition to this (and keeps the volumes positive); the
 #: whole operator is corrected otherwise (its own residual, with the solve's regularisation: 1e-10 to 4e-9).
 BAND_ACCEPT = 1e-7
+#: :func:`localised_modes`: an eigenvector whose participation number ``1 / sum v^4`` (unit 2-norm) is below
+#: this counts as localised (measured on Poisson squares: 1.8-8 for the spurious modes, about 450 for the
+#: physical ones at 24 spacings).
+LOCALISED_PARTICIPATION = 20.0
+#: :func:`localised_modes`: dense eigensolver up to this many free E particles, shift-invert Lanczos above.
+DENSE_MODES = 3000
 
 
 def _band(A: sp.csr_matrix, on: np.ndarray, bad: np.ndarray, layers: int) -> tuple[np.ndarray, np.ndarray]:
@@ -187,7 +196,7 @@ def quadratic_gradient(rows: np.ndarray, cols: np.ndarray, h: float, *, kernel: 
     i, j = _pairs(rows, cols, k.support * h)
     z = (cols[j] - rows[i]) / scale
     R = np.linalg.norm(z, axis=1) * (scale / h)
-    w = k.w(R) / np.maximum(np.linalg.norm(z, axis=1), 0.25) ** WEIGHT_POWER
+    w = k.w(R) / np.maximum(np.linalg.norm(z, axis=1), WEIGHT_CORE) ** WEIGHT_POWER
     n = len(rows)
     count = np.bincount(i, minlength=n)
     few = count < 6
@@ -401,3 +410,95 @@ def mimetic_operators(e: np.ndarray, free: np.ndarray, h_sets: list[tuple[np.nda
     vol_e = np.zeros(n_e)
     vol_e[fidx] = ve * scale**2
     return MimeticOperators(pairs, vol_e, [vh[s] * scale**2 for s in set_of], worst, corr, volume_change)
+
+
+@dataclass
+class LocalisedModes:
+    """What :func:`localised_modes` returns (the ``k`` lowest modes, ascending).
+
+    ``eigenvalues`` (k,): eigenvalues of ``-E''/E`` (units 1 / length^2 with ``eps = mu = 1``: ``k^2`` of the
+    mode; over ``pi^2`` for the unit square's 2, 5, 5, 8, ...); ``participation`` (k,): ``1 / sum v^4`` of
+    each unit eigenvector of the symmetric form (about 1 for a mode on one particle, of the order of the
+    particle count for a physical one); ``localised`` (k,) bool: ``participation < threshold``;
+    ``vectors`` (n_free, k): the eigenvectors of the symmetric form ``V_E^(1/2) L V_E^(-1/2)`` (rows: the
+    free E particles in index order); ``particles`` (k,): the free E particle (index into ``e``) carrying
+    the largest amplitude of each mode.
+    """
+
+    eigenvalues: np.ndarray
+    participation: np.ndarray
+    localised: np.ndarray
+    vectors: np.ndarray
+    particles: np.ndarray
+
+    @property
+    def lowest_localised(self) -> float:
+        """The lowest localised eigenvalue among the ``k`` (inf when none is)."""
+        return float(self.eigenvalues[self.localised].min(initial=np.inf))
+
+
+def localised_modes(ops: MimeticOperators, free: np.ndarray, k: int = 16, *,
+                    threshold: float = LOCALISED_PARTICIPATION) -> LocalisedModes:
+    """The ``k`` lowest modes of the E -> E operator of :func:`mimetic_operators` and how localised they are.
+
+    The lossless operator (``eps = mu = 1``) is ``L = sum_a D_a G_a`` on the free E particles; its
+    symmetric form ``S = V_E^(1/2) (-L) V_E^(-1/2)`` is positive semi-definite. On irregular layouts some
+    eigenvectors may concentrate on one to a few particles (participation number ``1 / sum v^4`` far below
+    that of the physical modes); when their eigenvalues fall among the physical ones they are spurious
+    modes: they conserve energy and smooth data hardly excite them, but a broadband source does.
+
+    Parameters
+    ----------
+    ops : MimeticOperators
+        The operators (both axes, e.g. ``[(hy, 0), (hx, 1)]``).
+    free : (n_E,) bool array
+        The free E particles passed to :func:`mimetic_operators`.
+    k : int
+        How many of the lowest modes (dense eigensolver up to :data:`DENSE_MODES` free particles,
+        shift-invert Lanczos above).
+    threshold : float
+        Participation number below which a mode counts as localised (:data:`LOCALISED_PARTICIPATION`).
+
+    Returns
+    -------
+    LocalisedModes
+
+    Examples
+    --------
+    >>> from manifold_sph.spem import make_layout
+    >>> lay = make_layout("jittered", (0.0, 1.0, 0.0, 1.0), 0.1, seed=1)
+    >>> ops = mimetic_operators(lay.e, ~lay.e_fixed, [(lay.hy, 0), (lay.hx, 1)], h=0.15, scale=0.1)
+    >>> m = localised_modes(ops, ~lay.e_fixed, k=4)
+    >>> np.round(m.eigenvalues / np.pi**2, 1).tolist(), bool(m.localised.any())
+    ([1.9, 4.9, 4.9, 7.5], False)
+    """
+    from scipy.sparse.linalg import eigsh
+
+    if not isinstance(ops, MimeticOperators):
+        raise TypeError(f"ops must be MimeticOperators, got {type(ops).__name__}")
+    free = np.asarray(free)
+    if free.dtype != bool or free.shape != ops.vol_e.shape:
+        raise ValueError(f"free must be a bool array of shape {ops.vol_e.shape}, got {free.dtype} {free.shape}")
+    fidx = np.flatnonzero(free)
+    n_f = len(fidx)
+    if isinstance(k, (bool, np.bool_)) or not isinstance(k, (int, np.integer)) or not 1 <= k < n_f:
+        raise ValueError(f"k must be an int in [1, {n_f - 1}] (free E particles - 1), got {k!r}")
+    if not (np.isfinite(threshold) and threshold > 0):
+        raise ValueError(f"threshold must be positive and finite, got {threshold!r}")
+    for G, D in ops.pairs:
+        if D.shape != (n_f, G.shape[0]):
+            raise ValueError(f"free selects {n_f} E particles but the operators' D has {D.shape[0]} rows")
+    v = ops.vol_e[fidx]
+    A = sum(-(D @ G[:, fidx]) for G, D in ops.pairs)
+    S = sp.diags(v**0.5) @ A @ sp.diags(v**-0.5)
+    S = (0.5 * (S + S.T)).tocsc()
+    if n_f <= DENSE_MODES:
+        ev, V = np.linalg.eigh(S.toarray())
+        ev, V = ev[:k], V[:, :k]
+    else:  # shift-invert about a small negative shift (S is semi-definite)
+        shift = -1e-3 * float(abs(S).sum(axis=1).max()) / n_f
+        ev, V = eigsh(S, k=int(k), sigma=shift, which="LM")
+        order = np.argsort(ev)
+        ev, V = ev[order], V[:, order]
+    part = 1.0 / np.sum(V**4, axis=0)
+    return LocalisedModes(ev, part, part < threshold, V, fidx[np.argmax(np.abs(V), axis=0)])
