@@ -4,6 +4,8 @@ Run: .venv/bin/python benchmarks/spem_vs_yee.py [--full]
      .venv/bin/python benchmarks/spem_vs_yee.py --scattering [--full]   (plane wave on PEC, dielectric and
      coated cylinders, :mod:`manifold_sph.spem.scattering`, against the same scattered-field formulation,
      PML and DFT on the Yee grid; staircased, and for the dielectric also cell-averaged like SPEM's particles)
+     .venv/bin/python benchmarks/spem_vs_yee.py --dielectric   (the dielectric cylinder table of issue 21
+     item 3 in one run: Yee staircased / cell-averaged against SPEM with and without ``time_correction``)
      .venv/bin/python benchmarks/spem_vs_yee.py --cost [--sizes 1e4 9e4 1e6] [--repeat 7]   (ns per unknown
      and step on lattices, in one run: the numpy Yee, SPEM's CSR step (``stencil=False``) and its stencil
      runs (the default), on a PEC square cavity and on a plane wave with PML; see :func:`cost_main`)
@@ -143,6 +145,9 @@ def main():
     ap.add_argument("--full", action="store_true", help="add SPEM at 80 spacings per radius (set-up ~40 s); "
                     "with --scattering, jittered particles at 16 spacings per radius too")
     ap.add_argument("--scattering", action="store_true", help="the cylinder scattering cases instead of the cavity")
+    ap.add_argument("--dielectric", action="store_true", help="the dielectric cylinder table (issue 21 item 3): "
+                    "Yee staircased / cell-averaged against SPEM mimetic (fast band, h/dr 1.2) and sbp, with and "
+                    "without time_correction; one run, ~6 min")
     ap.add_argument("--cost", action="store_true", help="the cost per unknown and step table (lattices)")
     ap.add_argument("--sizes", type=float, nargs="+", default=[1e4, 9e4, 1e6], help="--cost: unknowns (about)")
     ap.add_argument("--repeat", type=int, default=7, help="--cost: timed repeats (the median is printed)")
@@ -152,6 +157,9 @@ def main():
         return
     if a.scattering:
         scattering_main(a.full)
+        return
+    if a.dielectric:
+        dielectric_main()
         return
     e1, e2 = yee_square_check()
     print(f"Yee check, square PEC cavity TM11 at 40 cells: frequency error {e1:.2e} against the exact mode, "
@@ -274,17 +282,58 @@ def scattering_main(full=False, kinds=("pec", "dielectric", "coated"), layouts=(
                 _compare(rows, avg, "Yee-avg")
 
 
+def dielectric_main(periods=20.0):
+    """The dielectric cylinder (eps_r 4, ka = 2, 20 periods) in one run: the issue's Yee baselines (staircased,
+    cell-averaged), Yee with the time correction (for reference), SPEM mimetic (fast band, h/dr 1.2) with and
+    without ``time_correction``, and sbp with it; then each SPEM row against the staircased Yee at equal
+    unknowns and at equal error (CPU)."""
+    head = (f"{'method':<40s} {'n_r':>4s} {'unknowns':>8s} {'error':>10s} {'ring':>10s} {'setup s':>8s} "
+            f"{'run s':>8s} {'steps':>6s}")
+    print("dielectric cylinder eps_r 4, ka = 2, 20 periods: relative L2 error of the scattered phasor")
+    print(head)
+
+    def line(r):
+        print(f"{r['method']:<40s} {r['n_radial']:>4d} {r['unknowns']:>8d} {r['error']:>10.3e} {r['ring_error']:>10.3e} "
+              f"{r['setup']:>8.2f} {r['run']:>8.2f} {r['steps']:>6d}", flush=True)
+
+    yee = [run_yee_scattering("dielectric", n, periods=periods) for n in (4, 8, 16, 32, 64)]
+    for r in yee:
+        line(r)
+    avg = [run_yee_scattering("dielectric", n, periods=periods, eps_mode="average") for n in (4, 8, 16, 32)]
+    for r in avg:
+        line(r)
+    for n in (4, 8, 16, 32):
+        line(run_yee_scattering("dielectric", n, periods=periods, eps_mode="average", time_correction=True))
+    spem = {"mimetic-fast h/dr 1.2": dict(coupling="mimetic", mimetic_fast=True, h_ratio=1.2),
+            "mimetic-fast h/dr 1.2 time-corr.": dict(coupling="mimetic", mimetic_fast=True, h_ratio=1.2,
+                                                      time_correction=True),
+            "sbp time-corr.": dict(coupling="sbp", time_correction=True)}
+    rows = {}
+    for name, kw in spem.items():
+        rows[name] = [run_spem_scattering("dielectric", n, periods=periods, **kw) for n in (4, 8, 16)]
+        for r in rows[name]:
+            r["method"] = f"SPEM {name}"
+            line(r)
+    for name, rr in rows.items():
+        print(f"SPEM {name} against the staircased Yee:")
+        _compare(rr, yee, "Yee")
+        print(f"SPEM {name} against the cell-averaged Yee:")
+        _compare(rr, avg, "Yee-avg")
+
+
 # ----------------------------------------------------------------------------- scattering (issue 21 item 3)
 def run_yee_scattering(kind, n_radial, *, radius=0.1, ka=2.0, eps_r=4.0, core_radius=None, margin=0.5,
                        pml_thickness=0.5, periods=12.0, ramp=3.0, dft_periods=2.0, courant=0.99 / math.sqrt(2),
-                       eps_mode="staircase"):
+                       eps_mode="staircase", time_correction=False):
     """The scattering cases of :func:`manifold_sph.spem.scattering.run_scattering` on a numpy Yee grid.
 
     Same scattered-field formulation, incident switch-on, split-field PML (the same
     :class:`~manifold_sph.spem.pml.PML` profile, same thickness in metres), periods and DFT. Cells of
     side d = radius / n_radial with an Ez node at the centre; the conductor is staircased (Ez_s = -Ez_inc
     on every node with r <= b), the dielectric too (``eps_mode="staircase"``: eps_r on the nodes with
-    r < a) or cell-averaged like SPEM's particles (``"average"``).
+    r < a) or cell-averaged like SPEM's particles (``"average"``). ``time_correction``: as in
+    :func:`~manifold_sph.spem.scattering.run_scattering` (the leap-frog's time dispersion removed at the
+    drive frequency; not the issue's baseline, which is without it).
     """
     from manifold_sph.spem.pml import PML
     from manifold_sph.spem.scattering import _Switched, cell_fraction, l2_error, scattered_field
@@ -323,6 +372,11 @@ def run_yee_scattering(kind, n_radial, *, radius=0.1, ka=2.0, eps_r=4.0, core_ra
     T = 1.0 / freq
     per = int(math.ceil(T / dt_max - 1e-9))
     dt = T / per
+    w = 2 * math.pi * freq
+    f_drive = freq
+    if time_correction:
+        dt = 2.0 * math.sin(math.pi / per) / w
+        f_drive = 1.0 / (per * dt)
 
     def coef(s, m):
         a = s * dt / (2 * m)
@@ -335,9 +389,10 @@ def run_yee_scattering(kind, n_radial, *, radius=0.1, ka=2.0, eps_r=4.0, core_ra
     cax, cbx, cay, cby = (v[1:-1, 1:-1] for v in (cax, cbx, cay, cby))
     x0 = -radius
     pec_i = np.nonzero(pec)
-    drive_pec = _Switched(X[pec_i], freq, x0, ramp)
+    k0 = w / C0
+    drive_pec = _Switched(X[pec_i], f_drive, x0, ramp, k0)
     diel = np.nonzero((eps > 1.0) & ~pec)
-    drive_d = _Switched(X[diel], freq, x0, ramp)
+    drive_d = _Switched(X[diel], f_drive, x0, ramp, k0)
     fac = (eps[diel] - 1.0) / eps[diel]
     ezx = np.zeros(X.shape)
     ezy = np.zeros(X.shape)
@@ -348,7 +403,7 @@ def run_yee_scattering(kind, n_radial, *, radius=0.1, ka=2.0, eps_r=4.0, core_ra
     ev = (np.abs(X) <= inner + 1e-9 * d) & (np.abs(Y) <= inner + 1e-9 * d) & ~pec
     ev[0, :] = ev[-1, :] = ev[:, 0] = ev[:, -1] = False
     acc = np.zeros(int(ev.sum()), dtype=complex)
-    w = 2 * math.pi * freq
+    w = 2 * math.pi * f_drive
     unknowns = int((~pec[1:-1, 1:-1]).sum() + hx.size + hy.size)
     setup = time.perf_counter() - t_start
     t1 = time.perf_counter()
@@ -373,7 +428,9 @@ def run_yee_scattering(kind, n_radial, *, radius=0.1, ka=2.0, eps_r=4.0, core_ra
     exact = scattered_field(p, kind, freq=freq, radius=radius, eps_r=eps_r, core_radius=core_radius)
     rr = np.hypot(p[:, 0], p[:, 1])
     ring = (rr > radius) & (rr <= 2 * radius)
-    return {"method": f"Yee FDTD ({eps_mode})" if kind != "pec" else "Yee FDTD (staircased)", "case": kind,
+    method = (f"Yee FDTD ({eps_mode})" if kind != "pec" else "Yee FDTD (staircased)") + (
+        " time-corr." if time_correction else "")
+    return {"method": method, "case": kind,
             "n_radial": n_radial, "unknowns": unknowns, "error": l2_error(phasor, exact),
             "ring_error": l2_error(phasor[ring], exact[ring]), "setup": setup, "run": run, "steps": steps,
             "ns_per_unknown_step": 1e9 * run / (steps * unknowns)}
