@@ -285,16 +285,16 @@ def scattering_main(full=False, kinds=("pec", "dielectric", "coated"), layouts=(
 def dielectric_main(periods=20.0):
     """The dielectric cylinder (eps_r 4, ka = 2, 20 periods) in one run: the issue's Yee baselines (staircased,
     cell-averaged), Yee with the time correction (for reference), SPEM mimetic (fast band, h/dr 1.2) with and
-    without ``time_correction`` (with it at 32 spacings per radius too), and sbp with it; then each SPEM row against the staircased Yee at equal
-    unknowns and at equal error (CPU)."""
+    without ``time_correction`` (with it at 32 spacings per radius too), and sbp with it; then each SPEM row
+    against the staircased Yee at equal unknowns and at equal error (CPU)."""
     head = (f"{'method':<40s} {'n_r':>4s} {'unknowns':>8s} {'error':>10s} {'ring':>10s} {'setup s':>8s} "
             f"{'run s':>8s} {'steps':>6s}")
     print("dielectric cylinder eps_r 4, ka = 2, 20 periods: relative L2 error of the scattered phasor")
     print(head)
 
     def line(r):
-        print(f"{r['method']:<40s} {r['n_radial']:>4d} {r['unknowns']:>8d} {r['error']:>10.3e} {r['ring_error']:>10.3e} "
-              f"{r['setup']:>8.2f} {r['run']:>8.2f} {r['steps']:>6d}", flush=True)
+        print(f"{r['method']:<40s} {r['n_radial']:>4d} {r['unknowns']:>8d} {r['error']:>10.3e} "
+              f"{r['ring_error']:>10.3e} {r['setup']:>8.2f} {r['run']:>8.2f} {r['steps']:>6d}", flush=True)
 
     yee = [run_yee_scattering("dielectric", n, periods=periods) for n in (4, 8, 16, 32, 64)]
     for r in yee:
