@@ -368,3 +368,15 @@ def test_spem_cavity_with_the_fast_mimetic_coupling(capsys):
     assert cli_main(["spem", "cavity", "--n-radial", "10", "--coupling", "mimetic", "--mimetic-fast", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["case"] == "cavity" and 0 < out["error"] < 5e-3
+
+
+def test_spem_time_correction_only_for_the_scatter_cases(capsys):
+    from manifold_sph.cli import main as cli_main
+
+    assert cli_main(["spem", "cavity", "--time-correction"]) == 2
+    assert "--time-correction applies only to the cases scatter" in capsys.readouterr().err
+    assert cli_main(["spem", "tez-cavity", "--time-correction"]) == 2
+    assert "does not apply to case 'tez-cavity'" in capsys.readouterr().err
+    assert cli_main(["spem", "scatter-dielectric", "--n-radial", "4", "--periods", "6", "--coupling", "mimetic",
+                     "--mimetic-fast", "--time-correction", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["case"] == "dielectric"

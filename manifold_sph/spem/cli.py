@@ -157,6 +157,9 @@ def run(args: argparse.Namespace) -> int:
         return _run_scattering(args)
     try:
         kw = _kwargs(args)
+        if getattr(args, "time_correction", False):
+            raise ValueError("--time-correction applies only to the cases scatter-pec, scatter-dielectric, "
+                             "scatter-coated")
         if getattr(args, "mimetic_fast", False):
             if args.case != "cavity":
                 raise ValueError("--mimetic-fast applies only to the cases cavity, scatter-pec, scatter-dielectric, "
@@ -199,6 +202,9 @@ def _add_scattering_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--periods", type=_positive(float), default=None,
                    help="scatter-*: periods of the drive (default 20; the last 2 are Fourier-analysed); "
                         "tez-cavity: periods before the error is taken (default 1)")
+    g.add_argument("--time-correction", action="store_true",
+                   help="scatter-*: remove the leap-frog's time dispersion at the drive frequency (pays with "
+                        "--coupling mimetic)")
     g.add_argument("--mimetic-fast", action="store_true",
                    help="cavity and scatter-*, with --coupling mimetic: the faster correction (G exact for quadratics)")
 
@@ -223,8 +229,9 @@ def _run_scattering(args: argparse.Namespace) -> int:
             for name in ("ka", "core_radius"):
                 if getattr(args, name) is not None:
                     raise ValueError(f"--{name.replace('_', '-')} does not apply to case 'tez-cavity'")
-            if args.mimetic_fast:
-                raise ValueError("--mimetic-fast does not apply to case 'tez-cavity'")
+            for flag in ("mimetic_fast", "time_correction"):
+                if getattr(args, flag):
+                    raise ValueError(f"--{flag.replace('_', '-')} does not apply to case 'tez-cavity'")
             for name, key in (("n_radial", "n"), ("eps_r", "eps_r"), ("h_ratio", "h_ratio"), ("periods", "periods")):
                 if getattr(args, name) is not None:
                     kw[key] = getattr(args, name)
@@ -244,6 +251,8 @@ def _run_scattering(args: argparse.Namespace) -> int:
                 if kw["coupling"] != "mimetic":
                     raise ValueError("--mimetic-fast applies only with --coupling mimetic")
                 kw["mimetic_fast"] = True
+            if args.time_correction:
+                kw["time_correction"] = True
             result = run_scattering(kind, **kw)
     except (ValueError, TypeError) as exc:
         print(f"manifold-sph spem: error: {exc}", file=sys.stderr)
