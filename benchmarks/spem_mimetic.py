@@ -8,6 +8,12 @@ Prints JSON lines:
 - cavity: the circular PEC cavity (TM010 start 1 - r^2/r0^2, one period) on jittered, Poisson and joint
   Poisson disks (seed 0) at 10 / 20 / 40 spacings per radius, error against the Bessel series, fitted order,
   set-up and run seconds;
+- modes (``--only modes``): the spurious localised modes of the mimetic E -> E operator
+  (:func:`manifold_sph.spem.mimetic.localised_modes`; participation number below 20) on unit PEC squares
+  (seeds 0-5, 16 / 24 / 32 spacings) and the unit disk (10 / 20 spacings per radius): the lowest localised
+  eigenvalue among the 40 lowest, how many fall below 3x the sixth exact one, the largest error of the six
+  lowest physical ones, layout and set-up seconds; ``poisson-balanced`` is
+  :func:`manifold_sph.spem.layouts.balanced_poisson_layout` / ``balanced_disk_layout``;
 - energy: the leap-frog modified energy over 10^4 steps on a Poisson square (relative drift);
 - planewave (``--only planewave``): the plane wave with PML (0.2 m square, 20 and 40 particles per
   wavelength, jittered and Poisson) with set-up and run seconds.
@@ -39,7 +45,9 @@ from manifold_sph.spem import EPS0, MU0, TMzSolver, make_layout
 from manifold_sph.spem._casekit import _fitted, relative_error
 from manifold_sph.spem.cases import cavity_exact, cavity_frequency
 from manifold_sph.spem.cases2d import run_planewave
-from manifold_sph.spem.layouts import disk_layout, joint_poisson_layout
+from manifold_sph.spem.layouts import balanced_disk_layout, balanced_poisson_layout, disk_layout, joint_poisson_layout
+from manifold_sph.spem.mimetic import localised_modes
+from manifold_sph.spem.solver import MIMETIC_H_RATIO
 
 _DEFAULT = (mimetic.CORRECTION_DEGREE, mimetic.CORRECTION_RADIUS)
 
@@ -50,10 +58,60 @@ def _coupling(name):
     return "mimetic" if name.startswith("mimetic") else name
 
 
+def square_layout(layout, cells, seed, a=1.0):
+    """The square's layout by name (``poisson-balanced``: :func:`balanced_poisson_layout`)."""
+    dr = a / cells
+    if layout == "poisson-joint":
+        return joint_poisson_layout((0.0, a, 0.0, a), dr, seed=seed)
+    if layout == "poisson-balanced":
+        return balanced_poisson_layout((0.0, a, 0.0, a), dr, seed=seed)
+    return make_layout(layout, (0.0, a, 0.0, a), dr, seed=seed)
+
+
+def disk(layout, c, r0, dr, seed):
+    """The disk's layout by name (``poisson-balanced``: :func:`balanced_disk_layout`)."""
+    if layout == "poisson-balanced":
+        return balanced_disk_layout(c, r0, dr, seed=seed)
+    return disk_layout(c, r0, dr, kind=layout, seed=seed)
+
+
+def modes(layout, cells, seed, k=40, fast=False, disk_case=False):
+    """Lowest ``k`` modes of the mimetic E -> E operator (:func:`localised_modes`): the lowest localised
+    one (participation < 20) over (pi c)^2 on the unit square (exact 2, 5, 5, 8, 10, 10, ...) or over the
+    fundamental on the unit disk (``cells`` spacings per radius), and the largest relative error of the six
+    lowest non-localised ones."""
+    from scipy.special import jn_zeros
+
+    t0 = time.perf_counter()
+    if disk_case:
+        lay = disk(layout, (0.0, 0.0), 1.0, 1.0 / cells, seed)
+        ref = np.sort(np.r_[jn_zeros(0, 3), np.repeat(jn_zeros(1, 2), 2), np.repeat(jn_zeros(2, 2), 2),
+                            np.repeat(jn_zeros(3, 1), 2)]) ** 2
+        norm = ref[0]
+        exact = ref[:6] / norm
+    else:
+        lay = square_layout(layout, cells, seed)
+        norm = math.pi**2
+        exact = np.array([2.0, 5.0, 5.0, 8.0, 10.0, 10.0])
+    t_layout = time.perf_counter() - t0
+    free = ~lay.e_fixed
+    t0 = time.perf_counter()
+    ops = mimetic.mimetic_operators(lay.e, free, [(lay.hy, 0), (lay.hx, 1)], MIMETIC_H_RATIO * lay.dr, scale=lay.dr,
+                                    fast=fast)
+    setup = time.perf_counter() - t0
+    m = localised_modes(ops, free, k=k)
+    ev = m.eigenvalues / norm
+    phys = ev[~m.localised][:6]
+    return {"layout": layout, "cells": cells, "seed": seed, "h_over_e": round(len(lay.hx) / len(lay.e), 3),
+            "lowest_localised": round(float(ev[m.localised].min()), 2) if m.localised.any() else None,
+            "localised_below_3x": int((ev[m.localised] < 3 * exact[-1]).sum()), "checked_up_to": round(float(ev[-1]), 1),
+            "max_rel_err_6": round(float(np.abs(phys / exact[: len(phys)] - 1).max()), 4),
+            "layout_s": round(t_layout, 2), "setup_s": round(setup, 2)}
+
+
 def phase(layout, coupling, cells, m=2, steps=400, seed=1):
     a, dr = 1.0, 1.0 / cells
-    lay = (joint_poisson_layout((0.0, a, 0.0, a), dr, seed=seed) if layout == "poisson-joint"
-           else make_layout(layout, (0.0, a, 0.0, a), dr, seed=seed))
+    lay = square_layout(layout, cells, seed, a)
     t0 = time.perf_counter()
     s = TMzSolver(lay, coupling=_coupling(coupling), courant=0.9)
     setup = time.perf_counter() - t0
@@ -78,7 +136,7 @@ def phase(layout, coupling, cells, m=2, steps=400, seed=1):
 def cavity(layout, coupling, n_radial, r0=0.1, eps_r=10.0, seed=0):
     """:func:`manifold_sph.spem.cases.run_cavity` (one period, courant 0.9) on any ``disk_layout`` kind."""
     dr, c = r0 / n_radial, (r0, r0)
-    lay = disk_layout(c, r0, dr, kind=layout, seed=seed)
+    lay = disk(layout, c, r0, dr, seed)
     t0 = time.perf_counter()
     s = TMzSolver(lay, coupling=_coupling(coupling), eps_r=eps_r, courant=0.9, sbp_layers=None)
     setup = time.perf_counter() - t0
@@ -125,11 +183,12 @@ def energy_drift(coupling, steps=10000, cells=15, seed=1):
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
-    ap.add_argument("--only", choices=("phase", "cavity", "energy", "planewave", "scattering", "cavity-vs-yee"),
+    ap.add_argument("--only", choices=("phase", "cavity", "energy", "planewave", "scattering", "cavity-vs-yee", "modes"),
                     default=None)
     ap.add_argument("--couplings", default="sbp,mimetic,mimetic-fast")
     ap.add_argument("--cases", default="dielectric,coated", help="--only scattering: the cylinders")
-    ap.add_argument("--layouts", default="jittered,poisson,poisson-joint")
+    ap.add_argument("--layouts", default="jittered,poisson,poisson-joint,poisson-balanced")
+    ap.add_argument("--seeds", default="0,1,2,3,4,5", help="--only modes: the squares' seeds")
     args = ap.parse_args()
     couplings = args.couplings.split(",")
     layouts = args.layouts.split(",")
@@ -177,6 +236,15 @@ def main():
                 errs = [r["error_centre"] for r in rows if "error" in r]
                 print(json.dumps({"run": "planewave with PML, 0.2 m", "layout": layout, "coupling": coupling,
                                   "rows": rows, "order_centre": order(errs, [20.0, 40.0][: len(errs)])}), flush=True)
+
+    if args.only == "modes":
+        for layout in layouts:
+            for seed in (int(x) for x in args.seeds.split(",")):
+                for n in (16, 24) if args.quick else (16, 24, 32):
+                    print(json.dumps({"run": "modes, unit PEC square", **modes(layout, n, seed)}), flush=True)
+            for n in (10, 20):
+                print(json.dumps({"run": "modes, unit PEC disk (seed=0), spacings per radius",
+                                  **modes(layout, n, 0, disk_case=True)}), flush=True)
 
     if args.only == "scattering":
         scattering(args.quick, tuple(args.cases.split(",")))
