@@ -40,6 +40,20 @@ conditions have a near-null space of smooth multiplier fields that grows with th
 docs/method.md section 7). ``fast=True`` corrects only pairs closer than 2 spacings and keeps only
 quadratic exactness of ``G`` (0.7x the conditions, up to 3x faster).
 
+Spurious modes. On independently sampled (Poisson) E and H sets the E -> E operator can have eigenvectors
+localised on a few particles with eigenvalues among the physical ones (:func:`localised_modes` reports them:
+participation number ``1 / sum v^4``). They sit where the free E particles locally outnumber the H
+particles (two gradient rows per shared H particle): on the Poisson square at 24 spacings (seed=2) the mode
+below the fundamental has 8 E against 3 H particles within 1.5 dr (7 and 7 on average); there ``G`` has a
+near-null vector, mostly made by the correction (the kernel-estimate ``G0`` answers that vector about 2.6x
+more strongly: Rayleigh quotient 12.95 against 1.96 (pi c)^2).
+No setting of the fit or correction weights removed them (measured: ``WEIGHT_POWER`` 0-8, the weight core,
+blends of fits, correction-only weight powers 0-8, ``VOLUME_WEIGHT`` 0.01-1, ``WEIGHT_FLOOR`` 1e-4-0.1, the
+E rows' own fit as the prior, quadratic-exact columns; steeper correction weights or freer volumes push the
+modes up only by giving up accuracy: fundamental error 0.1 % -> 0.3-1.8 % at 24 spacings). The layout
+removes them: :func:`manifold_sph.spem.layouts.balanced_poisson_layout` (and ``balanced_disk_layout``) add
+H particles where the E particles are locally in excess (:func:`manifold_sph.spem.layouts.balance_h`).
+
 Measured (``benchmarks/spem_mimetic.py``) in docs/method.md section 7.
 
 Examples
