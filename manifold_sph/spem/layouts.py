@@ -456,8 +456,8 @@ BALANCE_RELAX = 10
 
 
 def balance_h(e: ArrayLike, h: ArrayLike, dr: float, move: Callable[[np.ndarray], np.ndarray],
-              cover: ArrayLike, *, radius: float = BALANCE_RADIUS, excess: int = BALANCE_EXCESS,
-              rounds: int = BALANCE_ROUNDS) -> np.ndarray:
+              cover: ArrayLike, *, radius: float | None = None, excess: int | None = None,
+              rounds: int | None = None) -> np.ndarray:
     """Add H particles where the free E particles outnumber the H particles, then relax (:func:`relax_h`).
 
     Around every point of ``cover`` (the free E particles) the free E particles and the H particles within
@@ -487,12 +487,12 @@ def balance_h(e: ArrayLike, h: ArrayLike, dr: float, move: Callable[[np.ndarray]
         Puts moved H particles back into the domain (as in :func:`relax_h`).
     cover : (n, 2) array
         The free E particles (counted, and pulling H particles as in :func:`relax_h`).
-    radius : float
-        Counting radius, times ``dr``.
-    excess : int
-        Largest allowed excess of E over H particles in a counting disk.
-    rounds : int
-        Most insertion rounds.
+    radius : float, optional
+        Counting radius, times ``dr`` (default :data:`BALANCE_RADIUS`).
+    excess : int, optional
+        Largest allowed excess of E over H particles in a counting disk (default :data:`BALANCE_EXCESS`).
+    rounds : int, optional
+        Most insertion rounds (default :data:`BALANCE_ROUNDS`).
 
     Returns
     -------
@@ -502,7 +502,9 @@ def balance_h(e: ArrayLike, h: ArrayLike, dr: float, move: Callable[[np.ndarray]
     from scipy.spatial import cKDTree
 
     dr = check_positive("dr", dr)
-    radius = check_positive("radius", radius)
+    radius = check_positive("radius", BALANCE_RADIUS if radius is None else radius)
+    excess = BALANCE_EXCESS if excess is None else excess
+    rounds = BALANCE_ROUNDS if rounds is None else rounds
     for name, val in (("excess", excess), ("rounds", rounds)):
         if isinstance(val, (bool, np.bool_)) or not isinstance(val, (int, np.integer)) or val < 0:
             raise ValueError(f"{name} must be a non-negative int, got {val!r}")
