@@ -75,6 +75,12 @@ def main():
     table("Circular TEz cavity, adjoint (no wall correction; energy-conserving, inconsistent)",
           [(n, tez.run_tez_circular_cavity(n_radial=n, coupling="adjoint")) for n in (10, 20, 40)], disk_kdr)
     table("PEC rectangle 0.1 x 0.06 m, sbp (h/dr 0.7)", [(n, tez.run_tez_cavity(n=n)) for n in (6, 12, 24)], rect_kdr)
+    table("PEC rectangle, walls as closure columns with fitted volumes (wall_closure=True, h/dr 0.8)",
+          [(n, tez.run_tez_cavity(n=n, wall_closure=True)) for n in (6, 12, 24)], rect_kdr)
+    table("PEC rectangle jittered 0.2 dr (seed=0), unit-volume sbp (h/dr 0.8)",
+          [(n, tez.run_tez_cavity(n=n, layout="jittered", h_ratio=0.8)) for n in (6, 12, 24)], rect_kdr)
+    table("PEC rectangle jittered 0.2 dr (seed=0), wall_closure=True (h/dr 0.8)",
+          [(n, tez.run_tez_cavity(n=n, layout="jittered", wall_closure=True)) for n in (6, 12, 24)], rect_kdr)
     if args.sweep:
         sweep()
 
