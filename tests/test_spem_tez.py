@@ -117,7 +117,8 @@ def test_jittered_disk_energy_is_conserved():
 
 
 def test_adjoint_coupling_is_inconsistent_on_the_disk():
-    """Without the wall correction the pair conserves energy but is inconsistent (measured: frequency 2.5 % off, error 0.30)."""
+    """Without the wall correction the pair conserves energy but is inconsistent (measured: frequency 2.5 %
+    off, error 0.30)."""
     r = tez.run_tez_circular_cavity(n_radial=10, coupling="adjoint", spectrum_periods=3.0)
     assert r.frequency_error > 0.01
 
