@@ -380,3 +380,20 @@ def test_spem_time_correction_only_for_the_scatter_cases(capsys):
     assert cli_main(["spem", "scatter-dielectric", "--n-radial", "4", "--periods", "6", "--coupling", "mimetic",
                      "--mimetic-fast", "--time-correction", "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["case"] == "dielectric"
+
+
+def test_spem_tez_disk_and_wall_closure(capsys):
+    """The circular TEz cavity (curved walls; measured 2.9e-3 TE11 frequency error at 8 spacings per radius)
+    and the rectangle with its walls as closure columns, from the command line; flags refused elsewhere."""
+    from manifold_sph.cli import main as cli_main
+
+    assert cli_main(["spem", "tez-disk", "--n-radial", "8", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["case"] == "tez-disk" and out["frequency_error"] < 5e-3
+    assert cli_main(["spem", "tez-cavity", "--n-radial", "6", "--wall-closure", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["case"] == "tez-cavity"
+    assert cli_main(["spem", "tez-disk", "--wall-closure"]) == 2
+    assert "--wall-closure applies only to case 'tez-cavity'" in capsys.readouterr().err
+    assert cli_main(["spem", "cavity", "--wall-closure"]) == 2
+    assert "--wall-closure applies only" in capsys.readouterr().err
+    assert cli_main(["spem", "tez-disk", "--ka", "2"]) == 2

@@ -38,7 +38,8 @@ from .operators import FORMS, cross_gradient, cross_pairs, sbp_pair
 from .pml import PML, sigma_max
 from .scattering import (SCATTERERS, ScatteringResult, mie_coefficients, run_scattering, scattered_field,
                          scattering_layout, total_field)
-from .tez import TEzCavityResult, TEzLayout, TEzSolver, run_tez_cavity, tez_cavity_frequency, tez_layout
+from .tez import (TEzCavityResult, TEzLayout, TEzSolver, run_tez_cavity, run_tez_circular_cavity, tez_cavity_frequency,
+                  tez_disk_frequency, tez_disk_layout, tez_disk_mode, tez_layout, wall_closure_layout)
 from .results import (CaseResult, CavityResult, FieldHistory, LineResult, PlanewaveResult, PMLResult, RunResult,
                       WaveguideResult)
 from .solver import COUPLINGS, DEFAULT_COUPLING, DEFAULT_H_RATIO, Line1DSolver, TMzSolver, cfl_number, leapfrog_growth
@@ -53,7 +54,8 @@ __all__ = [
     "PML", "sigma_max",
     "SCATTERERS", "ScatteringResult", "mie_coefficients", "run_scattering", "scattered_field", "scattering_layout",
     "total_field", "TEzCavityResult", "TEzLayout", "TEzSolver", "run_tez_cavity", "tez_cavity_frequency",
-    "tez_layout",
+    "tez_layout", "run_tez_circular_cavity", "tez_disk_frequency", "tez_disk_layout", "tez_disk_mode",
+    "wall_closure_layout",
     "RunResult", "CaseResult", "LineResult", "CavityResult", "PlanewaveResult", "WaveguideResult", "PMLResult",
     "FieldHistory",
     "COUPLINGS", "DEFAULT_COUPLING", "DEFAULT_H_RATIO", "Line1DSolver", "TMzSolver", "cfl_number", "leapfrog_growth",

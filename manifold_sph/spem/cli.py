@@ -160,6 +160,8 @@ def run(args: argparse.Namespace) -> int:
         if getattr(args, "time_correction", False):
             raise ValueError("--time-correction applies only to the cases scatter-pec, scatter-dielectric, "
                              "scatter-coated")
+        if getattr(args, "wall_closure", False):
+            raise ValueError("--wall-closure applies only to case 'tez-cavity'")
         if getattr(args, "mimetic_fast", False):
             if args.case != "cavity":
                 raise ValueError("--mimetic-fast applies only to the cases cavity, scatter-pec, scatter-dielectric, "
@@ -185,8 +187,8 @@ def run(args: argparse.Namespace) -> int:
 
 
 # ----------------------------------------------------------------------------- scattering and TEz cases (issue 21)
-#: The cylinder scattering cases of :mod:`.scattering` and the TEz cavity of :mod:`.tez`, beside :data:`.cases.CASES`.
-SCATTERING_CASES = ("scatter-pec", "scatter-dielectric", "scatter-coated", "tez-cavity")
+#: The cylinder scattering cases of :mod:`.scattering` and the TEz cavities of :mod:`.tez`, beside :data:`.cases.CASES`.
+SCATTERING_CASES = ("scatter-pec", "scatter-dielectric", "scatter-coated", "tez-cavity", "tez-disk")
 _SCATTERING_OPTIONS = ("ka", "core_radius", "periods")
 _NOT_FOR_SCATTERING = ("spectrum_periods", "size", "freq", "pml_cells", "r0", "png", "gif", "ppw")
 
@@ -194,8 +196,9 @@ _NOT_FOR_SCATTERING = ("spectrum_periods", "size", "freq", "pml_cells", "r0", "p
 def _add_scattering_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("scatter-pec, scatter-dielectric, scatter-coated (plane wave on a cylinder of radius "
                              "0.1 m; also --n-radial, default 8, --eps-r, default 4, --layout yee|jittered, "
-                             "--coupling, --h-ratio) and tez-cavity (TEz modes of a 0.1 x 0.06 m PEC rectangle; "
-                             "--n-radial: spacings along 0.06 m, default 12)")
+                             "--coupling, --h-ratio), tez-cavity (TEz modes of a 0.1 x 0.06 m PEC rectangle; "
+                             "--n-radial: spacings along 0.06 m, default 12) and tez-disk (TE11 + TE21 of a circular "
+                             "PEC cavity of radius 0.1 m, curved walls; --n-radial, default 20; --coupling sbp|adjoint)")
     g.add_argument("--ka", type=_positive(float), default=None, help="wavenumber times radius (default 2)")
     g.add_argument("--core-radius", type=_positive(float), default=None,
                    help="scatter-coated: PEC core radius in m (default 0.05)")
@@ -205,15 +208,18 @@ def _add_scattering_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--time-correction", action="store_true",
                    help="scatter-*: remove the leap-frog's time dispersion at the drive frequency (pays with "
                         "--coupling mimetic)")
+    g.add_argument("--wall-closure", action="store_true",
+                   help="tez-cavity: the walls as closure columns with fitted volumes (converges on jittered layouts)")
     g.add_argument("--mimetic-fast", action="store_true",
                    help="cavity and scatter-*, with --coupling mimetic: the faster correction (G exact for quadratics)")
 
 
 def _run_scattering(args: argparse.Namespace) -> int:
-    """``spem scatter-*`` (:func:`.scattering.run_scattering`) and ``spem tez-cavity`` (:func:`.tez.run_tez_cavity`)."""
+    """``spem scatter-*`` (:func:`.scattering.run_scattering`), ``spem tez-cavity`` (:func:`.tez.run_tez_cavity`)
+    and ``spem tez-disk`` (:func:`.tez.run_tez_circular_cavity`)."""
     from .scattering import run_scattering
     from .solver import DEFAULT_COUPLING
-    from .tez import run_tez_cavity
+    from .tez import run_tez_cavity, run_tez_circular_cavity
 
     try:
         if args.case not in SCATTERING_CASES:
@@ -225,17 +231,25 @@ def _run_scattering(args: argparse.Namespace) -> int:
         if args.layout not in ("yee", "jittered"):
             raise ValueError(f"--layout for case {args.case!r} must be yee or jittered, got {args.layout!r}")
         kw = {"layout": args.layout, "coupling": args.coupling or DEFAULT_COUPLING}
-        if args.case == "tez-cavity":
+        if args.wall_closure and args.case != "tez-cavity":
+            raise ValueError(f"--wall-closure applies only to case 'tez-cavity', not {args.case!r}")
+        if args.case in ("tez-cavity", "tez-disk"):
             for name in ("ka", "core_radius"):
                 if getattr(args, name) is not None:
-                    raise ValueError(f"--{name.replace('_', '-')} does not apply to case 'tez-cavity'")
+                    raise ValueError(f"--{name.replace('_', '-')} does not apply to case {args.case!r}")
             for flag in ("mimetic_fast", "time_correction"):
                 if getattr(args, flag):
-                    raise ValueError(f"--{flag.replace('_', '-')} does not apply to case 'tez-cavity'")
-            for name, key in (("n_radial", "n"), ("eps_r", "eps_r"), ("h_ratio", "h_ratio"), ("periods", "periods")):
+                    raise ValueError(f"--{flag.replace('_', '-')} does not apply to case {args.case!r}")
+            n_key = "n" if args.case == "tez-cavity" else "n_radial"
+            for name, key in (("n_radial", n_key), ("eps_r", "eps_r"), ("h_ratio", "h_ratio"), ("periods", "periods")):
                 if getattr(args, name) is not None:
                     kw[key] = getattr(args, name)
-            result = run_tez_cavity(**kw)
+            if args.case == "tez-cavity":
+                if args.wall_closure:
+                    kw["wall_closure"] = True
+                result = run_tez_cavity(**kw)
+            else:
+                result = run_tez_circular_cavity(**kw)
         else:
             kind = args.case.split("-", 1)[1]
             kw.update(form=args.form, kernel=args.kernel)
