@@ -259,7 +259,7 @@ def test_balanced_layout_removes_the_spurious_modes():
     """H particles added where the E set is locally denser (layouts.balance_h): on the Poisson square of
     the defect above (seed=2, 24 spacings) no localised mode among the 16 lowest (measured: none among the
     40 lowest, up to 55 (pi c)^2), the ten lowest eigenvalues within 1.5 % (measured 1.48 %, fundamental
-    +0.01 %; the 16 lowest within 2.9 %), and the local excess of E over H particles within 1.5 dr above 1 at 3 particles (before 76)."""
+    +0.01 %; the 16 lowest within 2.9 %), and the local excess of E over H particles within 1.5 dr above 1 nowhere (before: at 76 particles)."""
     from manifold_sph.spem.layouts import BALANCE_EXCESS, BALANCE_RADIUS, balanced_poisson_layout
     from manifold_sph.spem.mimetic import localised_modes
 
@@ -273,7 +273,7 @@ def test_balanced_layout_removes_the_spurious_modes():
     lay = balanced_poisson_layout((0.0, 1.0, 0.0, 1.0), 1.0 / n, seed=2)
     before = poisson_layout((0.0, 1.0, 0.0, 1.0), 1.0 / n, seed=2)
     assert np.array_equal(lay.e, before.e) and lay.shared
-    # measured: 76 of 529 free E particles with an excess above 1 (up to 5) -> 3 (up to 2)
+    # measured: 76 of 529 free E particles with an excess above 1 (up to 5) -> none
     assert excess(before).max() >= 4 and (excess(before) > BALANCE_EXCESS).sum() > 50
     assert excess(lay).max() <= BALANCE_EXCESS + 1 and (excess(lay) > BALANCE_EXCESS).sum() <= 5
     assert len(before.hx) < len(lay.hx) < 1.15 * len(before.hx)

@@ -445,12 +445,14 @@ def line_layout(z0: float, z1: float, dr: float) -> tuple[np.ndarray, np.ndarray
 
 
 #: :func:`balance_h`: the counting radius (times dr), the largest allowed excess of free E particles over H
-#: particles within it (around any free E particle), and the most insertion rounds. Measured on Poisson
-#: squares (seed=1, 2; 16 and 24 spacings): the spurious localised modes of the "mimetic" coupling sit where
-#: the E set is locally denser than the shared H set (8 E against 3 H particles within 1.5 dr around the
-#: mode below the fundamental of seed=2 at 24 spacings, against 7 and 7 on average); allowing an excess of 2
-#: left localised modes at 18-30 (pi c)^2, an excess of 1 none among the 24 lowest but one (29.6).
-BALANCE_RADIUS, BALANCE_EXCESS, BALANCE_ROUNDS = 1.5, 1, 8
+#: particles within it (around any free E particle), and the most insertion rounds. The spurious localised
+#: modes of the "mimetic" coupling sit where the E set is locally denser than the shared H set (Poisson
+#: square, seed=2, 24 spacings: 8 E against 3 H particles within 1.5 dr around the mode below the
+#: fundamental, 7 and 7 on average). Measured (``benchmarks/spem_mimetic.py --only modes``, seeds 0-5 at
+#: 16 / 24 / 32 spacings, 40 lowest modes): 8 rounds left localised modes at 26.9 and 31.6 (pi c)^2 (seed=5
+#: and seed=1 at 24 spacings), 16 rounds none there; an allowed excess of 0 instead of 1 was no better
+#: (seed=1 at 16: 24.3 against 38.1) and adds 7 % more H particles.
+BALANCE_RADIUS, BALANCE_EXCESS, BALANCE_ROUNDS = 1.5, 1, 16
 #: :func:`balance_h`: relaxation iterations after each insertion round.
 BALANCE_RELAX = 10
 
@@ -465,8 +467,8 @@ def balance_h(e: ArrayLike, h: ArrayLike, dr: float, move: Callable[[np.ndarray]
     particle is added at the centroid of those E particles (one per local maximum of the excess within
     ``2 radius dr``), and the H set is relaxed against ``e`` with :func:`relax_h` (``cover`` pulling,
     :data:`BALANCE_RELAX` iterations). This repeats until no point exceeds ``excess`` or ``rounds`` rounds
-    have run (the relaxation may leave a few points one above: measured 3 of 529 on a Poisson square at 24
-    spacings, seed=2, against 76 before).
+    have run (the relaxation may push added particles away again: on a Poisson square at 24 spacings,
+    seed=2, 76 of 529 free E particles exceed 1 before, 3 after 8 rounds, none after 16).
 
     Meant for random layouts: on lattices the count depends on the radius (the staggered lattice has 9 E
     against 4 H particles within 1.5 dr of an E particle) and particles would be added.
