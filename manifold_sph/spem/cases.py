@@ -147,13 +147,14 @@ def run_cavity(*, r0: float = 0.1, eps_r: float = 10.0, n_radial: int = 40, peri
     None here (the whole operator is corrected: next to the curved wall it
     keeps converging where a local band stalls; :data:`.operators.SBP_LAYERS`). ``layout`` "jittered" and
     "poisson" are seeded random disks (:func:`.layouts.disk_layout`; "poisson-joint": the Poisson E set with
-    its H set relaxed into the E gaps, for the "mimetic" coupling); ``h_ratio`` defaults to the coupling's.
+    its H set relaxed into the E gaps, for the "mimetic" coupling; "poisson-balanced": also H particles added
+    where E outnumbers H, no spurious localised modes measured); ``h_ratio`` defaults to the coupling's.
     ``mimetic_fast``: as :class:`.TMzSolver` (``coupling="mimetic"`` only).
     """
     r0 = check_positive("r0", r0)
     eps_r = check_positive("eps_r", eps_r)
     n_radial = check_int("n_radial", n_radial, minimum=4)
-    check_in("layout", layout, ("yee", "staggered", "jittered", "poisson", "poisson-joint"))
+    check_in("layout", layout, ("yee", "staggered", "jittered", "poisson", "poisson-joint", "poisson-balanced"))
     dr = r0 / n_radial
     c = (r0, r0)
     lay = disk_layout(c, r0, dr, kind=layout, seed=seed)

@@ -46,8 +46,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     p = subparsers.add_parser("spem", help="SPEM time-domain Maxwell cases (line1d, cavity, waveguide, planewave, pml)",
                               description="Run a SPEM validation case against its exact solution.")
     p.add_argument("case", choices=(*CASES, *SCATTERING_CASES))
-    p.add_argument("--layout", default="yee", choices=LAYOUTS + ("poisson-joint",),
-                   help="particle layout (default yee; poisson-joint: for --coupling mimetic)")
+    p.add_argument("--layout", default="yee", choices=LAYOUTS + ("poisson-joint", "poisson-balanced"),
+                   help="particle layout (default yee; poisson-joint, poisson-balanced: for --coupling mimetic)")
     p.add_argument("--form", default="fpm", choices=FORMS, help="derivative system (default fpm)")
     p.add_argument("--kernel", default="cubic", help="kernel (default cubic)")
     p.add_argument("--h-ratio", type=_positive(float), default=None, help="h / dr (default 0.7; 1.5 with --coupling mimetic)")

@@ -42,7 +42,8 @@ from numpy.typing import ArrayLike
 from .._validation import as_points, check_in, check_positive
 
 __all__ = ["Layout", "LAYOUTS", "staggered_layout", "yee_layout", "poisson_layout", "jitter", "make_layout",
-           "disk_layout", "line_layout", "joint_poisson_layout", "relax_h"]
+           "disk_layout", "line_layout", "joint_poisson_layout", "relax_h", "balance_h", "balanced_poisson_layout",
+           "balanced_disk_layout"]
 
 #: :func:`relax_h`: H-H repulsion radius (times the hexagonal spacing of density ``1/dr^2``), E-H
 #: repulsion radius (times ``dr``) and iterations. Measured on the Poisson disk (seed=0): the largest
@@ -217,11 +218,15 @@ def poisson_layout(bounds: Sequence[float], dr: float, seed: int | np.random.Gen
 
 def make_layout(name: str, bounds: Sequence[float], dr: float, *, seed: int | np.random.Generator | None = 0,
                 amplitude: float = 0.2) -> Layout:
-    """Build a layout by name: ``staggered``, ``yee``, ``jittered`` (a jittered Yee layout), ``poisson`` or
-    ``poisson-joint`` (:func:`joint_poisson_layout`: the Poisson E set, its H set relaxed into the E gaps)."""
-    check_in("layout", name, LAYOUTS + ("poisson-joint",))
+    """Build a layout by name: ``staggered``, ``yee``, ``jittered`` (a jittered Yee layout), ``poisson``,
+    ``poisson-joint`` (:func:`joint_poisson_layout`: the Poisson E set, its H set relaxed into the E gaps) or
+    ``poisson-balanced`` (:func:`balanced_poisson_layout`: also H particles added where E outnumbers H;
+    for the "mimetic" coupling)."""
+    check_in("layout", name, LAYOUTS + ("poisson-joint", "poisson-balanced"))
     if name == "poisson-joint":
         return joint_poisson_layout(bounds, dr, seed)
+    if name == "poisson-balanced":
+        return balanced_poisson_layout(bounds, dr, seed)
     if name == "staggered":
         return staggered_layout(bounds, dr)
     if name == "yee":
@@ -252,9 +257,12 @@ def disk_layout(center: ArrayLike, radius: float, dr: float, kind: str = "yee", 
     the wall are not pruned (the "mimetic" coupling needs no two-sided
     neighbourhood). ``kind="poisson-joint"``: the layout of "poisson" (the same
     E particles for the same seed) with the H set relaxed against H and E
-    together (:func:`relax_h`) and kept ``0.05 dr`` inside the circle.
+    together (:func:`relax_h`) and kept ``0.05 dr`` inside the circle;
+    ``kind="poisson-balanced"``: :func:`balanced_disk_layout`.
     """
-    check_in("kind", kind, ("yee", "staggered", "jittered", "poisson", "poisson-joint"))
+    check_in("kind", kind, ("yee", "staggered", "jittered", "poisson", "poisson-joint", "poisson-balanced"))
+    if kind == "poisson-balanced":
+        return balanced_disk_layout(center, radius, dr, seed=seed, wall_spacing=wall_spacing, wall_margin=wall_margin)
     if kind in ("jittered", "poisson", "poisson-joint"):
         return _random_disk(center, radius, dr, kind, wall_spacing, wall_margin, seed, amplitude)
     radius = check_positive("radius", radius)
@@ -318,16 +326,7 @@ def _random_disk(center, radius, dr, kind, wall_spacing, wall_margin, seed, ampl
     fixed = np.r_[np.zeros(len(e), bool), np.ones(m, bool)]
     e = np.vstack([e, wall])
     if kind == "poisson-joint":
-        lim = radius - 0.05 * dr
-
-        def move(p):
-            d = p - c
-            r = np.hypot(d[:, 0], d[:, 1])
-            out = r > lim
-            p[out] = c + d[out] * (lim / r[out])[:, None]
-            return p
-
-        hx = hy = relax_h(e, hx, dr, move, cover=e[~fixed])
+        hx = hy = relax_h(e, hx, dr, _inside_circle(c, radius - 0.05 * dr), cover=e[~fixed])
     return Layout(e, hx, hy, dr, f"disk-{kind}", fixed, b)
 
 
@@ -557,13 +556,9 @@ def balanced_poisson_layout(bounds: Sequence[float], dr: float,
     return Layout(lay.e, h, h, lay.dr, "poisson-balanced", lay.e_fixed.copy(), lay.bounds)
 
 
-def balanced_disk_layout(center: ArrayLike, radius: float, dr: float,
-                         seed: int | np.random.Generator | None = 0, **kwargs) -> Layout:
-    """``disk_layout(kind="poisson-joint")`` with H particles added where the E set is locally denser
-    (:func:`balance_h`; H kept 0.05 dr inside the circle). ``kwargs`` go to :func:`disk_layout`."""
-    lay = disk_layout(center, radius, dr, kind="poisson-joint", seed=seed, **kwargs)
-    c = np.asarray(center, dtype=np.float64).reshape(2)
-    lim = radius - 0.05 * dr
+def _inside_circle(c: np.ndarray, lim: float) -> Callable[[np.ndarray], np.ndarray]:
+    """A ``move`` for :func:`relax_h` / :func:`balance_h`: points farther than ``lim`` from ``c`` put back on
+    that circle (in place)."""
 
     def move(p):
         d = p - c
@@ -572,5 +567,17 @@ def balanced_disk_layout(center: ArrayLike, radius: float, dr: float,
         p[out] = c + d[out] * (lim / r[out])[:, None]
         return p
 
-    h = balance_h(lay.e, lay.hx, dr, move, lay.e[~lay.e_fixed])
+    return move
+
+
+def balanced_disk_layout(center: ArrayLike, radius: float, dr: float,
+                         seed: int | np.random.Generator | None = 0, *, wall_spacing: float = 0.5,
+                         wall_margin: float = 0.3) -> Layout:
+    """``disk_layout(kind="poisson-joint")`` with H particles added where the E set is locally denser
+    (:func:`balance_h`; H kept 0.05 dr inside the circle); ``wall_spacing``, ``wall_margin`` as
+    :func:`disk_layout`."""
+    lay = disk_layout(center, radius, dr, kind="poisson-joint", seed=seed, wall_spacing=wall_spacing,
+                      wall_margin=wall_margin)
+    c = np.asarray(center, dtype=np.float64).reshape(2)
+    h = balance_h(lay.e, lay.hx, dr, _inside_circle(c, radius - 0.05 * dr), lay.e[~lay.e_fixed])
     return Layout(lay.e, h, h, lay.dr, "disk-poisson-balanced", lay.e_fixed.copy(), lay.bounds)
