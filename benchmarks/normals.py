@@ -151,6 +151,23 @@ MODELS = [DATA / "models" / f for f in ("cow.obj", "homer.obj", "rocker-arm.obj"
 SCANS = [DATA / "scans" / "stanford-bunny.obj", DATA / "scans" / "igea.ply"]
 
 
+def _welded(path):
+    """The mesh's distinct vertices and its faces on them, degenerate faces dropped."""
+    V, F = read_mesh(str(path))
+    U, inv = np.unique(V, axis=0, return_inverse=True)
+    F = inv.ravel()[F]
+    return U, F[(F[:, 0] != F[:, 1]) & (F[:, 1] != F[:, 2]) & (F[:, 0] != F[:, 2])]
+
+
+def _area_normals(X, F):
+    """Area-weighted vertex normals of the faces ``F`` on the vertices ``X`` (unit; zero where undefined)."""
+    c = np.cross(X[F[:, 1]] - X[F[:, 0]], X[F[:, 2]] - X[F[:, 0]])
+    N = np.zeros_like(X)
+    for a in range(3):
+        np.add.at(N, F[:, a], c)
+    return N / np.maximum(np.linalg.norm(N, axis=1), 1e-300)[:, None]
+
+
 def mesh_reference(path, limit=False):
     """Distinct vertex positions (those used by faces), area-weighted unit normals, closed?, shells.
 
@@ -158,10 +175,7 @@ def mesh_reference(path, limit=False):
     area-weighted where the vertex is not a manifold fan) and the mask of those that are limit
     normals; with ``limit="all"`` then also the normals with Max's weights (:func:`max_normals`).
     """
-    V, F = read_mesh(str(path))
-    U, inv = np.unique(V, axis=0, return_inverse=True)
-    F = inv.ravel()[F]
-    F = F[(F[:, 0] != F[:, 1]) & (F[:, 1] != F[:, 2]) & (F[:, 0] != F[:, 2])]
+    U, F = _welded(path)
     c = np.cross(U[F[:, 1]] - U[F[:, 0]], U[F[:, 2]] - U[F[:, 0]])  # twice the area times the normal
     N = np.zeros_like(U)
     for a in range(3):
@@ -341,11 +355,8 @@ def reference_table(paths):
     for path in paths:
         if not path.exists():
             continue
-        V, F = read_mesh(str(path))
         P, ref, _, _, lim, good, mx = mesh_reference(path, limit="all")
-        U, inv = np.unique(V, axis=0, return_inverse=True)
-        G = inv.ravel()[F]
-        G = G[(G[:, 0] != G[:, 1]) & (G[:, 1] != G[:, 2]) & (G[:, 0] != G[:, 2])]
+        U, G = _welded(path)
         nb = int(loop_limit_normals(U, G, np.ones_like(U))[2].sum())
         a = np.degrees(np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", ref, lim)), 0.0, 1.0)))
         b = np.degrees(np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", ref, mx)), 0.0, 1.0)))
@@ -365,21 +376,14 @@ def limit_table(paths, variants=(("default", {}),)):
     for path in paths:
         if not path.exists():
             continue
-        V, F = read_mesh(str(path))
-        U, inv = np.unique(V, axis=0, return_inverse=True)
-        F = inv.ravel()[F]
-        F = F[(F[:, 0] != F[:, 1]) & (F[:, 1] != F[:, 2]) & (F[:, 0] != F[:, 2])]
+        U, F = _welded(path)
         used = np.zeros(len(U), bool)
         used[F.ravel()] = True
         F = (np.cumsum(used) - 1)[F]
         U = U[used]
 
         def area_normals(X):
-            c = np.cross(X[F[:, 1]] - X[F[:, 0]], X[F[:, 2]] - X[F[:, 0]])
-            N = np.zeros_like(X)
-            for a in range(3):
-                np.add.at(N, F[:, a], c)
-            return N / np.maximum(np.linalg.norm(N, axis=1), 1e-300)[:, None]
+            return _area_normals(X, F)
 
         exact, good, _, _, pos = loop_limit_normals(U, F, area_normals(U), positions=True)
         good &= np.linalg.norm(area_normals(pos), axis=1) > 0
@@ -402,18 +406,8 @@ def check_loop(paths, levels=4):
     for path in paths:
         if not path.exists():
             continue
-        V, F = read_mesh(str(path))
-        U, inv = np.unique(V, axis=0, return_inverse=True)
-        F = inv.ravel()[F]
-        F = F[(F[:, 0] != F[:, 1]) & (F[:, 1] != F[:, 2]) & (F[:, 0] != F[:, 2])]
-
-        def area_normals(X, G):
-            c = np.cross(X[G[:, 1]] - X[G[:, 0]], X[G[:, 2]] - X[G[:, 0]])
-            N = np.zeros_like(X)
-            for a in range(3):
-                np.add.at(N, G[:, a], c)
-            return N / np.maximum(np.linalg.norm(N, axis=1), 1e-300)[:, None]
-
+        U, F = _welded(path)
+        area_normals = _area_normals
         _, counts = np.unique(np.sort(np.r_[F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]], axis=1), axis=0, return_counts=True)
         if counts.max() > 2:
             print(f"{path.stem:14s} edges shared by more than 2 faces: trimesh subdivides piece by piece and renumbers; skipped")
@@ -487,20 +481,9 @@ def meridian_torus(meridians=40, per=16, R=1.0, r=0.08, seed=0):
 
 
 def flat_ellipsoid(n=2000, thickness=1.0, seed=0):
-    """A thin closed slab: the ellipsoid with semi-axes 1, 0.6 and ``thickness`` spacings
-    (spacing ``sqrt(2 pi 0.6 / n)``), ``n`` area-uniform random points (rejection sampling of
-    the mapped sphere), and its exact outward normals (as in tests/test_normals.py)."""
-    rng = np.random.default_rng(seed)
-    axes = np.array([1.0, 0.6, thickness * np.sqrt(2 * np.pi * 0.6 / n)])
-    pts = np.zeros((0, 3))
-    while len(pts) < n:
-        u = rng.standard_normal((4 * n, 3))
-        u /= np.linalg.norm(u, axis=1)[:, None]
-        g = np.linalg.norm(u / axes, axis=1)  # area element of the map u -> axes * u, up to a constant
-        pts = np.vstack([pts, (u * axes)[rng.random(4 * n) < g / g.max()]])
-    pts = pts[:n]
-    nrm = pts / axes**2
-    return pts, nrm / np.linalg.norm(nrm, axis=1)[:, None]
+    """A thin closed slab (:func:`manifold_sph.reference.shapes.flat_ellipsoid`): points, exact normals."""
+    c = shapes.flat_ellipsoid(n, thickness, seed)
+    return c.points, c.normals
 
 
 def synthetic():

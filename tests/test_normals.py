@@ -347,19 +347,9 @@ def test_ring_sampled_band_is_oriented_as_one_surface(monkeypatch, seed):
 
 
 def _flat_ellipsoid(n=2000, thickness=1.0, seed=0):
-    """A thin closed slab: the ellipsoid with semi-axes 1, 0.6 and ``thickness`` spacings (spacing
-    ``sqrt(2 pi 0.6 / n)``), ``n`` area-uniform random points, and its exact outward normals."""
-    rng = np.random.default_rng(seed)
-    axes = np.array([1.0, 0.6, thickness * np.sqrt(2 * np.pi * 0.6 / n)])
-    pts = np.zeros((0, 3))
-    while len(pts) < n:
-        u = rng.standard_normal((4 * n, 3))
-        u /= np.linalg.norm(u, axis=1)[:, None]
-        g = np.linalg.norm(u / axes, axis=1)  # area element of u -> axes * u, up to a constant
-        pts = np.vstack([pts, (u * axes)[rng.random(4 * n) < g / g.max()]])
-    pts = pts[:n]
-    nrm = pts / axes**2
-    return pts, nrm / np.linalg.norm(nrm, axis=1)[:, None]
+    """A thin closed slab (:func:`manifold_sph.reference.shapes.flat_ellipsoid`): points, exact normals."""
+    c = shapes.flat_ellipsoid(n, thickness, seed)
+    return c.points, c.normals
 
 
 @pytest.mark.parametrize("seed", [0, 1])

@@ -45,6 +45,7 @@ __all__ = [
     "square",
     "thin_torus",
     "ring_sphere",
+    "flat_ellipsoid",
     "SHAPES",
 ]
 
@@ -1205,3 +1206,31 @@ def ring_sphere(
     Ph = Ph + jitter * rng.random(Ph.shape)
     n = np.c_[(np.sin(T) * np.cos(Ph)).ravel(), (np.sin(T) * np.sin(Ph)).ravel(), np.cos(T).ravel()]
     return PointCloud(n, n, geometry=Sphere(1.0))
+
+
+def flat_ellipsoid(n: int = 2000, thickness: float = 1.0, seed: int | np.random.Generator | None = 0) -> PointCloud:
+    """A thin closed slab: the ellipsoid with semi-axes 1, 0.6 and ``thickness`` spacings.
+
+    The spacing is ``sqrt(2 pi 0.6 / n)``; ``n`` area-uniform random points (rejection sampling
+    of the mapped sphere) and the exact outward normals. Propagated orientations tend to carry
+    the sign wrongly around the rim of such a slab.
+
+    Examples
+    --------
+    >>> cloud = flat_ellipsoid(500, seed=1)
+    >>> len(cloud), bool(abs(cloud.points[:, 2]).max() <= (2 * np.pi * 0.6 / 500) ** 0.5)  # one spacing
+    (500, True)
+    """
+    n = check_int("n", n, minimum=MIN_POINTS)
+    thickness = check_positive("thickness", thickness)
+    rng = _sampling._rng(seed)
+    axes = np.array([1.0, 0.6, thickness * np.sqrt(2 * np.pi * 0.6 / n)])
+    pts = np.zeros((0, 3))
+    while len(pts) < n:
+        u = rng.standard_normal((4 * n, 3))
+        u /= np.linalg.norm(u, axis=1)[:, None]
+        g = np.linalg.norm(u / axes, axis=1)  # area element of the map u -> axes * u, up to a constant
+        pts = np.vstack([pts, (u * axes)[rng.random(4 * n) < g / g.max()]])
+    pts = pts[:n]
+    nrm = pts / axes**2
+    return PointCloud(pts, nrm / np.linalg.norm(nrm, axis=1)[:, None])

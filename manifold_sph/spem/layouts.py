@@ -394,10 +394,7 @@ def joint_poisson_layout(bounds: Sequence[float], dr: float, seed: int | np.rand
     (True, True)
     """
     lay = poisson_layout(bounds, dr, seed)
-    x0, x1, y0, y1 = lay.bounds
-    eps = JOINT_WALL_MARGIN * lay.dr
-    lo, hi = np.array([x0 + eps, y0 + eps]), np.array([x1 - eps, y1 - eps])
-    h = relax_h(lay.e, lay.hx, lay.dr, lambda p: np.clip(p, lo, hi), cover=lay.e[~lay.e_fixed])
+    h = relax_h(lay.e, lay.hx, lay.dr, _inside_square(lay), cover=lay.e[~lay.e_fixed])
     return Layout(lay.e, h, h, lay.dr, "poisson-joint", lay.e_fixed.copy(), lay.bounds)
 
 
@@ -549,11 +546,17 @@ def balanced_poisson_layout(bounds: Sequence[float], dr: float,
     (True, True)
     """
     lay = joint_poisson_layout(bounds, dr, seed)
+    h = balance_h(lay.e, lay.hx, lay.dr, _inside_square(lay), lay.e[~lay.e_fixed])
+    return Layout(lay.e, h, h, lay.dr, "poisson-balanced", lay.e_fixed.copy(), lay.bounds)
+
+
+def _inside_square(lay: Layout) -> Callable[[np.ndarray], np.ndarray]:
+    """A ``move`` for :func:`relax_h` / :func:`balance_h`: points clipped to ``JOINT_WALL_MARGIN * dr`` inside the
+    layout's bounds."""
     x0, x1, y0, y1 = lay.bounds
     eps = JOINT_WALL_MARGIN * lay.dr
     lo, hi = np.array([x0 + eps, y0 + eps]), np.array([x1 - eps, y1 - eps])
-    h = balance_h(lay.e, lay.hx, lay.dr, lambda p: np.clip(p, lo, hi), lay.e[~lay.e_fixed])
-    return Layout(lay.e, h, h, lay.dr, "poisson-balanced", lay.e_fixed.copy(), lay.bounds)
+    return lambda p: np.clip(p, lo, hi)
 
 
 def _inside_circle(c: np.ndarray, lim: float) -> Callable[[np.ndarray], np.ndarray]:

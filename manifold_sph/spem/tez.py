@@ -667,6 +667,17 @@ class TEzCavityResult:
         return dict(self.__dict__)
 
 
+def _check_modes(modes) -> list[tuple[int, int]]:
+    """``modes`` as a non-empty list of ``(m, n)`` integer pairs (ValueError otherwise)."""
+    try:
+        modes = [(int(m), int(k)) for m, k in modes]
+    except (TypeError, ValueError):
+        raise ValueError(f"modes must be a sequence of (m, n) integer pairs, got {modes!r}") from None
+    if not modes:
+        raise ValueError("modes must name at least one (m, n) mode")
+    return modes
+
+
 def run_tez_cavity(*, a: float = 0.1, b: float = 0.06, n: int = 12, modes: Sequence[tuple[int, int]] = ((1, 0), (1, 1)),
                    eps_r: float = 1.0, layout: str = "yee", amplitude: float = 0.2, seed: int | None = 0,
                    coupling: str = DEFAULT_COUPLING, h_ratio: float | None = None,
@@ -696,12 +707,7 @@ def run_tez_cavity(*, a: float = 0.1, b: float = 0.06, n: int = 12, modes: Seque
     n = check_int("n", n, minimum=2)
     periods = check_positive("periods", periods)
     spectrum_periods = check_positive("spectrum_periods", spectrum_periods)
-    try:
-        modes = [(int(m), int(k)) for m, k in modes]
-    except (TypeError, ValueError):
-        raise ValueError(f"modes must be a sequence of (m, n) integer pairs, got {modes!r}") from None
-    if not modes:
-        raise ValueError("modes must name at least one (m, n) mode")
+    modes = _check_modes(modes)
     dr = check_positive("b", b) / n
     check_in("layout", layout, ("yee", "jittered"))
     lay = tez_layout((0.0, check_positive("a", a), 0.0, b), dr, amplitude=amplitude if layout == "jittered" else 0.0,
@@ -814,12 +820,7 @@ def run_tez_circular_cavity(*, radius: float = 0.1, n_radial: int = 20,
     periods = check_positive("periods", periods)
     spectrum_periods = check_positive("spectrum_periods", spectrum_periods)
     eps_r = check_positive("eps_r", eps_r)
-    try:
-        modes = [(int(m), int(k)) for m, k in modes]
-    except (TypeError, ValueError):
-        raise ValueError(f"modes must be a sequence of (m, n) integer pairs, got {modes!r}") from None
-    if not modes:
-        raise ValueError("modes must name at least one (m, n) mode")
+    modes = _check_modes(modes)
     if any(m < 0 or k < 1 for m, k in modes):
         raise ValueError(f"modes must be (m, n) with m >= 0 and n >= 1 (TE_mn), got {modes!r}")
     if coupling == "direct":
