@@ -487,3 +487,28 @@ def test_ring_sphere_bad_input(kwargs, exc, match):
 
     with pytest.raises(exc, match=match):
         ring_sphere(**kwargs)
+
+
+def test_flat_ellipsoid_is_on_its_surface_and_seeded():
+    from manifold_sph.reference.shapes import flat_ellipsoid
+
+    c = flat_ellipsoid(1500, thickness=2.0, seed=3)
+    axes = np.array([1.0, 0.6, 2.0 * np.sqrt(2 * np.pi * 0.6 / 1500)])
+    np.testing.assert_allclose(np.linalg.norm(c.points / axes, axis=1), 1.0, atol=1e-12)
+    grad = c.points / axes**2  # the outward normal of the implicit surface
+    np.testing.assert_allclose(c.normals, grad / np.linalg.norm(grad, axis=1)[:, None], atol=1e-12)
+    assert np.array_equal(flat_ellipsoid(300, seed=1).points, flat_ellipsoid(300, seed=1).points)
+    assert not np.array_equal(flat_ellipsoid(300, seed=1).points, flat_ellipsoid(300, seed=2).points)
+
+
+@pytest.mark.parametrize("kwargs,exc,match", [
+    ({"n": 2}, ValueError, "n"),
+    ({"n": 10.5}, TypeError, "n"),
+    ({"thickness": 0.0}, ValueError, "thickness"),
+    ({"thickness": float("nan")}, ValueError, "thickness"),
+])
+def test_flat_ellipsoid_bad_input(kwargs, exc, match):
+    from manifold_sph.reference.shapes import flat_ellipsoid
+
+    with pytest.raises(exc, match=match):
+        flat_ellipsoid(**kwargs)
