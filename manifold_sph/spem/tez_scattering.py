@@ -1,0 +1,656 @@
+"""TEz plane-wave scattering by circular cylinders: exact series, PML and SPEM cases (issue 21 item 4).
+
+A unit plane wave ``Hz_inc = Re(exp(i (k x - w t)))`` (its electric field
+``Ey_inc = eta0 Hz_inc``, ``Ex_inc = 0``) travelling along +x meets a cylinder
+of radius ``a`` centred at the origin:
+
+``"pec"``
+    a perfect conductor (tangential E zero on ``r = a``, i.e. ``dHz/dr = 0``);
+``"dielectric"``
+    a homogeneous dielectric ``eps_r`` (``mu_r = 1``).
+
+With the time convention ``exp(-i w t)`` of :mod:`.scattering` the scattered
+field is ``Hz_s = sum_n i^n b_n H_n^(1)(k r) exp(i n theta)`` and the field in
+the dielectric ``sum_n i^n d_n J_n(k1 r) exp(i n theta)``, ``k1 = k sqrt(eps_r)``.
+The tangential field ``E_theta`` is proportional to ``(1/eps) dHz/dr``, so
+continuity of ``Hz`` and of ``(1/eps) dHz/dr`` at ``r = a`` gives, with
+``q = k1 / eps_r`` and ``F = J_n(k1 a)``,
+
+    b_n = (q F' J_n(ka) - k J_n'(ka) F) / (k F H_n'(ka) - q F' H_n(ka)),
+    d_n = (2 i / (pi a)) / (k F H_n'(ka) - q F' H_n(ka)),
+
+and ``b_n = -J_n'(ka) / H_n'(ka)`` for the PEC cylinder (``H = H^(1)``; the
+engineering convention ``exp(+j w t)`` writes the same with ``H^(2)``).
+
+The SPEM cases (:func:`run_tez_scattering`) solve for the scattered field on
+the particles of :mod:`.tez` in a square with split-field PML and a PEC box
+behind it. A conductor enters through wall particles on its circle (the curved
+wall closure of :class:`.TEzSolver`, normals pointing into the cylinder, i.e.
+out of the computed region): their closure columns multiply the scattered
+tangential field there, ``E_s . tau = -E_inc . tau``, which is how the incident
+wave drives the problem. A dielectric enters through per-E-particle
+permittivities and the source ``eps dE_s/dt = curl H_s - eps0 (eps_r - 1)
+dE_inc/dt``. The PML splits ``Hz = Hzx + Hzy`` (Berenger): ``mu dHzx/dt +
+sigma*_x Hzx = -dEy/dx``, ``mu dHzy/dt + sigma*_y Hzy = dEx/dy``, ``eps dEx/dt +
+sigma_y Ex = dHz/dy``, ``eps dEy/dt + sigma_x Ey = -dHz/dx`` with the
+semi-implicit coefficients of :class:`.TMzSolver`; where the conductivities are
+zero this is the lossless energy-conserving pair of :class:`.TEzSolver`, bit for
+bit the same operators.
+
+Examples
+--------
+>>> import numpy as np
+>>> b, d = tez_mie_coefficients("dielectric", 1e9, 0.1, eps_r=1.0)  # no contrast, no scattering
+>>> bool(np.abs(b).max() < 1e-14), bool(np.allclose(d, 1.0))
+True True
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import ArrayLike
+from scipy.special import h1vp, hankel1, jv, jvp
+
+from .._validation import as_points, check_in, check_int, check_positive
+from .constants import C0, EPS0, MU0
+from .pml import PML
+from .scattering import _n_terms, _series, _Switched, cell_fraction, dft_phasor, l2_error, wavenumber
+from .tez import DISK_H_RATIO, TEzLayout, TEzSolver, tez_layout
+
+__all__ = ["TEZ_SCATTERERS", "EPS_AVERAGES", "tez_mie_coefficients", "tez_scattered_field", "tez_total_field",
+           "tez_scattering_layout", "TEzPMLSolver", "TEzScatteringResult", "run_tez_scattering",
+           "particle_permittivity"]
+
+#: The scatterers of :func:`run_tez_scattering`.
+TEZ_SCATTERERS = ("pec", "dielectric")
+#: Permittivity averages per E particle (:func:`particle_permittivity`).
+EPS_AVERAGES = ("arithmetic", "harmonic", "anisotropic", "staircase")
+#: Free-space wave impedance ``sqrt(mu0 / eps0)`` (ohm).
+ETA0 = math.sqrt(MU0 / EPS0)
+
+
+def _check_kind(kind, radius, eps_r):
+    kind = check_in("kind", kind, TEZ_SCATTERERS)
+    radius = check_positive("radius", radius)
+    eps_r = check_positive("eps_r", eps_r)
+    return kind, radius, eps_r
+
+
+def tez_mie_coefficients(kind: str, freq: float, radius: float, *, eps_r: float = 4.0,
+                         n_terms: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """TEz series coefficients ``(b_n, d_n)``, ``n = 0..N``, of the module docstring (``d_n`` zero for PEC).
+
+    Parameters
+    ----------
+    kind : {"pec", "dielectric"}
+    freq : float
+        Frequency (Hz).
+    radius : float
+        Cylinder radius ``a`` (m).
+    eps_r : float
+        Relative permittivity of the dielectric (ignored for "pec").
+    n_terms : int, optional
+        Highest order N (default ``x + 4 x^(1/3) + 10``, ``x = k a max(1, sqrt(eps_r))``).
+
+    Returns
+    -------
+    (ndarray, ndarray)
+        Complex ``b_n`` (scattered) and ``d_n`` (interior).
+
+    Examples
+    --------
+    >>> b, _ = tez_mie_coefficients("pec", 1e9, 0.1)
+    >>> from scipy.special import jvp, h1vp
+    >>> bool(abs(b[0] + jvp(0, wavenumber(1e9) * 0.1) / h1vp(0, wavenumber(1e9) * 0.1)) < 1e-15)
+    True
+    """
+    kind, radius, eps_r = _check_kind(kind, radius, eps_r)
+    k = wavenumber(freq)
+    ka = k * radius
+    N = _n_terms(ka, eps_r) if n_terms is None else check_int("n_terms", n_terms, minimum=0)
+    n = np.arange(N + 1)
+    J, Jp = jv(n, ka), jvp(n, ka)
+    H, Hp = hankel1(n, ka), h1vp(n, ka)
+    if kind == "pec":
+        return -Jp / Hp, np.zeros(N + 1, dtype=complex)
+    k1 = k * math.sqrt(eps_r)
+    q = k1 / eps_r
+    F, Fp = jv(n, k1 * radius), jvp(n, k1 * radius)
+    den = k * F * Hp - q * Fp * H
+    return (q * Fp * J - k * Jp * F) / den, (2j / (math.pi * radius)) / den
+
+
+def tez_scattered_field(points: ArrayLike, kind: str, *, freq: float, radius: float, eps_r: float = 4.0,
+                        n_terms: int | None = None) -> np.ndarray:
+    """Exact scattered phasor ``Hz_s = Hz - Hz_inc`` (time factor ``exp(-i w t)``) at ``points`` (P, 2).
+
+    Outside the cylinder the Hankel series; inside the dielectric the
+    interior series minus the incident wave; inside the conductor ``-Hz_inc``
+    (no field there).
+
+    Examples
+    --------
+    >>> p = np.array([[0.0999999, 0.0], [0.1000001, 0.0]])  # either side of the interface
+    >>> h = tez_scattered_field(p, "dielectric", freq=1e9, radius=0.1, eps_r=4.0)
+    >>> bool(abs(h[0] - h[1]) < 1e-5)
+    True
+    """
+    kind, radius, eps_r = _check_kind(kind, radius, eps_r)
+    p = as_points("points", points, dim=2)
+    b_n, d_n = tez_mie_coefficients(kind, freq, radius, eps_r=eps_r, n_terms=n_terms)
+    k = wavenumber(freq)
+    r = np.hypot(p[:, 0], p[:, 1])
+    th = np.arctan2(p[:, 1], p[:, 0])
+    n = np.arange(len(b_n))
+    inc = np.exp(1j * k * p[:, 0])
+    out = np.empty(len(p), dtype=complex)
+    outside = r >= radius
+    if outside.any():
+        out[outside] = _series(b_n, hankel1(n[None, :], k * r[outside, None]), th[outside])
+    inside = ~outside
+    if kind == "pec":
+        out[inside] = -inc[inside]
+    elif inside.any():
+        out[inside] = _series(d_n, jv(n[None, :], k * math.sqrt(eps_r) * r[inside, None]), th[inside]) - inc[inside]
+    return out
+
+
+def tez_total_field(points: ArrayLike, kind: str, *, freq: float, radius: float, eps_r: float = 4.0,
+                    n_terms: int | None = None) -> np.ndarray:
+    """Exact total phasor ``Hz = Hz_inc + Hz_s`` at ``points`` (P, 2) (zero inside a conductor).
+
+    >>> p = np.array([[0.05, 0.0], [0.0, -0.2]])
+    >>> h = tez_total_field(p, "pec", freq=1e9, radius=0.1)
+    >>> bool(abs(h[0]) < 1e-15), bool(abs(h[1]) > 0.1)
+    (True, True)
+    """
+    p = as_points("points", points, dim=2)
+    return np.exp(1j * wavenumber(freq) * p[:, 0]) + tez_scattered_field(p, kind, freq=freq, radius=radius,
+                                                                           eps_r=eps_r, n_terms=n_terms)
+
+
+# ----------------------------------------------------------------------------- layout and materials
+def _voronoi_volumes(sets, bounds, dr, keep=None, k=8):
+    """Areas (units of ``dr^2``) of each set's Voronoi cells in ``bounds`` where ``keep(x, y)``, sampled at ``dr / k``."""
+    from scipy.spatial import cKDTree
+
+    x0, x1, y0, y1 = bounds
+    gx = x0 + (np.arange(int(round((x1 - x0) / dr)) * k) + 0.5) * dr / k
+    gy = y0 + (np.arange(int(round((y1 - y0) / dr)) * k) + 0.5) * dr / k
+    X, Y = np.meshgrid(gx, gy)
+    samples = np.column_stack([X.ravel(), Y.ravel()])
+    if keep is not None:
+        samples = samples[keep(samples[:, 0], samples[:, 1])]
+    return tuple(np.bincount(cKDTree(p).query(samples)[1], minlength=len(p)) / k**2 for p in sets)
+
+
+def _partnered(e, hz, axis, near, reach, dr):
+    """For the E particles ``near``: an Hz particle on each side along ``axis`` within ``reach`` (lateral <= 0.6 dr)."""
+    from scipy.spatial import cKDTree
+
+    ok = np.ones(len(near), bool)
+    if not len(near):
+        return ok
+    for j, nb in enumerate(cKDTree(hz).query_ball_point(e[near], reach * dr)):
+        d = (hz[nb] - e[near[j]]) / dr
+        lateral = np.abs(d[:, 1 - axis]) <= 0.6
+        ok[j] = bool(((d[:, axis] > 0.05) & lateral).any() and ((d[:, axis] < -0.05) & lateral).any())
+    return ok
+
+
+def tez_scattering_layout(kind: str, radius: float, dr: float, half_width: float, *, amplitude: float = 0.0,
+                          seed: int | None = 0, wall_spacing: float = 0.5, wall_margin: float = 0.3,
+                          partner_reach: float = 0.8) -> TEzLayout:
+    """TEz particles on ``[-L, L]^2`` around a cylinder at the origin, the box and a conductor as closure walls.
+
+    The TEz Yee lattice of :func:`.tez_layout` (``L = half_width`` rounded up
+    to a multiple of ``dr``), optionally jittered by up to ``amplitude * dr``
+    per coordinate (seeded). The tangential E particles on the box (PEC behind
+    the PML) become wall particles with outward normals, each standing for
+    ``dr`` of wall. For ``kind="pec"`` the Hz particles inside the cylinder and
+    the E particles closer than ``wall_margin * dr`` to it (or inside) are
+    removed, as is an E particle within 1.5 dr of it without an Hz particle on
+    each side along its derivative axis within ``partner_reach * dr`` (as
+    :func:`.tez_disk_layout`), and wall particles are put on the circle (spacing
+    about ``wall_spacing * dr``, normals ``-r/|r|``: out of the computed region,
+    into the conductor). ``volumes``: the particles' Voronoi areas in the box
+    (outside the conductor), sampled at ``dr / 8``.
+
+    Examples
+    --------
+    >>> lay = tez_scattering_layout("pec", 0.1, 0.025, 0.2)
+    >>> bool(np.hypot(*lay.hz.T).min() > 0.1), int((np.hypot(*lay.wall.T) < 0.15).sum())
+    (True, 51)
+    """
+    kind, radius, _ = _check_kind(kind, radius, 1.0)
+    dr = check_positive("dr", dr)
+    half_width = check_positive("half_width", half_width)
+    wall_spacing = check_positive("wall_spacing", wall_spacing)
+    wall_margin = check_positive("wall_margin", wall_margin, allow_zero=True)
+    partner_reach = check_positive("partner_reach", partner_reach)
+    if wall_margin >= 1.0:
+        raise ValueError(f"wall_margin must be below 1 (spacings), got {wall_margin}")
+    if radius < 2.0 * dr:
+        raise ValueError(f"dr = {dr} is too large for radius {radius}: need at least 2 spacings per radius")
+    if half_width < radius + 2 * dr:
+        raise ValueError(f"half_width must exceed radius + 2 dr = {radius + 2 * dr:.4g}, got {half_width}")
+    L = dr * math.ceil(half_width / dr - 1e-9)
+    base = tez_layout((-L, L, -L, L), dr, amplitude=amplitude, seed=seed)
+    x0, x1, y0, y1 = base.bounds
+    exw, eyw = base.ex[base.ex_fixed], base.ey[base.ey_fixed]
+    sy = np.where(np.abs(exw[:, 1] - y0) < np.abs(exw[:, 1] - y1), -1.0, 1.0)
+    sx = np.where(np.abs(eyw[:, 0] - x0) < np.abs(eyw[:, 0] - x1), -1.0, 1.0)
+    wall = [exw, eyw]
+    normal = [np.column_stack([np.zeros(len(sy)), sy]), np.column_stack([sx, np.zeros(len(sx))])]
+    length = [np.full(len(exw) + len(eyw), dr)]
+    hz, ex, ey = base.hz, base.ex[~base.ex_fixed], base.ey[~base.ey_fixed]
+    keep = None
+    if kind == "pec":
+        hz = hz[np.hypot(hz[:, 0], hz[:, 1]) > radius]
+        e_sets = []
+        for p, axis in ((ex, 1), (ey, 0)):
+            r = np.hypot(p[:, 0], p[:, 1])
+            p = p[r >= radius + wall_margin * dr]
+            r = np.hypot(p[:, 0], p[:, 1])
+            near = np.flatnonzero(r < radius + 1.5 * dr)
+            ok = np.ones(len(p), bool)
+            ok[near] = _partnered(p, hz, axis, near, partner_reach, dr)
+            e_sets.append(p[ok])
+        ex, ey = e_sets
+        m = max(8, int(math.ceil(2 * math.pi * radius / (wall_spacing * dr))))
+        th = 2 * np.pi * (np.arange(m) + 0.5) / m
+        u = np.column_stack([np.cos(th), np.sin(th)])
+        wall.append(radius * u)
+        normal.append(-u)
+        length.append(np.full(m, 2 * math.pi * radius / m))
+
+        def keep(x, y):
+            return np.hypot(x, y) >= radius
+
+    vols = _voronoi_volumes((hz, ex, ey), base.bounds, dr, keep)
+    return TEzLayout(hz, ex, ey, np.zeros(len(ex), bool), np.zeros(len(ey), bool), dr, base.bounds,
+                     wall=np.vstack(wall), wall_normal=np.vstack(normal), wall_length=np.concatenate(length),
+                     volumes=vols)
+
+
+def particle_permittivity(points: ArrayLike, component: int, dr: float, radius: float, eps_r: float,
+                          average: str = "anisotropic", n_sub: int = 8) -> np.ndarray:
+    """Relative permittivity of E particles (component 0: Ex, 1: Ey) near a dielectric disk of radius ``radius``.
+
+    Over each particle's square cell of side ``dr`` (``n_sub^2`` samples;
+    ``f`` the dielectric's fraction): ``"arithmetic"`` ``<eps>``,
+    ``"harmonic"`` ``1/<1/eps>``, ``"staircase"`` ``eps`` at the particle,
+    ``"anisotropic"`` the diagonal of the Kottke-Farjadpour tensor: the
+    component's part normal to the interface harmonic, the tangential part
+    arithmetic, ``1 / eps_c = n_c^2 <1/eps> + (1 - n_c^2) / <eps>`` with ``n``
+    the interface normal (radial) at the particle.
+
+    >>> particle_permittivity([[0.1, 0.0], [0.0, 0.1]], 0, 0.01, 0.1, 4.0).round(3).tolist()  # Ex normal, tangential
+    [1.6, 2.5]
+    """
+    p = as_points("points", points, dim=2)
+    average = check_in("average", average, EPS_AVERAGES)
+    eps_r = check_positive("eps_r", eps_r)
+    radius = check_positive("radius", radius)
+    if component not in (0, 1):
+        raise ValueError(f"component must be 0 (Ex) or 1 (Ey), got {component!r}")
+    if average == "staircase":
+        return np.where(np.hypot(p[:, 0], p[:, 1]) < radius, eps_r, 1.0)
+    f = cell_fraction(p, dr, lambda x, y: np.hypot(x, y) < radius, n_sub)
+    arith = 1.0 + (eps_r - 1.0) * f
+    inv = (1.0 - f) + f / eps_r
+    if average == "arithmetic":
+        return arith
+    if average == "harmonic":
+        return 1.0 / inv
+    r = np.hypot(p[:, 0], p[:, 1])
+    nc2 = np.where(r > 0, p[:, component] ** 2 / np.maximum(r, 1e-300) ** 2, 0.0)
+    return 1.0 / (nc2 * inv + (1.0 - nc2) / arith)
+
+
+# ----------------------------------------------------------------------------- time domain
+def _per_e(name, value, n):
+    """A relative material value per E particle: a positive scalar or an (n,) array of positive finite values."""
+    a = np.asarray(value, dtype=np.float64)
+    if a.ndim == 0:
+        return np.full(n, check_positive(name, float(a)))
+    if a.shape != (n,):
+        raise ValueError(f"{name} must be a scalar or have shape ({n},), got shape {a.shape}")
+    if not np.all(np.isfinite(a)) or not np.all(a > 0):
+        raise ValueError(f"{name} must be finite and > 0 at every particle")
+    return a
+
+
+class TEzPMLSolver:
+    """Leap-frog TEz with split-field PML, per-particle permittivity and driven wall closures (module docstring).
+
+    The operators are those of :class:`.TEzSolver` on a layout with closure
+    walls (:func:`tez_scattering_layout`), built with the smallest
+    permittivity: the energy-conserving pair with a larger permittivity
+    anywhere has a smaller spectral radius (``V_E eps`` grows in the Loewner
+    order), so the step of that solver stays stable.
+
+    Parameters
+    ----------
+    layout : TEzLayout
+        With wall (closure) particles.
+    eps_ex, eps_ey : float or array
+        Relative permittivity per free Ex / Ey particle (> 0).
+    pml : PML, optional
+        Absorbing layers (zero conductivity elsewhere).
+    h_ratio, courant, coupling
+        As :class:`.TEzSolver` (couplings "sbp" and "adjoint").
+
+    Examples
+    --------
+    >>> lay = tez_scattering_layout("pec", 0.1, 0.05, 0.2)
+    >>> s = TEzPMLSolver(lay)
+    >>> s.set_initial(np.exp(-((lay.hz[:, 0] - 0.15) ** 2 + lay.hz[:, 1] ** 2) / 0.003))
+    >>> s.run(200)
+    >>> bool(abs(s.energy() / s.energy0 - 1) < 1e-12)  # lossless, undriven: the discrete energy is conserved
+    True
+    """
+
+    def __init__(self, layout: TEzLayout, *, eps_ex: float | ArrayLike = 1.0, eps_ey: float | ArrayLike = 1.0,
+                 pml: PML | None = None, h_ratio: float = DISK_H_RATIO, courant: float = 0.9,
+                 coupling: str = "sbp") -> None:
+        if not isinstance(layout, TEzLayout):
+            raise TypeError(f"layout must be a TEzLayout, got {type(layout).__name__}")
+        if not layout.curved:
+            raise ValueError("layout must have wall (closure) particles (tez_scattering_layout or "
+                             "wall_closure_layout)")
+        if pml is not None and not isinstance(pml, PML):
+            raise TypeError(f"pml must be a PML or None, got {type(pml).__name__}")
+        check_in("coupling", coupling, ("sbp", "adjoint"))
+        er_x = _per_e("eps_ex", eps_ex, len(layout.ex))
+        er_y = _per_e("eps_ey", eps_ey, len(layout.ey))
+        self.base = TEzSolver(layout, h_ratio=h_ratio, eps_r=float(min(er_x.min(), er_y.min())), coupling=coupling,
+                              courant=courant)
+        b = self.base
+        self.layout, self.pml = layout, pml
+        self.Dx, self.Dy, self.Gx, self.Gy, self.closure = b.Dx, b.Dy, b.Gx, b.Gy, b.closure
+        self.vol_hz, self.vol_ex, self.vol_ey = b.vol_hz, b.vol_ex, b.vol_ey
+        self.eps_x, self.eps_y = EPS0 * er_x, EPS0 * er_y
+        zh = np.zeros(len(layout.hz))
+        sx_h, sy_h = pml.sigma(layout.hz) if pml else (zh, zh)
+        self._sig = (sx_h * MU0 / EPS0, sy_h * MU0 / EPS0,
+                     pml.sigma(layout.ex)[1] if pml else np.zeros(len(layout.ex)),
+                     pml.sigma(layout.ey)[0] if pml else np.zeros(len(layout.ey)))
+        self.dt = b.dt
+        self._coefficients()
+        self.reset()
+
+    @property
+    def dt_stable(self) -> float:
+        """Largest stable step of the lossless pair (:class:`.TEzSolver`'s spectral limit)."""
+        return self.base.dt_stable
+
+    def _coefficients(self):
+        def coef(s, m):
+            a = s * self.dt / (2.0 * m)
+            return (1.0 - a) / (1.0 + a), (self.dt / m) / (1.0 + a)
+
+        shx, shy, sex, sey = self._sig
+        self.dax, self.dbx = coef(shx, MU0)
+        self.day, self.dby = coef(shy, MU0)
+        self.cax, self.cbx = coef(sex, self.eps_x)
+        self.cay, self.cby = coef(sey, self.eps_y)
+
+    def set_dt(self, dt: float) -> None:
+        """Change the step (below the stability limit); call before :meth:`set_initial`."""
+        self.base.set_dt(dt)
+        self.dt = self.base.dt
+        self._coefficients()
+
+    def reset(self) -> None:
+        """Zero the fields, t = 0."""
+        self.hzx = np.zeros(len(self.layout.hz))
+        self.hzy = np.zeros(len(self.layout.hz))
+        self.ex = np.zeros(len(self.layout.ex))
+        self.ey = np.zeros(len(self.layout.ey))
+        self.t, self.n = 0.0, 0
+        self.energy0 = 0.0
+
+    @property
+    def hz(self) -> np.ndarray:
+        """``Hz = Hzx + Hzy``."""
+        return self.hzx + self.hzy
+
+    def set_initial(self, hz0: ArrayLike) -> None:
+        """Hz(0) = hz0 (split evenly), E(0) = 0 advanced half a step (lossless update)."""
+        from .._validation import as_field
+
+        self.reset()
+        h = as_field("hz0", hz0, len(self.layout.hz))
+        self.hzx, self.hzy = 0.5 * h, 0.5 * h
+        self.ex = 0.5 * self.dt / self.eps_x * (self.Gy @ h)
+        self.ey = -0.5 * self.dt / self.eps_y * (self.Gx @ h)
+        self.energy0 = self.energy()
+
+    def energy(self) -> float:
+        """``mu Hz . V Hz + eps E^{n+1/2} . V E^{n-1/2}`` (conserved without PML and drive; ``E^{n-1/2}`` rebuilt)."""
+        h = self.hz
+        ex_prev = self.ex - self.dt / self.eps_x * (self.Gy @ h)
+        ey_prev = self.ey + self.dt / self.eps_y * (self.Gx @ h)
+        return float(MU0 * (self.vol_hz * h) @ h + (self.vol_ex * self.eps_x * self.ex) @ ex_prev
+                     + (self.vol_ey * self.eps_y * self.ey) @ ey_prev)
+
+    def step(self, wall_et: np.ndarray | None = None, dex: np.ndarray | None = None,
+             dey: np.ndarray | None = None) -> None:
+        """Hz to t + dt, then E to t + 3 dt / 2.
+
+        ``wall_et``: the tangential E (``E . tau``, ``tau = (-n_y, n_x)``) on the
+        wall particles at t + dt / 2 (zero without); ``dex``, ``dey``: increments
+        added to Ex, Ey after their update (volume sources).
+        """
+        cy = self.Dy @ self.ex
+        if wall_et is not None:
+            cy = cy + self.closure @ wall_et
+        self.hzx = self.dax * self.hzx - self.dbx * (self.Dx @ self.ey)
+        self.hzy = self.day * self.hzy + self.dby * cy
+        self.n += 1
+        self.t = self.n * self.dt
+        h = self.hzx + self.hzy
+        self.ex = self.cax * self.ex + self.cbx * (self.Gy @ h)
+        self.ey = self.cay * self.ey - self.cby * (self.Gx @ h)
+        if dex is not None:
+            self.ex += dex
+        if dey is not None:
+            self.ey += dey
+
+    def run(self, steps: int) -> None:
+        """Advance ``steps`` undriven steps."""
+        for _ in range(check_int("steps", steps, minimum=0)):
+            self.step()
+
+
+@dataclass(frozen=True)
+class TEzScatteringResult:
+    """What :func:`run_tez_scattering` measured (the fields of :class:`.ScatteringResult`, for Hz, and more).
+
+    Attributes
+    ----------
+    case : str
+        The scatterer ("pec", "dielectric").
+    error : float
+        Relative L2 error of the complex scattered Hz on the evaluation Hz particles.
+    ring_error : float
+        The same on those in the annulus ``radius < r <= 2 radius`` (the near field).
+    particles, steps : int
+        Particles (Hz + Ex + Ey + wall, PML included) and leap-frog steps.
+    seconds, setup_seconds : float
+        Wall time of the whole case and of the set-up (layout, operators, stability limit).
+    dr, dt : float
+    layout, coupling, average : str
+        ``average``: the permittivity average of the E particles ("dielectric").
+    n_radial : int
+    stable_fraction : float
+        ``dt`` over the lossless pair's stability limit ``2 / sqrt(rho)``.
+    field_growth : float
+        Largest ``|Hz|`` over the last period divided by the largest over the
+        period before (about 1 at steady state; silent growth shows as > 1).
+    points : (P, 2) array
+        The evaluation Hz particles (outside the PML, outside a conductor).
+    phasor, exact : (P,) complex arrays
+        Measured and exact scattered phasors there.
+    """
+
+    case: str
+    error: float
+    ring_error: float
+    particles: int
+    steps: int
+    seconds: float
+    setup_seconds: float
+    dr: float
+    dt: float
+    layout: str
+    coupling: str
+    average: str
+    n_radial: int
+    stable_fraction: float
+    field_growth: float
+    points: np.ndarray = field(repr=False)
+    phasor: np.ndarray = field(repr=False)
+    exact: np.ndarray = field(repr=False)
+
+    def to_dict(self) -> dict:
+        """The scalar fields (JSON-ready)."""
+        return {k: getattr(self, k) for k in ("case", "error", "ring_error", "particles", "steps", "seconds",
+                                               "setup_seconds", "dr", "dt", "layout", "coupling", "average",
+                                               "n_radial", "stable_fraction", "field_growth")}
+
+
+def _domain(radius, ka, n_radial, margin, pml_thickness):
+    """Frequency, spacing, interior and outer half widths of the scattering cases (as :func:`.run_scattering`)."""
+    freq = ka * C0 / (2 * math.pi * radius)
+    lam = C0 / freq
+    dr = radius / n_radial
+    inner = dr * math.ceil((radius + margin * lam) / dr - 1e-9)
+    outer = inner + dr * math.ceil(pml_thickness * lam / dr - 1e-9)
+    return freq, dr, inner, outer
+
+
+def run_tez_scattering(kind: str = "pec", *, n_radial: int = 8, radius: float = 0.1, ka: float = 2.0,
+                       eps_r: float = 4.0, layout: str = "yee", amplitude: float = 0.2, seed: int | None = 0,
+                       average: str = "anisotropic", margin: float = 0.5, pml_thickness: float = 0.5,
+                       pml_order: int = 3, pml_reflection: float = 1e-6, periods: float = 12.0, ramp: float = 3.0,
+                       dft_periods: float = 2.0, coupling: str = "sbp", h_ratio: float = DISK_H_RATIO,
+                       courant: float = 0.9, wall_spacing: float = 0.5, wall_margin: float = 0.3,
+                       n_sub: int = 8) -> TEzScatteringResult:
+    """TEz plane-wave scattering by a circular cylinder with SPEM, compared with the exact series.
+
+    The scattered-field formulation of the module docstring on the TEz Yee
+    lattice (``layout="yee"``) or jittered particles (``"jittered"``,
+    ``amplitude * dr``, seeded), ``dr = radius / n_radial``. The interior box
+    reaches ``margin`` wavelengths beyond the cylinder, the PML
+    ``pml_thickness`` wavelengths beyond it (a PEC box behind). The incident
+    wave is switched on over ``ramp`` periods, the run lasts ``periods``
+    periods (an integer number of steps each) and the complex amplitude of Hz
+    is the DFT over the last ``dft_periods``.
+
+    Parameters
+    ----------
+    kind : {"pec", "dielectric"}
+    n_radial : int
+        Spacings per radius (>= 2).
+    radius : float
+        Cylinder radius (m).
+    ka : float
+        Vacuum wavenumber times radius (sets the frequency).
+    eps_r : float
+        Dielectric permittivity ("dielectric").
+    layout : {"yee", "jittered"}
+    average : {"anisotropic", "arithmetic", "harmonic", "staircase"}
+        Permittivity of the E particles near the interface
+        (:func:`particle_permittivity`).
+    coupling : {"sbp", "adjoint"}
+    h_ratio, courant : float
+        As :class:`.TEzSolver` (default ``h_ratio`` 0.8, as the TEz cavity with curved walls).
+    wall_spacing, wall_margin : float
+        As :func:`tez_scattering_layout`.
+    n_sub : int
+        Samples per cell side of the permittivity averages.
+
+    Returns
+    -------
+    TEzScatteringResult
+
+    Examples
+    --------
+    >>> r = run_tez_scattering("pec", n_radial=4, periods=4.0, dft_periods=1.0)
+    >>> r.case, r.error < 0.5
+    ('pec', True)
+    """
+    t_start = time.perf_counter()
+    kind, radius, eps_r = _check_kind(kind, radius, eps_r)
+    n_radial = check_int("n_radial", n_radial, minimum=2)
+    ka = check_positive("ka", ka)
+    check_in("layout", layout, ("yee", "jittered"))
+    average = check_in("average", average, EPS_AVERAGES)
+    margin = check_positive("margin", margin)
+    pml_thickness = check_positive("pml_thickness", pml_thickness)
+    periods = check_positive("periods", periods)
+    ramp = check_positive("ramp", ramp, allow_zero=True)
+    dft_periods = check_positive("dft_periods", dft_periods)
+    if dft_periods + 1.0 > periods - ramp:
+        raise ValueError(f"dft_periods must be at most periods - ramp - 1 = {periods - ramp - 1.0:g}, "
+                         f"got {dft_periods}")
+    freq, dr, inner, outer = _domain(radius, ka, n_radial, margin, pml_thickness)
+    lay = tez_scattering_layout(kind, radius, dr, outer, amplitude=amplitude if layout == "jittered" else 0.0,
+                                seed=seed, wall_spacing=wall_spacing, wall_margin=wall_margin)
+    eps_x, eps_y = np.ones(len(lay.ex)), np.ones(len(lay.ey))
+    if kind == "dielectric":
+        eps_x = particle_permittivity(lay.ex, 0, dr, radius, eps_r, average, n_sub)
+        eps_y = particle_permittivity(lay.ey, 1, dr, radius, eps_r, average, n_sub)
+    pml = PML(outer - inner, pml_order, pml_reflection, interior=(-inner, inner, -inner, inner))
+    s = TEzPMLSolver(lay, eps_ex=eps_x, eps_ey=eps_y, pml=pml, h_ratio=h_ratio, courant=courant, coupling=coupling)
+    T = 1.0 / freq
+    per = int(math.ceil(T / s.dt - 1e-9))
+    s.set_dt(T / per)
+    k0 = 2 * math.pi * freq / C0
+    x0 = -radius
+    w = 2 * math.pi * freq
+    # the tangential scattered E on the conductor: -E_inc . tau = -eta0 Hz_inc tau_y, tau = (-n_y, n_x)
+    ring = np.flatnonzero(np.hypot(lay.wall[:, 0], lay.wall[:, 1]) < radius * (1 + 1e-9))
+    wall_inc = _Switched(lay.wall[ring, 0], freq, x0, ramp, k0) if len(ring) else None
+    et = np.zeros(len(lay.wall))
+    tau_y = lay.wall_normal[ring, 0]
+    # the dielectric: eps dEy_s/dt = curl H_s - eps0 (eps_r - 1) dEy_inc/dt -> increment -(eps-1)/eps dEy_inc
+    diel = np.flatnonzero(eps_y != 1.0)
+    ey_inc = _Switched(lay.ey[diel, 0], freq, x0, ramp, k0) if len(diel) else None
+    fac = ETA0 * (eps_y[diel] - 1.0) / eps_y[diel]
+    dey = np.zeros(len(lay.ey))
+    steps = int(round(periods * per))
+    n_dft = int(round(dft_periods * per))
+    hz = lay.hz
+    ev = np.flatnonzero((np.abs(hz[:, 0]) <= inner) & (np.abs(hz[:, 1]) <= inner))
+    setup = time.perf_counter() - t_start
+    acc = np.zeros(len(ev), dtype=complex)
+    peak = np.zeros(2)
+    for n in range(steps):
+        t_half = (n + 0.5) * s.dt
+        if wall_inc is not None:
+            et[ring] = -ETA0 * wall_inc(t_half) * tau_y
+        if ey_inc is not None:
+            dey[diel] = -fac * (ey_inc(t_half + s.dt) - ey_inc(t_half))
+        s.step(et if wall_inc is not None else None, None, dey if ey_inc is not None else None)
+        h = s.hz
+        if n >= steps - 2 * per:
+            peak[int(n >= steps - per)] = max(peak[int(n >= steps - per)], float(np.abs(h).max()))
+        if n >= steps - n_dft:
+            acc += h[ev] * np.exp(1j * w * s.t)
+    phasor = acc * (2.0 / n_dft)
+    pts = hz[ev]
+    exact = tez_scattered_field(pts, kind, freq=freq, radius=radius, eps_r=eps_r)
+    r_ev = np.hypot(pts[:, 0], pts[:, 1])
+    near = (r_ev > radius) & (r_ev <= 2 * radius)
+    return TEzScatteringResult(kind, l2_error(phasor, exact), l2_error(phasor[near], exact[near]), lay.n_particles,
+                               steps, time.perf_counter() - t_start, setup, dr, s.dt, layout, coupling,
+                               average if kind == "dielectric" else "", n_radial, s.dt / s.dt_stable,
+                               peak[1] / peak[0], pts, phasor, exact)
