@@ -253,7 +253,7 @@ def jump_permittivity(operator, phi: ArrayLike, eps_in: float, eps_out: float = 
 
     In TMz with ``mu = 1`` the field ``Ez`` and its normal derivative are
     continuous across an interface between ``eps_in`` and ``eps_out``; only
-    the second derivatives jump: ``[Ez_nn] = J = (eps_in - eps_out) Ez_tt / c^2``
+    the second derivatives jump: ``[Ez_nn] = J = (eps_out - eps_in) Ez_tt / c^2``
     (outside minus inside, ``n`` the normal) and, on a curve of curvature
     ``kappa``, ``[Ez_nnn] = -kappa J`` plus a term in ``Ez_n`` (left out). Near
     the interface the field on the far side of a particle ``i`` is the smooth
@@ -579,9 +579,10 @@ def run_scattering(kind: str = "dielectric", *, n_radial: int = 8, radius: float
         mimetic fast band, ``h_ratio=1.2``, ``time_correction``, 20 periods):
         3.0e-2 / 7.1e-3 / 2.0e-3 -> 1.1e-2 / 6.9e-4 / 2.1e-4 at 4 / 8 / 16
         spacings per radius (``benchmarks/spem_vs_yee.py --dielectric``); it
-        helps ``sbp`` too (8: 5.0e-2 -> 3.9e-2). Not on a thin coated shell:
-        coated (b = a/2) at 4 spacings per radius 1.2e-1 -> 2.3e-1 (sbp), better
-        at 8 (4.3e-2 -> 2.7e-2). It costs a second stability estimate in the
+        helps ``sbp`` less (8: 5.0e-2 -> 4.4e-2, its bulk error dominates). Not
+        on a thin coated shell: coated (b = a/2, sbp) at 4 spacings per radius
+        1.2e-1 -> 1.8e-1 (the shell is 2 spacings thick), better at 8 (4.3e-2 ->
+        2.2e-2); hence not the default. It costs a second stability estimate in the
         set-up.
 
     Returns
