@@ -1,0 +1,124 @@
+"""Voronoi poles of a point cloud (Amenta & Bern 1999): a normal line from the 3D Delaunay.
+
+The pole of a sample is the farthest vertex of its Voronoi cell (the circumcentre of
+the incident Delaunay tetrahedron farthest from it); for a sample on the convex hull,
+whose cell is unbounded, the pole lies at infinity along the mean outward normal of the
+incident hull facets. The second pole is the farthest vertex of the cell on the other
+side (negative projection on the first pole vector). For a surface sampled densely
+enough (Amenta & Bern's epsilon-sampling, epsilon well below 1) the vectors from the
+sample to its poles lie close to the normal line, one inside and one outside, whatever
+the k nearest neighbours are: they come from the empty balls touching the sample.
+
+Measured on the coarse test models (mesh vertices as the cloud, against the mesh's
+area-weighted normals): the pole lines are a poorer normal estimate than the jet fits of
+:mod:`manifold_sph.scans.normals` (median angle cow 12.3 deg against 5.2, cheburashka 5.7
+against 1.0, beetle 13.3 against 8.8), and where the two disagree by more than 30 degrees
+neither is right more often (cow: pole 50 %, fit 47 % of 183 within 20 degrees at a pole
+radius of 1-2 spacings); these models are sampled far more coarsely than the theory asks.
+:func:`~manifold_sph.scans.normals.estimate_normals` (``poles=True``) uses them as extra
+candidates and for a sign check (its module notes, step 9). Cost: one qhull Delaunay
+triangulation (about 4-5 s on 35,000 points, 28 s on 134,000 on a loaded 2-core machine).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike
+from scipy.spatial import Delaunay
+
+from .._validation import as_points
+
+__all__ = ["voronoi_poles"]
+
+
+def _circumcentres(pts, tets):
+    """Circumcentres of the tetrahedra and a mask of the non-degenerate ones."""
+    a = pts[tets[:, 0]]
+    B = pts[tets[:, 1:]] - a[:, None, :]
+    rhs = 0.5 * np.einsum("mki,mki->mk", B, B)
+    det = np.linalg.det(B)
+    scale = np.einsum("mki,mki->m", B, B) ** 1.5
+    ok = np.abs(det) > 1e-10 * scale
+    c = np.linalg.solve(np.where(ok[:, None, None], B, np.eye(3)), np.where(ok[:, None], rhs, 0.0)[..., None])[..., 0]
+    return a + c, ok
+
+
+def voronoi_poles(points: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pole vectors of every sample: from the sample to the farthest vertex of its Voronoi cell.
+
+    Parameters
+    ----------
+    points : array_like, shape (N, 3)
+        At least 5 points, not all in one plane.
+
+    Returns
+    -------
+    pole : ndarray, shape (N, 3)
+        The vector from each sample to its pole (for samples on the convex hull the
+        mean outward normal of the incident hull facets, scaled to 1e6 times the cloud's
+        diameter: the pole at infinity). Zero for a sample that is a vertex of no
+        non-degenerate tetrahedron (an exact duplicate of another sample).
+    radius : ndarray, shape (N,)
+        The distance to the pole (``inf`` on the hull, 0 where ``pole`` is zero).
+    second : ndarray, shape (N, 3)
+        The vector to the second pole: the farthest vertex of the cell with a negative
+        projection on ``pole`` (zero where there is none).
+
+    Raises
+    ------
+    ValueError
+        On a bad ``points`` array, fewer than 5 points, or points that span no volume.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from manifold_sph.reference import shapes
+    >>> c = shapes.sphere(500)
+    >>> pole, r, second = voronoi_poles(c.points)
+    >>> u = pole / np.linalg.norm(pole, axis=1)[:, None]
+    >>> bool(np.abs(np.einsum("ij,ij->i", u, c.normals)).min() > 0.99)
+    True
+    """
+    pts = as_points("points", points)
+    N = pts.shape[0]
+    if N < 5:
+        raise ValueError(f"points must hold at least 5 points for Voronoi poles, got {N}")
+    centre = pts.mean(axis=0)
+    if np.linalg.matrix_rank(pts - centre, tol=1e-12 * max(np.ptp(pts, axis=0).max(), 1e-300)) < 3:
+        raise ValueError("points must span a volume (not all in one plane) for Voronoi poles")
+    try:
+        tri = Delaunay(pts - centre)
+    except Exception as exc:  # qhull: degenerate input (e.g. nearly planar after all)
+        raise ValueError(f"points admit no 3D Delaunay triangulation for Voronoi poles: {exc}") from exc
+    tets = tri.simplices
+    C, ok = _circumcentres(pts, tets)
+    t = np.repeat(np.arange(tets.shape[0]), 4)[np.repeat(ok, 4)]
+    u = tets[ok].ravel()
+    d = np.linalg.norm(C[t] - pts[u], axis=1)
+    order = np.lexsort((d, u))
+    last = order[np.r_[u[order][1:] != u[order][:-1], True]]
+    pole = np.zeros_like(pts)
+    radius = np.zeros(N)
+    pole[u[last]] = C[t[last]] - pts[u[last]]
+    radius[u[last]] = d[last]
+    # samples on the convex hull: the pole at infinity along the mean outward facet normal
+    hull = tri.convex_hull
+    hn = np.cross(pts[hull[:, 1]] - pts[hull[:, 0]], pts[hull[:, 2]] - pts[hull[:, 0]])
+    hn *= np.where(np.einsum("ij,ij->i", hn, pts[hull[:, 0]] - centre) < 0, -1.0, 1.0)[:, None]
+    hn /= np.maximum(np.linalg.norm(hn, axis=1), 1e-300)[:, None]
+    H = np.zeros_like(pts)
+    for a in range(3):
+        np.add.at(H, hull[:, a], hn)
+    on = np.linalg.norm(H, axis=1) > 0
+    diameter = float(np.ptp(pts, axis=0).max())
+    pole[on] = H[on] / np.linalg.norm(H[on], axis=1)[:, None] * 1e6 * diameter
+    radius[on] = np.inf
+    # the second pole: the farthest vertex on the other side of the sample (negative projection)
+    proj = np.einsum("ij,ij->i", C[t] - pts[u], pole[u])
+    d2 = np.where(proj < 0, d, -1.0)
+    order = np.lexsort((d2, u))
+    last = order[np.r_[u[order][1:] != u[order][:-1], True]]
+    last = last[d2[last] > 0]
+    second = np.zeros_like(pts)
+    second[u[last]] = C[t[last]] - pts[u[last]]
+    return pole, radius, second
