@@ -5,7 +5,11 @@ Run: .venv/bin/python benchmarks/spem_vs_yee.py [--full]
      coated cylinders, :mod:`manifold_sph.spem.scattering`, against the same scattered-field formulation,
      PML and DFT on the Yee grid; staircased, and for the dielectric also cell-averaged like SPEM's particles)
      .venv/bin/python benchmarks/spem_vs_yee.py --dielectric   (the dielectric cylinder table of issue 21
-     item 3 in one run: Yee staircased / cell-averaged against SPEM with and without ``time_correction``)
+     item 3 in one run: Yee staircased / cell-averaged against SPEM with and without ``time_correction``,
+     and with ``interface="jump"``)
+     .venv/bin/python benchmarks/spem_vs_yee.py --dielectric-checks   (the jump-corrected interface against the
+     cell average on other cylinders: eps_r 2 and 8, ka 1 and 3, at 8 and 16 spacings per radius, beside the
+     staircased Yee grid; periods long enough for the high-Q cases to ring down)
      .venv/bin/python benchmarks/spem_vs_yee.py --cost [--sizes 1e4 9e4 1e6] [--repeat 7]   (ns per unknown
      and step on lattices, in one run: the numpy Yee, SPEM's CSR step (``stencil=False``) and its stencil
      runs (the default), on a PEC square cavity and on a plane wave with PML; see :func:`cost_main`)
@@ -147,7 +151,9 @@ def main():
     ap.add_argument("--scattering", action="store_true", help="the cylinder scattering cases instead of the cavity")
     ap.add_argument("--dielectric", action="store_true", help="the dielectric cylinder table (issue 21 item 3): "
                     "Yee staircased / cell-averaged against SPEM mimetic (fast band, h/dr 1.2) and sbp, with and "
-                    "without time_correction; one run, ~8 min")
+                    "without time_correction, and the jump-corrected interface; one run, ~12 min")
+    ap.add_argument("--dielectric-checks", action="store_true", help="interface='jump' against the cell average "
+                    "on eps_r 2 / 8 and ka 1 / 3 cylinders (~10 min)")
     ap.add_argument("--cost", action="store_true", help="the cost per unknown and step table (lattices)")
     ap.add_argument("--sizes", type=float, nargs="+", default=[1e4, 9e4, 1e6], help="--cost: unknowns (about)")
     ap.add_argument("--repeat", type=int, default=7, help="--cost: timed repeats (the median is printed)")
@@ -160,6 +166,9 @@ def main():
         return
     if a.dielectric:
         dielectric_main()
+        return
+    if a.dielectric_checks:
+        dielectric_checks()
         return
     e1, e2 = yee_square_check()
     print(f"Yee check, square PEC cavity TM11 at 40 cells: frequency error {e1:.2e} against the exact mode, "
@@ -285,8 +294,10 @@ def scattering_main(full=False, kinds=("pec", "dielectric", "coated"), layouts=(
 def dielectric_main(periods=20.0):
     """The dielectric cylinder (eps_r 4, ka = 2, 20 periods) in one run: the issue's Yee baselines (staircased,
     cell-averaged), Yee with the time correction (for reference), SPEM mimetic (fast band, h/dr 1.2) with and
-    without ``time_correction`` (with it at 32 spacings per radius too), and sbp with it; then each SPEM row
-    against the staircased Yee at equal unknowns and at equal error (CPU)."""
+    without ``time_correction`` (with it at 32 spacings per radius too), the same with ``interface="jump"``
+    (4-32; and with 40 periods: at 20 the slow ring-down of the cylinder's modes leaves about 2e-4), and sbp
+    with the time correction, with and without the jump; then each SPEM row against the staircased Yee at
+    equal unknowns and at equal error (CPU)."""
     head = (f"{'method':<40s} {'n_r':>4s} {'unknowns':>8s} {'error':>10s} {'ring':>10s} {'setup s':>8s} "
             f"{'run s':>8s} {'steps':>6s}")
     print("dielectric cylinder eps_r 4, ka = 2, 20 periods: relative L2 error of the scattered phasor")
@@ -307,11 +318,18 @@ def dielectric_main(periods=20.0):
     spem = {"mimetic-fast h/dr 1.2": dict(coupling="mimetic", mimetic_fast=True, h_ratio=1.2),
             "mimetic-fast h/dr 1.2 time-corr.": dict(coupling="mimetic", mimetic_fast=True, h_ratio=1.2,
                                                       time_correction=True),
-            "sbp time-corr.": dict(coupling="sbp", time_correction=True)}
+            "mimetic-fast h/dr 1.2 time-corr. jump": dict(coupling="mimetic", mimetic_fast=True, h_ratio=1.2,
+                                                           time_correction=True, interface="jump"),
+            "mimetic-fast h/dr 1.2 time-corr. jump 40 periods": dict(coupling="mimetic", mimetic_fast=True,
+                                                                      h_ratio=1.2, time_correction=True,
+                                                                      interface="jump", periods=40.0),
+            "sbp time-corr.": dict(coupling="sbp", time_correction=True),
+            "sbp jump": dict(coupling="sbp", interface="jump")}
     rows = {}
     for name, kw in spem.items():
-        sizes = (4, 8, 16, 32) if name == "mimetic-fast h/dr 1.2 time-corr." else (4, 8, 16)
-        rows[name] = [run_spem_scattering("dielectric", n, periods=periods, **kw) for n in sizes]
+        sizes = (4, 8, 16, 32) if name.startswith("mimetic-fast h/dr 1.2 time-corr.") else (4, 8, 16)
+        kw = {"periods": periods, **kw}
+        rows[name] = [run_spem_scattering("dielectric", n, **kw) for n in sizes]
         for r in rows[name]:
             r["method"] = f"SPEM {name}"
             line(r)
@@ -320,6 +338,101 @@ def dielectric_main(periods=20.0):
         _compare(rr, yee, "Yee")
         print(f"SPEM {name} against the cell-averaged Yee:")
         _compare(rr, avg, "Yee-avg")
+
+
+def dielectric_checks():
+    """``interface="jump"`` against the cell average (SPEM mimetic, fast band, h/dr 1.2, time correction) on
+    cylinders other than the issue's: eps_r 2 and 8 (ka 2), ka 1 and 3 (eps_r 4), at 8 and 16 spacings per
+    radius, with the staircased Yee grid at equal resolution. eps_r 8 and ka = 3 have high-Q modes that ring
+    down slowly (20 periods leave 5e-2 there), so they run 150 and 120 periods."""
+    head = (f"{'case':<16s} {'method':<34s} {'n_r':>4s} {'unknowns':>8s} {'error':>10s} {'ring':>10s} "
+            f"{'setup s':>8s} {'run s':>8s}")
+    print("dielectric cylinders: relative L2 error of the scattered phasor (SPEM mimetic fast, h/dr 1.2, "
+          "time correction)")
+    print(head)
+    cases = [("eps_r 2", dict(eps_r=2.0), 20.0), ("eps_r 8", dict(eps_r=8.0), 150.0),
+             ("ka 1", dict(ka=1.0), 20.0), ("ka 3", dict(ka=3.0), 120.0)]
+    for label, kw, periods in cases:
+        for n in (8, 16):
+            rows = [run_yee_scattering("dielectric", n, periods=periods, **kw)]
+            for interface in ("average", "jump"):
+                r = run_spem_scattering("dielectric", n, periods=periods, coupling="mimetic", mimetic_fast=True,
+                                        h_ratio=1.2, time_correction=True, interface=interface, **kw)
+                r["method"] = f"SPEM {interface}"
+                rows.append(r)
+            for r in rows:
+                print(f"{label + f' ({periods:g} per.)':<16s} {r['method']:<34s} {n:>4d} {r['unknowns']:>8d} "
+                      f"{r['error']:>10.3e} {r['ring_error']:>10.3e} {r['setup']:>8.2f} {r['run']:>8.2f}",
+                      flush=True)
+    centre = (0.013, -0.021)
+    for n in (8, 16):
+        for interface in ("average", "jump"):
+            err, setup, run = run_offcentre_dielectric(n, centre, interface)
+            print(f"{'off-centre':<16s} {'SPEM ' + interface + f' centre {centre}':<34s} {n:>4d} {'':>8s} "
+                  f"{err:>10.3e} {'':>10s} {setup:>8.2f} {run:>8.2f}", flush=True)
+
+
+def run_offcentre_dielectric(n_radial, centre, interface, *, radius=0.1, ka=2.0, eps_r=4.0, periods=20.0):
+    """The dielectric cylinder (eps_r 4, ka = 2) centred at ``centre``, off the lattice's symmetry, with the
+    public pieces of :mod:`manifold_sph.spem.scattering` (``run_scattering`` keeps the cylinder at the
+    origin): cell-averaged eps or :func:`~manifold_sph.spem.scattering.jump_permittivity` with the circle's
+    curvature, mimetic fast band, h/dr 1.2, time correction, the same PML and DFT. Returns (error, set-up s,
+    run s); the exact field is the centred series shifted (the incident phase ``exp(i k cx)``)."""
+    from manifold_sph.spem.pml import PML
+    from manifold_sph.spem.scattering import (_Switched, _VolumeDrive, cell_fraction, jump_permittivity, l2_error,
+                                              scattered_field, scattering_layout)
+    from manifold_sph.spem.solver import TMzSolver
+    from manifold_sph.spem.sources import Source
+
+    t0 = time.perf_counter()
+    cx, cy = centre
+    freq = ka * C0 / (2 * math.pi * radius)
+    lam = C0 / freq
+    dr = radius / n_radial
+    inner = dr * math.ceil((radius + math.hypot(cx, cy) + 0.5 * lam) / dr - 1e-9)
+    outer = inner + dr * math.ceil(0.5 * lam / dr - 1e-9)
+    lay = scattering_layout("dielectric", radius, dr, outer)
+    e = lay.e
+    phi = np.hypot(e[:, 0] - cx, e[:, 1] - cy) - radius
+    eps = 1.0 + (eps_r - 1.0) * cell_fraction(e, dr, lambda x, y: np.hypot(x - cx, y - cy) < radius)
+    cand = np.flatnonzero((phi < 6 * dr) & ~lay.e_fixed)  # every particle the jump can change (checked below)
+    k0 = 2 * math.pi * freq / C0
+    inc = _Switched(e[cand, 0], freq, cx - radius, 3.0, k0)
+    drive = _VolumeDrive(inc, np.zeros(len(cand)))
+    pml = PML(outer - inner, 3, 1e-6, interior=(-inner, inner, -inner, inner))
+    s = TMzSolver(lay, h_ratio=1.2, eps_r=eps, pml=pml, sources=[Source(cand, drive, "soft")], coupling="mimetic",
+                  mimetic_fast=True, sbp_layers=2)
+    if interface == "jump":
+        fr = s.free
+        L = s.Dx_e @ s.Dx_hy[:, fr] + s.Dy_e @ s.Dy_hx[:, fr]
+        eps = np.ones(len(e))
+        eps[fr] = jump_permittivity(L, phi[fr], eps_r, curvature=1.0 / radius)
+        s._set_materials(eps, 1.0, 0.0)
+        s._set_time_step(None, 0.9)
+        s._set_losses()
+        outside = np.ones(len(e), bool)
+        outside[cand] = False
+        assert (eps[outside] == 1.0).all(), "the jump changed eps beyond the driven particles"
+    drive.factor = (eps[cand] - 1.0) / eps[cand]
+    per = int(math.ceil(1.0 / freq / s.dt - 1e-9))
+    w = 2 * math.pi * freq
+    dt = 2.0 * math.sin(math.pi / per) / w  # the time correction
+    w = 2 * math.pi / (per * dt)
+    inc.freq = w / (2 * math.pi)
+    s.set_dt(dt)
+    drive.dt = s.dt
+    steps, n_dft = int(round(periods * per)), 2 * per
+    free = np.zeros(len(e), bool)
+    free[s.free] = True
+    ev = np.flatnonzero(free & (np.abs(e[:, 0]) <= inner) & (np.abs(e[:, 1]) <= inner))
+    setup = time.perf_counter() - t0
+    acc = np.zeros(len(ev), dtype=complex)
+    for k in range(steps):
+        s.step()
+        if k >= steps - n_dft:
+            acc += s.e_field[ev] * np.exp(1j * w * s.t)
+    exact = scattered_field(e[ev] - [cx, cy], "dielectric", freq=freq, radius=radius, eps_r=eps_r) * np.exp(1j * k0 * cx)
+    return l2_error(acc * (2.0 / n_dft), exact), setup, time.perf_counter() - t0 - setup
 
 
 # ----------------------------------------------------------------------------- scattering (issue 21 item 3)
