@@ -149,7 +149,10 @@ class MimeticOperators:
     ``pairs[k] = (G, D)`` for each requested ``(H points, axis)``: ``G`` (n_H, n_E) over every E particle,
     ``D`` (n_free, n_H) on the free E particles; ``vol_e`` (n_E,) (set on the free particles, 0 elsewhere),
     ``vol_h`` one (n_H,) array per pair; ``residual`` the largest relative miss of the column conditions
-    after the correction; ``correction`` the relative size of the change of ``G`` (Frobenius).
+    after the correction; ``correction`` the relative size of the change of ``G`` (Frobenius);
+    ``volume_change`` the largest relative change of a volume; ``path`` where the correction was made:
+    "band" (along the walls), "wall band" (the band with the wall closure's pairs, see
+    :func:`mimetic_operators`) or "whole" (the whole operator).
     """
 
     pairs: list
@@ -158,6 +161,7 @@ class MimeticOperators:
     residual: float
     correction: float
     volume_change: float
+    path: str = "whole"
 
 
 def _pairs(rows: np.ndarray, cols: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
@@ -382,28 +386,10 @@ def mimetic_operators(e: np.ndarray, free: np.ndarray, h_sets: list[tuple[np.nda
     near = np.concatenate([np.linalg.norm(e[j] - h_sets[k][0][i], axis=1) < c_radius * scale
                            for k, (g, i, j, w) in enumerate(grads)])
     on = np.r_[near, np.ones(n_u - o_vh, bool)]
-    res = -(A @ u0)
+    # the wall closure: the pairs with a wall (non-free) column, at any distance (a second band attempt)
+    wall = np.r_[np.concatenate([~free[j] for g, i, j, w in grads]), np.zeros(n_u - o_vh, bool)]
     layers = BAND_LAYERS if band_layers == "auto" else band_layers
-    u = None
-    while u is None:
-        rows = np.arange(A.shape[0])
-        cor = on
-        if layers is not None:  # correct only the unknowns within `layers` rings of the unmet conditions
-            cor, rows = _band(A, on, np.abs(res) > BAND_TOL, layers)
-            if cor.sum() == on.sum():  # irregular layouts: everything, the whole operator
-                cor, rows, layers = on, np.arange(A.shape[0]), None
-        Ab = A[rows][:, cor] if layers is not None else A[:, cor]
-        AW = Ab @ sp.diags(wt[cor])
-        K = (AW @ Ab.T).tocsc()
-        K = K + sp.identity(K.shape[0], format="csc") * (1e-13 * K.diagonal().max())
-        # K is symmetric positive definite: no pivoting, symmetric ordering (half the fill of a general LU)
-        lam = splu(K, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True}).solve(res[rows])
-        delta = np.zeros(n_u)
-        delta[cor] = AW.T @ lam
-        u = u0 + delta
-        after = A @ u
-        if layers is not None and not (np.abs(after).max() < BAND_ACCEPT and np.all(u[o_vh:] > 0)):
-            u, layers = None, None  # the band cannot meet the conditions: the whole operator
+    u, delta, after, path = _correct(A, u0, wt, on, o_vh, layers, wall)
     ve = u[o_ve:]
     vh = [u[o_vh + offs_h[s]: o_vh + offs_h[s + 1]] for s in range(len(sets))]
     v_all = np.r_[np.concatenate(vh), ve]
@@ -423,7 +409,50 @@ def mimetic_operators(e: np.ndarray, free: np.ndarray, h_sets: list[tuple[np.nda
         pairs.append((G, D))
     vol_e = np.zeros(n_e)
     vol_e[fidx] = ve * scale**2
-    return MimeticOperators(pairs, vol_e, [vh[s] * scale**2 for s in set_of], worst, corr, volume_change)
+    return MimeticOperators(pairs, vol_e, [vh[s] * scale**2 for s in set_of], worst, corr, volume_change, path)
+
+
+def _solve_spd(K: sp.spmatrix, rhs: np.ndarray) -> np.ndarray:
+    """``K^-1 rhs`` for the symmetric positive definite normal equations (SuperLU, no pivoting, symmetric mode)."""
+    K = K.tocsc()
+    K = K + sp.identity(K.shape[0], format="csc") * (1e-13 * K.diagonal().max())
+    # K is symmetric positive definite: no pivoting, symmetric ordering (half the fill of a general LU)
+    return splu(K, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True}).solve(rhs)
+
+
+def _correct(A: sp.csr_matrix, u0: np.ndarray, wt: np.ndarray, on: np.ndarray, o_vh: int,
+             layers: int | None, wall: np.ndarray | None = None
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
+    """The smallest ``wt^-1``-weighted change of ``u0`` among the unknowns ``on`` with ``A u = 0``.
+
+    Returns ``(u, delta, A u, path)``, ``path`` one of "band", "wall band", "whole". With ``layers`` the change is sought in a band first (:func:`_band`); when
+    the band's misses a condition by more than :data:`BAND_ACCEPT` or a volume (``u[o_vh:]``) turns
+    non-positive, in the band of the unknowns ``on | wall`` (the wall closure's pairs, when ``wall`` adds
+    any), and then on the whole operator (``on``).
+    """
+    n_u = len(u0)
+    res = -(A @ u0)
+
+    def solve(cor, rows, name):
+        Ab = A[rows][:, cor] if rows is not None else A[:, cor]
+        AW = Ab @ sp.diags(wt[cor])
+        lam = _solve_spd(AW @ Ab.T, res[rows] if rows is not None else res)
+        delta = np.zeros(n_u)
+        delta[cor] = AW.T @ lam
+        u = u0 + delta
+        return u, delta, A @ u, name
+
+    if layers is not None:  # correct only the unknowns within `layers` rings of the unmet conditions
+        bad = np.abs(res) > BAND_TOL
+        tries = [(on, "band")] + ([(on | wall, "wall band")] if wall is not None and (wall & ~on).any() else [])
+        for use, name in tries:
+            cor, rows = _band(A, use, bad, layers)
+            if cor.sum() == use.sum():  # irregular layouts: the band is everything, the whole operator
+                break
+            out = solve(cor, rows, name)
+            if np.abs(out[2]).max() < BAND_ACCEPT and np.all(out[0][o_vh:] > 0):
+                return out
+    return solve(on, None, "whole")  # the whole operator
 
 
 @dataclass
