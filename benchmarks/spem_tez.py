@@ -2,6 +2,8 @@
 
 Run: .venv/bin/python benchmarks/spem_tez.py            (about 1 min)
      .venv/bin/python benchmarks/spem_tez.py --sweep    (also h_ratio 0.6-2 and eps_r on the disk: 10^4 steps each)
+     .venv/bin/python benchmarks/spem_tez.py --scattering   (only the TEz scattering table, about 10 min: see
+     :func:`scattering_main`)
 
 Disk: ``run_tez_circular_cavity`` (radius 0.1 m, TE11 + TE21; error after one TE11 period; the TE11
 resonance fitted to the projection of Hz onto the mode and read from a probe spectrum, 10 periods).
@@ -14,10 +16,15 @@ from __future__ import annotations
 
 import argparse
 import math
+import time
 
 import numpy as np
 
 from manifold_sph.spem import tez
+from manifold_sph.spem import tez_scattering as ts
+from manifold_sph.spem.constants import C0, EPS0, MU0
+from manifold_sph.spem.pml import PML
+from manifold_sph.spem.scattering import l2_error
 
 
 def order(ns, values):
@@ -58,10 +65,209 @@ def sweep():
                       f"dt/CFL {s.dt / cfl:.3f}, wall residual {s.sbp_residual:.0e}")
 
 
+class YeeTEz:
+    """A staircased TEz Yee FDTD (numpy) on the lattice of :func:`.tez_layout` in ``[-L, L]^2``, split-field PML.
+
+    Hz at the cell centres, Ex at ``(i + 1/2, j) d``, Ey at ``(i, j + 1/2) d``
+    (the positions of SPEM's lattice), the tangential E on the box held at 0;
+    ``eps_x``, ``eps_y`` per edge; Hz split ``Hzx + Hzy`` with the same
+    semi-implicit coefficients as :class:`.TEzPMLSolver`; Courant number
+    ``c dt / d = 0.99 / sqrt(2)``.
+    """
+
+    def __init__(self, L, d, pml, eps_x=1.0, eps_y=1.0, courant=0.99 / math.sqrt(2)):
+        self.N = N = int(round(2 * L / d))
+        self.d = d
+        c = -L + (np.arange(N) + 0.5) * d
+        e = -L + np.arange(N + 1) * d
+        self.hz_xy = np.meshgrid(c, c, indexing="ij")
+        self.ex_xy = np.meshgrid(c, e, indexing="ij")
+        self.ey_xy = np.meshgrid(e, c, indexing="ij")
+        self.eps_x = EPS0 * np.broadcast_to(eps_x, (N, N + 1))
+        self.eps_y = EPS0 * np.broadcast_to(eps_y, (N + 1, N))
+        self.dt = courant * d / C0
+        self.pml = pml
+        self.set_dt(self.dt)
+
+    def set_dt(self, dt):
+        self.dt = dt
+
+        def coef(s, m):
+            a = s * dt / (2.0 * m)
+            return (1.0 - a) / (1.0 + a), (dt / m) / (1.0 + a)
+
+        def sig(xy):
+            return self.pml.sigma(np.column_stack([xy[0].ravel(), xy[1].ravel()]))
+
+        sx, sy = (v.reshape(self.hz_xy[0].shape) for v in sig(self.hz_xy))
+        self.dax, self.dbx = coef(sx * MU0 / EPS0, MU0)
+        self.day, self.dby = coef(sy * MU0 / EPS0, MU0)
+        self.cax, self.cbx = coef(sig(self.ex_xy)[1].reshape(self.ex_xy[0].shape), self.eps_x)
+        self.cay, self.cby = coef(sig(self.ey_xy)[0].reshape(self.ey_xy[0].shape), self.eps_y)
+        N = self.N
+        self.hzx, self.hzy = np.zeros((N, N)), np.zeros((N, N))
+        self.ex, self.ey = np.zeros((N, N + 1)), np.zeros((N + 1, N))
+
+    def step(self):
+        d = self.d
+        self.hzx = self.dax * self.hzx - self.dbx * (self.ey[1:, :] - self.ey[:-1, :]) / d
+        self.hzy = self.day * self.hzy + self.dby * (self.ex[:, 1:] - self.ex[:, :-1]) / d
+        hz = self.hzx + self.hzy
+        self.ex[:, 1:-1] = self.cax[:, 1:-1] * self.ex[:, 1:-1] + self.cbx[:, 1:-1] * (hz[:, 1:] - hz[:, :-1]) / d
+        self.ey[1:-1, :] = self.cay[1:-1, :] * self.ey[1:-1, :] - self.cby[1:-1, :] * (hz[1:, :] - hz[:-1, :]) / d
+        return hz
+
+
+def run_yee_tez_scattering(kind, n_radial, *, average="staircase", radius=0.1, ka=2.0, eps_r=4.0, periods=12.0,
+                           ramp=3.0, dft_periods=2.0, margin=0.5, pml_thickness=0.5):
+    """The case of :func:`.run_tez_scattering` on the staircased Yee grid (same domain, PML, drive and DFT).
+
+    PEC: the Ey edges whose midpoint is inside the cylinder are held at the scattered
+    ``-Ey_inc`` and the Ex edges there at 0 (``Ex_inc = 0``). Dielectric: ``eps`` per
+    edge by ``average`` (:func:`.particle_permittivity`: "staircase" is eps_r at the
+    edge midpoint) and the volume source on Ey.
+    """
+    from manifold_sph.spem.scattering import _Switched
+
+    t0 = time.perf_counter()
+    freq, dr, inner, outer = ts._domain(radius, ka, n_radial, margin, pml_thickness)
+    L = dr * math.ceil(outer / dr - 1e-9)
+    pml = PML(outer - inner, 3, 1e-6, interior=(-inner, inner, -inner, inner))
+    probe = YeeTEz(L, dr, pml)
+    ex_p = np.column_stack([probe.ex_xy[0].ravel(), probe.ex_xy[1].ravel()])
+    ey_p = np.column_stack([probe.ey_xy[0].ravel(), probe.ey_xy[1].ravel()])
+    eps_x = eps_y = 1.0
+    if kind == "dielectric":
+        eps_x = ts.particle_permittivity(ex_p, 0, dr, radius, eps_r, average).reshape(probe.ex_xy[0].shape)
+        eps_y = ts.particle_permittivity(ey_p, 1, dr, radius, eps_r, average).reshape(probe.ey_xy[0].shape)
+    s = YeeTEz(L, dr, pml, eps_x, eps_y)
+    T = 1.0 / freq
+    per = int(math.ceil(T / s.dt - 1e-9))
+    s.set_dt(T / per)
+    k0 = 2 * math.pi * freq / C0
+    eta0 = math.sqrt(MU0 / EPS0)
+    hz_p = np.column_stack([s.hz_xy[0].ravel(), s.hz_xy[1].ravel()])
+    r_h = np.hypot(hz_p[:, 0], hz_p[:, 1])
+    if kind == "pec":
+        pec_x = (np.hypot(*s.ex_xy) < radius)
+        pec_y = (np.hypot(*s.ey_xy) < radius)
+        inc = _Switched(s.ey_xy[0][pec_y], freq, -radius, ramp, k0)
+        fixed = int(pec_x.sum() + pec_y.sum())
+        keep_h = r_h > radius
+    else:
+        diel = np.asarray(s.eps_y) > EPS0 * (1 + 1e-12)
+        inc = _Switched(s.ey_xy[0][diel], freq, -radius, ramp, k0)
+        fac = eta0 * (1.0 - EPS0 / np.asarray(s.eps_y)[diel])
+        fixed = 0
+        keep_h = np.ones(len(hz_p), bool)
+    N = s.N
+    unknowns = int(keep_h.sum()) + N * (N - 1) * 2 - fixed
+    ev = np.flatnonzero(keep_h & (np.abs(hz_p[:, 0]) <= inner) & (np.abs(hz_p[:, 1]) <= inner))
+    steps = int(round(periods * per))
+    n_dft = int(round(dft_periods * per))
+    w = 2 * math.pi * freq
+    setup = time.perf_counter() - t0
+    acc = np.zeros(len(ev), dtype=complex)
+    for n in range(steps):
+        hz = s.step()
+        t_next = (n + 1.5) * s.dt
+        if kind == "pec":
+            s.ex[pec_x] = 0.0
+            s.ey[pec_y] = -eta0 * inc(t_next)
+        else:
+            s.ey[diel] -= fac * (inc(t_next) - inc(t_next - s.dt))
+        if n >= steps - n_dft:
+            acc += hz.ravel()[ev] * np.exp(1j * w * (n + 1) * s.dt)
+    phasor = acc * (2.0 / n_dft)
+    pts = hz_p[ev]
+    exact = ts.tez_scattered_field(pts, kind, freq=freq, radius=radius, eps_r=eps_r)
+    r = np.hypot(pts[:, 0], pts[:, 1])
+    ring = (r > radius) & (r <= 2 * radius)
+    total = time.perf_counter() - t0
+    return {"method": "Yee " + ("staircased" if kind == "pec" or average == "staircase" else average),
+            "case": kind, "n_radial": n_radial, "unknowns": unknowns, "error": l2_error(phasor, exact),
+            "ring": l2_error(phasor[ring], exact[ring]), "setup": setup, "run": total - setup, "steps": steps}
+
+
+def run_spem_tez(kind, n_radial, **kw):
+    r = ts.run_tez_scattering(kind, n_radial=n_radial, **kw)
+    label = f"SPEM {r.layout}" + (f" {r.average}" if kind == "dielectric" else "")
+    return {"method": label, "case": kind, "n_radial": n_radial, "unknowns": r.particles, "error": r.error,
+            "ring": r.ring_error, "setup": r.setup_seconds, "run": r.seconds - r.setup_seconds, "steps": r.steps,
+            "growth": r.field_growth, "dt_frac": r.stable_fraction}
+
+
+def scattering_main():
+    """TEz plane-wave scattering (ka = 2, radius 0.1 m, eps_r = 4) and the TEz PML, in one run.
+
+    1. The split-field PML's reflection (:func:`.run_tez_pml`, 60-cell square, pulse at 20 spacings
+       per wavelength; 10 and 20 cells of cubic grading, R0 = 1e-6) at 0 / 30 / 45 degrees.
+    2. SPEM (:func:`.run_tez_scattering`; lattice and jittered 0.2 dr interior, seed=0) and the
+       staircased Yee grid (:func:`run_yee_tez_scattering`; for the dielectric also with the same
+       anisotropic cell average as SPEM), at 4 / 8 / 16 spacings per radius (Yee also 32), with the
+       error of the scattered Hz against the series (all Hz points in the interior box; ``ring``:
+       radius < r <= 2 radius), set-up and run seconds, and the fitted order.
+    3. Yee's error at SPEM's unknowns and the Yee CPU for SPEM's error (log-log interpolation on
+       Yee's own curves).
+    """
+    print("TEz split-field PML (h/dr 0.8): reflection in dB at 0 / 30 / 45 degrees")
+    for cells in (10, 20):
+        r = ts.run_tez_pml(pml_cells=cells)
+        print(f"  {cells:2d} cells: " + " / ".join(f"{v:6.1f}" for v in r.reflection_db)
+              + f"   ({r.particles} particles, {r.steps} steps, {r.seconds:.1f} s)")
+    head = (f"{'method':<28s} {'case':<10s} {'n_r':>4s} {'unknowns':>8s} {'error':>9s} {'ring':>9s} {'setup s':>8s} "
+            f"{'run s':>7s} {'steps':>6s}")
+    rows = {}
+    print("\nTEz scattering, ka = 2, eps_r = 4 (dielectric); error of the scattered Hz against the series")
+    print(head)
+    plan = [("pec", "SPEM yee", lambda n: run_spem_tez("pec", n), (4, 8, 16)),
+            ("pec", "SPEM jittered", lambda n: run_spem_tez("pec", n, layout="jittered"), (4, 8, 16)),
+            ("pec", "Yee staircased", lambda n: run_yee_tez_scattering("pec", n), (4, 8, 16, 32)),
+            ("dielectric", "SPEM yee", lambda n: run_spem_tez("dielectric", n), (4, 8, 16)),
+            ("dielectric", "SPEM jittered", lambda n: run_spem_tez("dielectric", n, layout="jittered"), (4, 8, 16)),
+            ("dielectric", "SPEM yee arithmetic", lambda n: run_spem_tez("dielectric", n, average="arithmetic"),
+             (4, 8, 16)),
+            ("dielectric", "SPEM yee harmonic", lambda n: run_spem_tez("dielectric", n, average="harmonic"),
+             (4, 8, 16)),
+            ("dielectric", "Yee staircased", lambda n: run_yee_tez_scattering("dielectric", n), (4, 8, 16, 32)),
+            ("dielectric", "Yee anisotropic", lambda n: run_yee_tez_scattering("dielectric", n, average="anisotropic"),
+             (4, 8, 16, 32))]
+    for kind, name, fn, ns in plan:
+        out = []
+        for n in ns:
+            r = fn(n)
+            out.append(r)
+            print(f"{r['method']:<28s} {kind:<10s} {n:>4d} {r['unknowns']:>8d} {r['error']:>9.2e} {r['ring']:>9.2e} "
+                  f"{r['setup']:>8.2f} {r['run']:>7.2f} {r['steps']:>6d}", flush=True)
+        print(f"{'':<28s} fitted order {order(list(ns), [r['error'] for r in out]):.2f}")
+        rows[(kind, name)] = out
+    print("\nYee interpolated (log-log) on its own curves: error at SPEM's unknowns, CPU for SPEM's error")
+    for kind, yee_name in (("pec", "Yee staircased"), ("dielectric", "Yee staircased"),
+                           ("dielectric", "Yee anisotropic")):
+        yee = rows[(kind, yee_name)]
+        lu = np.log([r["unknowns"] for r in yee])
+        le = np.log([r["error"] for r in yee])
+        lc = np.log([r["setup"] + r["run"] for r in yee])
+        for (k2, name), spem in rows.items():
+            if k2 != kind or not name.startswith("SPEM") or ("arith" in name or "harm" in name):
+                continue
+            for r in spem:
+                e = math.exp(np.interp(math.log(r["unknowns"]), lu, le))
+                order_e = np.argsort(le)
+                cpu = math.exp(np.interp(math.log(r["error"]), le[order_e], lc[order_e]))
+                print(f"  {kind:<10s} {name:<14s} n_r={r['n_radial']:<3d} ({r['unknowns']:>6d} unknowns): SPEM "
+                      f"{r['error']:.2e} in {r['setup'] + r['run']:6.1f} s; {yee_name} at equal unknowns {e:.2e} "
+                      f"({e / r['error']:.1f}x), Yee CPU for SPEM's error {cpu:.2f} s")
+
+
 def main():
     p = argparse.ArgumentParser()
     p.add_argument("--sweep", action="store_true")
+    p.add_argument("--scattering", action="store_true", help="only the TEz scattering table (scattering_main)")
     args = p.parse_args()
+    if args.scattering:
+        scattering_main()
+        return
     disk_kdr = lambda n: 1.8412 / n  # noqa: E731
     rect_kdr = lambda n: 0.6 * math.pi / n  # noqa: E731
     table("Circular TEz cavity, sbp (h/dr 0.8)",
