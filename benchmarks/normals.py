@@ -79,6 +79,18 @@ manifold_sph.scans.normals). The slabs with the default, inward (seeds 0, 1): 54
 160 / 86 and 7 / 9 of 2000 (a band of one face next to the rim); with
 ``orient="visible"`` (step 8) 11 / 5, 7 / 7 and 4 / 1.
 
+``--poles`` adds ``poles=True`` (Voronoi poles: step-7 candidates and a sign check by the
+winding number at the two poles; module notes, step 9) to the model table; with ``--models``
+for any meshes. Measured (this session, one run; median / >30deg / orientation, default ->
+poles, time): cow 5.18 / 207 / 1.76 % inward -> 5.17 / 201 / 1.34 % (1.98 -> 1.70 s), homer
+1.74 / 21 / 0.02 % -> 1.74 / 20 / 0.02 %, rocker-arm 2.77 / 12 / 0 -> 2.77 / 11 / 0, cheburashka
+1.03 / 184 / 0.67 % -> 1.03 / 184 / 0.67 %, teapot 1.95 / 133 / 98.77 % agree -> 1.95 / 134 /
+99.11 %, beetle 8.82 / 154 / 96.95 % -> 8.82 / 152 / 97.21 %, alligator 0 / 0 / 100 % unchanged,
+bunny 0.82 / 24 / 100 % unchanged (6.47 -> 16.43 s); extra models: spot 1.07 / 5 / 0.03 % ->
+1.07 / 7 / 0.03 %, suzanne 19.91 / 177 / 93.65 % -> 20.45 / 182 / 93.45 %, beetle-alt 0.30 / 185
+/ 99.29 % -> 0.30 / 185 / 99.63 % (7.7 -> 13.2 s), woody unchanged, beast 2.49 / 1893 / 91.11 %
+-> 2.49 / 1889 / 91.27 % (12.2 -> 23.2 s).
+
 orient="visible" on the models (inward or disagreeing normals, default -> visible): cow
 50 -> 50, cheburashka 68 -> 65, homer 1 -> 1, rocker-arm 0 -> 1, teapot 45 -> 33, beetle
 33 -> 65 (seen from inside through its openings); spot 3 -> 3, suzanne 30 -> 42. About
@@ -88,7 +100,8 @@ Run: ``python benchmarks/normals.py`` (a few minutes on 2 busy cores; ``--check-
 the limit-normal check and the spread of the references only, ``--limit`` the limit-surface
 table only; ``--quick`` skips
 Igea and the largest analytic clouds; ``--visible`` prints the model table (and with
-``--models`` that of the given meshes) for the default and ``orient="visible"``). ``python benchmarks/normals.py --models a.obj b.ply``
+``--models`` that of the given meshes) for the default and ``orient="visible"``, ``--poles``
+for the default and ``poles=True``). ``python benchmarks/normals.py --models a.obj b.ply``
 prints the model table (default settings) for any meshes instead: your own, or other public
 test models. Measured on five of alecjacobson/common-3d-test-models that are not in
 ../shared (median / >30deg / orientation): spot 1.35 / 7 / 0.10 % inward; beetle-alt
@@ -512,6 +525,7 @@ def synthetic():
 
 if __name__ == "__main__":
     variants = (("default", {}),) + ((("visible", {"orient": "visible"}),) if "--visible" in sys.argv else ())
+    variants += (("poles", {"poles": True}),) if "--poles" in sys.argv else ()
     if "--check-loop" in sys.argv:  # the limit normals against repeated subdivision, and the two references
         check_loop(MODELS, levels=4)
         reference_table(MODELS + SCANS)
@@ -520,9 +534,9 @@ if __name__ == "__main__":
         limit_table(MODELS + SCANS[:1])
         raise SystemExit
     if "--models" in sys.argv:  # any meshes: python benchmarks/normals.py --models a.obj b.ply ...
-        model_table([Path(a) for a in sys.argv[sys.argv.index("--models") + 1:] if a != "--visible"], variants=variants)
+        model_table([Path(a) for a in sys.argv[sys.argv.index("--models") + 1:] if a not in ("--visible", "--poles")], variants=variants)
         raise SystemExit
-    if "--visible" in sys.argv:  # python benchmarks/normals.py --visible: the models with orient="visible" too
+    if "--visible" in sys.argv or "--poles" in sys.argv:  # --visible / --poles: the models with orient="visible" / poles=True too
         model_table(MODELS + SCANS[:1], variants=variants)
         raise SystemExit
     quick = "--quick" in sys.argv

@@ -274,11 +274,19 @@ fits do not help this measure.
    38, cheburashka 46. Thin closed slabs (flat ellipsoids, seeds 0, 1; inward of 2000): 2
    spacings thick 160 / 86 -> 152 / 79, 4 spacings 7 / 8 -> 3 / 5, 1 spacing 537 / 473 ->
    530 / 469; thin and meridian tori slightly better (mean error 8.4 -> 8.1 deg, 37 / 2 ->
-   37 / 0 more than 30 degrees off); analytic spheres and tori unchanged. Not the default:
-   the triangulation costs about 4-5 s on the 35,000-point bunny (28 s on Igea's 134,000)
-   against about 5 s for the rest, and noisy clouds get worse (the poles of a noisy layer
-   are random): uniformly random spheres of 4000 points with noise of 0.1 / 0.3 / 0.5
-   spacings, inward 0 / 5 / 84 -> 1 / 9 / 90 (seed 3), 0 / 4 / 106 -> 0 / 14 / 106 (seed 4).
+   37 / 0 more than 30 degrees off); analytic spheres and tori unchanged. With ``degree=4``
+   (inward or disagreeing) cow 53 -> 41, cheburashka 46 -> 45, beetle 33 -> 32, teapot 43 ->
+   36; with ``orient="visible"`` cow 51 -> 42, cheburashka 43 -> 42, teapot 34 -> 27, beetle
+   66 -> 64. The bunny (unchanged), beast (32,311 points; 91.11 -> 91.27 % agreeing) and
+   the well-sampled models barely change. The gain is one of the models' vertex sampling:
+   on area-uniform random samples of the same meshes (seeds 0, 1; against the face normals)
+   it is neutral: inward or disagreeing cow 45 / 79 -> 45 / 77 of 3000, cheburashka 37 / 67 ->
+   40 / 69 of 6000, teapot 53 / 84 -> 54 / 83, beetle 24 / 15 -> 22 / 16 of 2000, homer 7 / 54
+   -> 8 / 54 of 6000, spot 0 / 0. Not the default: the triangulation and the sign check cost
+   about 10 s more on the 35,000-point bunny (benchmark, loaded machine: 6.5 -> 16.4 s; the
+   qhull triangulation alone 4.5-7 s, 28 s on Igea's 134,000 points), and noisy clouds get
+   worse (the poles of a noisy layer are random): uniformly random spheres of 4000 points with noise of 0.1 / 0.3 / 0.5
+   spacings, inward 0 / 5 / 84 -> 1 / 9 / 90 (seed=3), 0 / 4 / 106 -> 0 / 14 / 106 (seed=4).
    The thresholds are sensitive: a jump of 0.2 flips the teapot's rows (40 -> 69), 0.4
    gives cow 47; without the opposite-sides condition noisy spheres flip many more (12 of
    4000 at 0.3 spacings; the noisy flips had ``-u_1 . u_2`` below 0.17 there, the cow's
@@ -292,7 +300,17 @@ fits do not help this measure.
    undetermined set of step 7 (teapot 40 -> 48, suzanne 32 -> 36); a prior for the pole
    candidate (0.05: teapot 40 -> 43, beetle 154 -> 165 off); repeating (b) (cow 43 -> 45);
    requiring clean winding numbers at the poles (near 0 and 1: no flips left, the poles of
-   thin parts sit about a spacing from the surface).
+   thin parts sit about a spacing from the surface); the poles as extra probes of step 4
+   (inner pole 1, outer 0 in the patch objective, weight 0.5 / 1 / 3 of the probes: cow 39
+   -> 37 / 42 / 42, teapot 29 -> 31 / 34 / 34, beetle 32 -> 32 / 30 / 30, cheburashka 45);
+   a power-crust-like labelling of the poles (Amenta, Choi & Kolluri 2001: the two poles of a
+   particle opposite, the poles of neighbours whose balls overlap deeply alike, the hull
+   poles outside; spanning tree of the overlap depth): right at 96 % (cow) to 99.8 % (homer)
+   of the particles, but as a sign check it breaks 3-10 times more normals than it repairs
+   (cow 21 / 84, cheburashka 10 / 86, teapot 14 / 219; among particles with a confidence
+   below 0.5 still 21 / 65, 9 / 64, 14 / 119). Cheburashka's wrong normals are mostly
+   particles whose two poles both read ``w`` near 1 (or both near 0: cracks and junctions), so
+   the poles do not tell their side.
 
 ``method="pca"`` stops after step 1 (with the given ``k``, default 16) and orients.
 
@@ -1428,9 +1446,10 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: str | A
         :func:`~manifold_sph.scans.poles.voronoi_poles`): the pole line and a fit in its
         frame as further candidates of step 7, and a last sign check by the winding
         number at each particle's two poles (module notes, step 9). Fewer wrong
-        orientations at thin parts of coarse models (cow 51 -> 39 normals inward,
-        beetle-alt 142 -> 74 disagreeing with the mesh), at the cost of the
-        triangulation (about 5 s more on 35,000 points); not the default. Only with
+        orientations at thin parts of coarse models sampled at their vertices (cow
+        51 -> 39 normals inward, beetle-alt 142 -> 74 disagreeing with the mesh; neutral
+        on random samples of the same surfaces, worse on noisy clouds), at the cost of
+        the triangulation (2.5 times the default's time on 35,000 points); not the default. Only with
         ``orient="outward"`` or ``"visible"`` (ignored otherwise) and at least 5
         points spanning a volume (ignored on planar clouds).
 
