@@ -247,7 +247,7 @@ def cell_fraction(points: ArrayLike, dr: float, inside: Callable[[np.ndarray, np
     return np.asarray(inside(x, y), dtype=np.float64).mean(axis=1)
 
 
-def jump_permittivity(operator, phi: ArrayLike, eps_in: float, eps_out: float = 1.0, *,
+def jump_permittivity(operator: ArrayLike, phi: ArrayLike, eps_in: float, eps_out: float = 1.0, *,
                       curvature: float | ArrayLike = 0.0) -> np.ndarray:
     """Per-particle permittivity that makes the operator's rows consistent across a material interface.
 
@@ -271,12 +271,12 @@ def jump_permittivity(operator, phi: ArrayLike, eps_in: float, eps_out: float = 
     ----------
     operator : (n, n) sparse matrix or array
         The E -> E operator whose rows are the discrete Laplacian at the
-        particles (``L = D G``, e.g. ``Dx_e Dx_hy + Dy_e Dy_hx`` of a
-        :class:`.TMzSolver` on its free particles; any scaling of ``L`` by a
-        row factor of ``1 / dr^2`` units is fine: only ``L_ij phi_j^2`` enters).
+        particles, in 1 / length^2 (``L = D G``, e.g. ``Dx_e Dx_hy + Dy_e Dy_hx``
+        of a :class:`.TMzSolver` on its free particles), so that ``L_ij phi_j^2``
+        is dimensionless.
     phi : (n,) array
-        Signed distance of each particle to the interface, positive on the
-        ``eps_out`` side.
+        Signed distance of each particle to the interface (the same length
+        unit), positive on the ``eps_out`` side.
     eps_in, eps_out : float
         Relative permittivities on the ``phi < 0`` and ``phi >= 0`` sides.
     curvature : float or (n,) array
