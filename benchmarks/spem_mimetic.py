@@ -47,6 +47,7 @@ from manifold_sph.spem.cases import cavity_exact, cavity_frequency
 from manifold_sph.spem.cases2d import run_planewave
 from manifold_sph.spem.layouts import balanced_disk_layout, balanced_poisson_layout, disk_layout, joint_poisson_layout
 from manifold_sph.spem.mimetic import localised_modes
+from manifold_sph.spem.scattering import run_scattering
 from manifold_sph.spem.solver import MIMETIC_H_RATIO
 
 _DEFAULT = (mimetic.CORRECTION_DEGREE, mimetic.CORRECTION_RADIUS)
@@ -148,7 +149,33 @@ def cavity(layout, coupling, n_radial, r0=0.1, eps_r=10.0, seed=0):
     run = time.perf_counter() - t0
     err = relative_error(s.e_field, cavity_exact(r, s.t, r0, eps_r))
     return {"n_radial": n_radial, "error": float(f"{err:.3e}"), "setup_s": round(setup, 2), "run_s": round(run, 2),
-            "steps": steps, "dt_over_cfl": round(s.courant, 3), "particles": lay.n_particles}
+            "steps": steps, "dt_over_cfl": round(s.courant, 3), "particles": lay.n_particles, **_parts(s)}
+
+
+def _parts(s):
+    """The mimetic set-up's parts (``MimeticOperators.seconds``) and where the correction was made."""
+    ops = getattr(s, "mimetic", None)
+    if ops is None:
+        return {}
+    return {"path": ops.path, "residual": float(f"{ops.residual:.2e}"),
+            **{f"{k}_s": round(v, 2) for k, v in ops.seconds.items()}}
+
+
+def setup_profile(layout, coupling, cells, seed=1):
+    """Set-up against run seconds on the unit PEC square: the set-up's parts (volumes and gradient fits, the
+    conditions, the normal equations, their factorisation and solve) and one period of the TM11 mode."""
+    lay = square_layout(layout, cells, seed)
+    t0 = time.perf_counter()
+    s = TMzSolver(lay, coupling=_coupling(coupling), courant=0.9)
+    setup = time.perf_counter() - t0
+    e = lay.e
+    s.set_initial(np.sin(np.pi * e[:, 0]) * np.sin(np.pi * e[:, 1]))
+    steps = int(math.ceil(math.sqrt(2.0) / 2.99792458e8 / s.dt))  # one period of TM11 (f = c sqrt(2) / 2)
+    t0 = time.perf_counter()
+    s.run(steps)
+    run = time.perf_counter() - t0
+    return {"cells": cells, "particles": lay.n_particles, "setup_s": round(setup, 2), "run_s": round(run, 2),
+            "steps": steps, "setup_over_run": round(setup / run, 1), **_parts(s)}
 
 
 def order(errs, ns):
@@ -183,12 +210,15 @@ def energy_drift(coupling, steps=10000, cells=15, seed=1):
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
-    ap.add_argument("--only", choices=("phase", "cavity", "energy", "planewave", "scattering", "cavity-vs-yee", "modes"),
+    ap.add_argument("--only", choices=("phase", "cavity", "energy", "planewave", "scattering", "cavity-vs-yee", "modes",
+                                       "setup", "cylinders"),
                     default=None)
     ap.add_argument("--couplings", default="sbp,mimetic,mimetic-fast")
     ap.add_argument("--cases", default="dielectric,coated", help="--only scattering: the cylinders")
     ap.add_argument("--layouts", default="jittered,poisson,poisson-joint,poisson-balanced")
     ap.add_argument("--seeds", default="0,1,2,3,4,5", help="--only modes: the squares' seeds")
+    ap.add_argument("--cells", default="16,24,32,48", help="--only setup: the squares' spacings per side")
+    ap.add_argument("--radial", default="20,40", help="--only setup / cylinders: spacings per radius")
     args = ap.parse_args()
     couplings = args.couplings.split(",")
     layouts = args.layouts.split(",")
@@ -246,6 +276,25 @@ def main():
                 print(json.dumps({"run": "modes, unit PEC disk (seed=0), spacings per radius",
                                   **modes(layout, n, 0, disk_case=True)}), flush=True)
 
+    if args.only == "setup":
+        for layout in layouts:
+            for coupling in couplings:
+                for c in (int(x) for x in args.cells.split(",")):
+                    print(json.dumps({"run": "setup vs one TM11 period, unit PEC square (seed=1)", "layout": layout,
+                                      "coupling": coupling, **setup_profile(layout, coupling, c)}), flush=True)
+                for n in (int(x) for x in args.radial.split(",")):
+                    print(json.dumps({"run": "setup vs run, circular cavity (seed=0, one period)", "layout": layout,
+                                      "coupling": coupling, **cavity(layout, coupling, n)}), flush=True)
+    if args.only == "cylinders":
+        for kind in args.cases.split(","):
+            for n in (int(x) for x in args.radial.split(",")):
+                t0 = time.perf_counter()
+                r = run_scattering(kind, n_radial=n, coupling="mimetic", mimetic_fast=True)
+                total = time.perf_counter() - t0
+                print(json.dumps({"run": "cylinder, mimetic_fast (set-up and error)", "case": kind, "n_radial": n,
+                                  "error": float(f"{r.error:.3e}"), "ring_error": float(f"{r.ring_error:.3e}"),
+                                  "particles": r.particles, "setup_s": round(r.setup_seconds, 2),
+                                  "total_s": round(total, 1), "steps": r.steps}), flush=True)
     if args.only == "scattering":
         scattering(args.quick, tuple(args.cases.split(",")))
     if args.only == "cavity-vs-yee":

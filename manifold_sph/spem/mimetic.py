@@ -37,8 +37,26 @@ grew with resolution (the volumes must take part). Non-positive volumes are
 refused (ValueError). The normal equations are symmetric positive definite and are factored without
 pivoting in SuperLU's symmetric mode. The solve still dominates the set-up (10-100x a run: the
 conditions have a near-null space of smooth multiplier fields that grows with the particle count, see
-docs/method.md section 7). ``fast=True`` corrects only pairs closer than 2 spacings and keeps only
-quadratic exactness of ``G`` (0.7x the conditions, up to 3x faster).
+docs/method.md section 7; ``MimeticOperators.seconds`` gives the parts: at 48 spacings on the jittered
+square the factorisation is 41 of 46 s). ``fast=True`` corrects only pairs closer than 2 spacings and keeps
+only quadratic exactness of ``G`` (0.7x the conditions, up to 3x faster).
+
+The band along the walls. Where the kernel estimates already meet the conditions (lattices) only the
+unknowns within ``band_layers`` rings of the missed conditions are corrected. Next to a curved conductor
+seen from outside (PEC and coated cylinders on a lattice) the fast variant's band missed conditions at its
+own edge (1.5e-5 at 8 spacings per radius; 4 rings: 1.1e-5). Cause: multiplier fields constant along the
+derivative's axis (for d/dx, smooth functions of y alone, with the rows' Taylor coefficients) are nearly
+null for every pair whose row and column conditions are both imposed; only pairs with a wall (non-free)
+column lift them. The kernel estimates miss conditions up to about 4 spacings from the wall (the dense
+wall particles change the kernel volumes and fits within a support), beyond the 2-spacing reach of the
+fast variant's corrected pairs, so those components could only be carried along the axis to the far walls:
+the whole operator. The band is therefore tried again with the wall closure's pairs (every pair with a
+wall column, at any distance within the support) before the whole operator: ``path`` "wall band". PEC /
+coated cylinder (``run_scattering``, ``mimetic_fast``) at 8 spacings per radius: set-up 33 / 44 s -> 5.5
+/ 3.3 s, error 6.5e-3 / 1.1e-1 -> 8.9e-3 / 1.5e-2; coated at 16: 793 s, 4.8e-3 -> 39 s, 1.1e-2 (the
+operators differ: the band's correction is local, the whole operator's reaches the far walls; relative
+change of ``G`` between them 0.12-0.15). The default variant (every pair correctable) meets the conditions
+in its first band.
 
 Spurious modes. On independently sampled (Poisson) E and H sets the E -> E operator can have eigenvectors
 localised on a few particles with eigenvalues among the physical ones (:func:`localised_modes` reports them:
@@ -73,7 +91,8 @@ True
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import time
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
@@ -150,7 +169,9 @@ class MimeticOperators:
     ``D`` (n_free, n_H) on the free E particles; ``vol_e`` (n_E,) (set on the free particles, 0 elsewhere),
     ``vol_h`` one (n_H,) array per pair; ``residual`` the largest relative miss of the column conditions
     after the correction; ``correction`` the relative size of the change of ``G`` (Frobenius);
-    ``volume_change`` the largest relative change of a volume; ``path`` where the correction was made:
+    ``volume_change`` the largest relative change of a volume; ``seconds`` the wall-clock time of the
+    set-up's parts ("fit": volumes and gradient fits, "assembly": the conditions, "normal": the normal
+    equations, "factor": their factorisation and solve, "total"); ``path`` where the correction was made:
     "band" (along the walls), "wall band" (the band with the wall closure's pairs, see
     :func:`mimetic_operators`) or "whole" (the whole operator).
     """
@@ -162,6 +183,7 @@ class MimeticOperators:
     correction: float
     volume_change: float
     path: str = "whole"
+    seconds: dict = field(default_factory=dict)
 
 
 def _pairs(rows: np.ndarray, cols: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
@@ -296,10 +318,12 @@ def mimetic_operators(e: np.ndarray, free: np.ndarray, h_sets: list[tuple[np.nda
         default: :data:`CORRECTION_DEGREE`, :data:`CORRECTION_RADIUS`, cubic-exact ``G``).
     band_layers : int, None or "auto"
         Correct only the unknowns within this many rings of the conditions the kernel estimates miss
-        (:func:`_band`): on lattices with walls, a band along the walls instead of the whole domain. The
-        whole operator is corrected when the band's correction misses a condition by more than
-        :data:`BAND_ACCEPT` or a volume turns non-positive (the band is the whole operator when it covers
-        everything: irregular layouts). None: always the whole operator; "auto": :data:`BAND_LAYERS`.
+        (:func:`_band`): on lattices with walls, a band along the walls instead of the whole domain. When
+        the band's correction misses a condition by more than :data:`BAND_ACCEPT` or a volume turns
+        non-positive, the band is tried again with every pair that has a wall (non-free) column correctable
+        (``fast``: the wall closure beyond 2 spacings; curved conductors seen from outside), and then the
+        whole operator is corrected (the band is the whole operator when it covers everything: irregular
+        layouts). None: always the whole operator; "auto": :data:`BAND_LAYERS`.
     """
     c_degree, c_radius = FAST if fast else (CORRECTION_DEGREE, CORRECTION_RADIUS)
     if not (band_layers is None or band_layers == "auto"
@@ -325,6 +349,8 @@ def mimetic_operators(e: np.ndarray, free: np.ndarray, h_sets: list[tuple[np.nda
         else:
             sets.append(pts)
             set_of.append(len(sets) - 1)
+    t_start = time.perf_counter()
+    seconds = {"fit": 0.0, "assembly": 0.0, "normal": 0.0, "factor": 0.0}
     ve0 = (kernel_volumes(e, h, kernel) if vol_e0 is None else np.asarray(vol_e0, float)) / scale**2
     vh0 = [(kernel_volumes(p, h, kernel) if vol_h0 is None else np.asarray(vol_h0[k], float)) / scale**2
            for k, p in enumerate(sets)]
@@ -335,6 +361,7 @@ def mimetic_operators(e: np.ndarray, free: np.ndarray, h_sets: list[tuple[np.nda
         grads.append((G.data * scale, i, j, w))
         degs.append(deg)  # dimensionless, aligned with (i, j)
     offs_h = np.cumsum([0] + [len(v) for v in vh0])
+    seconds["fit"] = time.perf_counter() - t_start
     # Unknowns: the flux weights Q = V_H G of every pair (linear in everything), then V_H of each
     # distinct set and V_E of the free particles. Constraints (all homogeneous, linear):
     #   rows    sum_j Q_ij p(x_j - x_i) - V_i dp/dx_a(0) = 0   (6 quadratic monomials per H row)
@@ -389,7 +416,8 @@ def mimetic_operators(e: np.ndarray, free: np.ndarray, h_sets: list[tuple[np.nda
     # the wall closure: the pairs with a wall (non-free) column, at any distance (a second band attempt)
     wall = np.r_[np.concatenate([~free[j] for g, i, j, w in grads]), np.zeros(n_u - o_vh, bool)]
     layers = BAND_LAYERS if band_layers == "auto" else band_layers
-    u, delta, after, path = _correct(A, u0, wt, on, o_vh, layers, wall)
+    seconds["assembly"] = time.perf_counter() - t_start - seconds["fit"]
+    u, delta, after, path = _correct(A, u0, wt, on, o_vh, layers, wall, seconds)
     ve = u[o_ve:]
     vh = [u[o_vh + offs_h[s]: o_vh + offs_h[s + 1]] for s in range(len(sets))]
     v_all = np.r_[np.concatenate(vh), ve]
@@ -409,7 +437,9 @@ def mimetic_operators(e: np.ndarray, free: np.ndarray, h_sets: list[tuple[np.nda
         pairs.append((G, D))
     vol_e = np.zeros(n_e)
     vol_e[fidx] = ve * scale**2
-    return MimeticOperators(pairs, vol_e, [vh[s] * scale**2 for s in set_of], worst, corr, volume_change, path)
+    seconds["total"] = time.perf_counter() - t_start
+    return MimeticOperators(pairs, vol_e, [vh[s] * scale**2 for s in set_of], worst, corr, volume_change, path,
+                            seconds)
 
 
 def _solve_spd(K: sp.spmatrix, rhs: np.ndarray) -> np.ndarray:
@@ -421,11 +451,12 @@ def _solve_spd(K: sp.spmatrix, rhs: np.ndarray) -> np.ndarray:
 
 
 def _correct(A: sp.csr_matrix, u0: np.ndarray, wt: np.ndarray, on: np.ndarray, o_vh: int,
-             layers: int | None, wall: np.ndarray | None = None
+             layers: int | None, wall: np.ndarray | None = None, seconds: dict | None = None
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
     """The smallest ``wt^-1``-weighted change of ``u0`` among the unknowns ``on`` with ``A u = 0``.
 
-    Returns ``(u, delta, A u, path)``, ``path`` one of "band", "wall band", "whole". With ``layers`` the change is sought in a band first (:func:`_band`); when
+    Returns ``(u, delta, A u, path)``, ``path`` one of "band", "wall band", "whole". ``seconds`` (optional)
+    accumulates the time of the normal equations ("normal") and of their factorisation and solve ("factor"). With ``layers`` the change is sought in a band first (:func:`_band`); when
     the band's misses a condition by more than :data:`BAND_ACCEPT` or a volume (``u[o_vh:]``) turns
     non-positive, in the band of the unknowns ``on | wall`` (the wall closure's pairs, when ``wall`` adds
     any), and then on the whole operator (``on``).
@@ -433,10 +464,17 @@ def _correct(A: sp.csr_matrix, u0: np.ndarray, wt: np.ndarray, on: np.ndarray, o
     n_u = len(u0)
     res = -(A @ u0)
 
+    seconds = {} if seconds is None else seconds
+
     def solve(cor, rows, name):
+        t0 = time.perf_counter()
         Ab = A[rows][:, cor] if rows is not None else A[:, cor]
         AW = Ab @ sp.diags(wt[cor])
-        lam = _solve_spd(AW @ Ab.T, res[rows] if rows is not None else res)
+        K = AW @ Ab.T
+        t1 = time.perf_counter()
+        lam = _solve_spd(K, res[rows] if rows is not None else res)
+        seconds["normal"] = seconds.get("normal", 0.0) + t1 - t0
+        seconds["factor"] = seconds.get("factor", 0.0) + time.perf_counter() - t1
         delta = np.zeros(n_u)
         delta[cor] = AW.T @ lam
         u = u0 + delta
