@@ -208,11 +208,7 @@ def tez_scattering_layout(kind: str, radius: float, dr: float, half_width: float
     """TEz particles on ``[-L, L]^2`` around a cylinder at the origin, the box and a conductor as closure walls.
 
     The TEz Yee lattice of :func:`.tez_layout` (``L = half_width`` rounded up
-    to a multiple of ``dr``), optionally jittered by up to ``amplitude * dr``
-    per coordinate (seeded; with ``jitter_width`` only the particles with
-    ``max(|x|, |y|) <= jitter_width``, e.g. the interior inside the PML: the
-    wall correction then stays local to that square and the lattice PML, a
-    tenth of the set-up time at 8 spacings per radius). The tangential E particles on the box (PEC behind
+    to a multiple of ``dr``). The tangential E particles on the box (PEC behind
     the PML) become wall particles with outward normals, each standing for
     ``dr`` of wall. For ``kind="pec"`` the Hz particles inside the cylinder and
     the E particles closer than ``wall_margin * dr`` to it (or inside) are
@@ -220,8 +216,16 @@ def tez_scattering_layout(kind: str, radius: float, dr: float, half_width: float
     each side along its derivative axis within ``partner_reach * dr`` (as
     :func:`.tez_disk_layout`), and wall particles are put on the circle (spacing
     about ``wall_spacing * dr``, normals ``-r/|r|``: out of the computed region,
-    into the conductor). ``volumes``: the particles' Voronoi areas in the box
-    (outside the conductor), sampled at ``dr / 8``.
+    into the conductor). ``amplitude`` > 0 then moves every Hz and free E
+    particle by a uniform random offset of at most ``amplitude * dr`` per
+    coordinate (seeded; clipped to the box; a particle pushed closer than
+    0.05 dr to the conductor is put back at that distance, as
+    :func:`.tez_disk_layout` does); with ``jitter_width`` only those with
+    ``max(|x|, |y|) <= jitter_width``, e.g. the interior inside the PML: the
+    wall correction then stays local to that square and the lattice PML (a
+    third of the set-up time at 8 spacings per radius). ``volumes``: the
+    particles' Voronoi areas in the box (outside the conductor), sampled at
+    ``dr / 8``.
 
     Examples
     --------
@@ -245,19 +249,9 @@ def tez_scattering_layout(kind: str, radius: float, dr: float, half_width: float
     amplitude = check_positive("amplitude", amplitude, allow_zero=True)
     if jitter_width is not None:
         jitter_width = check_positive("jitter_width", jitter_width)
-    base = tez_layout((-L, L, -L, L), dr, amplitude=amplitude if jitter_width is None else 0.0, seed=seed)
-    if amplitude and jitter_width is not None:
-        if amplitude >= 0.5:
-            raise ValueError(f"amplitude must be below 0.5 (particles would cross), got {amplitude}")
-        rng = np.random.default_rng(seed)
-
-        def move(p, frozen):
-            q = p + amplitude * dr * rng.uniform(-1.0, 1.0, p.shape)
-            inside = np.abs(p).max(axis=1) <= jitter_width
-            return np.where((inside & ~frozen)[:, None], np.clip(q, -L, L), p)
-
-        base = TEzLayout(move(base.hz, np.zeros(len(base.hz), bool)), move(base.ex, base.ex_fixed),
-                         move(base.ey, base.ey_fixed), base.ex_fixed, base.ey_fixed, dr, base.bounds)
+    if amplitude >= 0.5:
+        raise ValueError(f"amplitude must be below 0.5 (particles would cross), got {amplitude}")
+    base = tez_layout((-L, L, -L, L), dr)
     x0, x1, y0, y1 = base.bounds
     exw, eyw = base.ex[base.ex_fixed], base.ey[base.ey_fixed]
     sy = np.where(np.abs(exw[:, 1] - y0) < np.abs(exw[:, 1] - y1), -1.0, 1.0)
@@ -289,6 +283,20 @@ def tez_scattering_layout(kind: str, radius: float, dr: float, half_width: float
         def keep(x, y):
             return np.hypot(x, y) >= radius
 
+    if amplitude:
+        rng = np.random.default_rng(seed)
+        lim = radius + 0.05 * dr if kind == "pec" else 0.0
+
+        def move(p):
+            q = np.clip(p + amplitude * dr * rng.uniform(-1.0, 1.0, p.shape), -L, L)
+            r = np.hypot(q[:, 0], q[:, 1])
+            back = r < lim  # pushed into the conductor: put back on the circle lim
+            q[back] *= (lim / np.maximum(r[back], 1e-300))[:, None]
+            if jitter_width is not None:
+                q[np.abs(p).max(axis=1) > jitter_width] = p[np.abs(p).max(axis=1) > jitter_width]
+            return q
+
+        hz, ex, ey = move(hz), move(ex), move(ey)
     vols = _voronoi_volumes((hz, ex, ey), base.bounds, dr, keep)
     return TEzLayout(hz, ex, ey, np.zeros(len(ex), bool), np.zeros(len(ey), bool), dr, base.bounds,
                      wall=np.vstack(wall), wall_normal=np.vstack(normal), wall_length=np.concatenate(length),
