@@ -246,7 +246,7 @@ def scattering_main():
         rows[(kind, name)] = out
     print("\nYee interpolated (log-log) on its own curves: error at SPEM's unknowns, CPU for SPEM's error")
     for kind, yee_name in (("pec", "Yee staircased"), ("dielectric", "Yee staircased"),
-                           ("dielectric", "Yee anisotropic")):  # noqa: E501
+                           ("dielectric", "Yee anisotropic")):
         yee = rows[(kind, yee_name)]
         lu = np.log([r["unknowns"] for r in yee])
         le = np.log([r["error"] for r in yee])

@@ -118,6 +118,25 @@ def test_exterior_layout_wall_closure_is_consistent():
     assert len(d.hz) == (2 * round(0.2 / dr)) ** 2 and np.all(np.abs(d.wall).max(axis=1) == pytest.approx(L))
 
 
+def test_jittered_exterior_layout():
+    dr = A / 4
+    lat = ts.tez_scattering_layout("pec", A, dr, 0.3)
+    lay = ts.tez_scattering_layout("pec", A, dr, 0.3, amplitude=0.2, seed=3, jitter_width=0.2)
+    again = ts.tez_scattering_layout("pec", A, dr, 0.3, amplitude=0.2, seed=3, jitter_width=0.2)
+    assert np.array_equal(lay.hz, again.hz) and np.array_equal(lay.wall, lat.wall)
+    for p, q in ((lay.hz, lat.hz), (lay.ex, lat.ex), (lay.ey, lat.ey)):
+        assert p.shape == q.shape
+        assert np.hypot(*p.T).min() >= A + 0.05 * dr - 1e-12  # never in (or on) the conductor
+        moved = np.abs(p - q).max(axis=1)
+        assert moved.max() <= 0.2 * dr + 1e-12 and moved.max() > 0.1 * dr
+        assert np.all(moved[np.abs(q).max(axis=1) > 0.2] == 0)  # the lattice beyond jitter_width
+    s = ts.TEzPMLSolver(lay)  # still consistent
+    f = 0.3 + 2.0 * lay.hz[:, 0] - 5.0 * lay.hz[:, 1]
+    assert np.allclose(s.Gy @ f, -5.0, atol=1e-6) and np.allclose(s.Gx @ f, 2.0, atol=1e-6)
+    with pytest.raises(ValueError, match="amplitude"):
+        ts.tez_scattering_layout("pec", A, dr, 0.3, amplitude=0.6)
+
+
 def test_particle_permittivity_averages():
     p = np.array([[A, 0.0], [0.0, A], [0.0, 0.0], [0.5, 0.5]])
     dr = A / 8
