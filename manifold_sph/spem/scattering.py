@@ -577,12 +577,16 @@ def run_scattering(kind: str = "dielectric", *, n_radial: int = 8, radius: float
         curvature; immersed-interface consistency, still a positive diagonal,
         so energy-conserving and broadband). Measured (eps_r 4, ka = 2,
         mimetic fast band, ``h_ratio=1.2``, ``time_correction``, 20 periods):
-        3.0e-2 / 7.1e-3 / 2.0e-3 -> 1.1e-2 / 6.9e-4 / 2.1e-4 at 4 / 8 / 16
-        spacings per radius (``benchmarks/spem_vs_yee.py --dielectric``); it
-        helps ``sbp`` less (8: 5.0e-2 -> 4.4e-2, its bulk error dominates). Not
-        on a thin coated shell: coated (b = a/2, sbp) at 4 spacings per radius
-        1.2e-1 -> 1.8e-1 (the shell is 2 spacings thick), better at 8 (4.3e-2 ->
-        2.2e-2); hence not the default. It costs a second stability estimate in the
+        3.0e-2 / 7.1e-3 / 2.0e-3 / 4.5e-4 -> 1.1e-2 / 6.9e-4 / 2.1e-4 / 2.1e-4
+        at 4 / 8 / 16 / 32 spacings per radius (``benchmarks/spem_vs_yee.py
+        --dielectric``); from 16 on 20 periods are the limit (the modes' slow
+        ring-down): with 40, 1.1e-2 / 6.7e-4 / 7.7e-5. On eps_r 2 and 8, ka 1
+        and 3 and an off-centre cylinder (``--dielectric-checks``) 3x to 50x
+        below the average at 8 and 16 spacings per radius. It helps ``sbp``
+        less (8: 5.0e-2 -> 4.4e-2, its bulk error dominates). Not on a thin
+        coated shell: coated (b = a/2, sbp) at 4 spacings per radius 1.2e-1 ->
+        1.8e-1 (the shell is 2 spacings thick), better at 8 (4.3e-2 -> 2.2e-2);
+        hence not the default. It costs a second stability estimate in the
         set-up.
 
     Returns
