@@ -22,6 +22,13 @@ Prints JSON lines:
   20 periods) with ``mimetic_fast`` (h/dr 1.5, the correction in a band along the walls) and ``sbp``, against
   the staircased Yee grid and Yee with the same cell-averaged eps_r of ``benchmarks/spem_vs_yee.py``, in the
   same run: error at equal unknowns and CPU at equal error.
+- setup (``--only setup``): set-up against run seconds (one TM11 period on the unit PEC square, seed=1, at
+  ``--cells`` spacings; the circular cavity's one period at ``--radial`` spacings per radius) with the set-up's
+  parts from ``MimeticOperators.seconds`` (fits, conditions, normal equations, factorisation and solve) and
+  where the correction was made (``path``: band, wall band or whole operator);
+- cylinders (``--only cylinders``): the PEC / coated cylinders (``--cases``) with ``mimetic_fast`` at
+  ``--radial`` spacings per radius: set-up seconds and error (the band with the wall closure, see
+  :func:`manifold_sph.spem.mimetic.mimetic_operators`).
 
 "mimetic-fast" is the ``fast`` variant of :func:`manifold_sph.spem.mimetic.mimetic_operators` (the
 correction keeps quadratic exactness and touches only pairs closer than 2 spacings), switched on here
