@@ -32,7 +32,11 @@ wave equation), and enters only where the scatterer is: on PEC particles
 ``eps0 eps_r dEz_s/dt = curl H_s - eps0 (eps_r - 1) dEz_inc/dt``. Split-field
 PML absorbs the scattered wave, so no incident wave has to travel through
 the grid. After the switch-on the complex amplitude is read by a DFT at the
-drive frequency over the last periods and compared with the series.
+drive frequency over the last periods and compared with the series. The
+dielectric's permittivity per particle is the cell average
+(:func:`cell_fraction`) or, with ``interface="jump"``, the sharp value
+corrected for the interface's jump in the second derivatives of ``Ez`` as the
+solver's own operator sees it (:func:`jump_permittivity`).
 
 Examples
 --------
