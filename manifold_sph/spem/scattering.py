@@ -298,8 +298,11 @@ def jump_permittivity(operator: ArrayLike, phi: ArrayLike, eps_in: float, eps_ou
     Raises
     ------
     ValueError
-        If a corrected value is not positive (the interface is not resolved:
-        the operator's rows reach too far across it).
+        If a corrected value is not positive: the operator's negative weights
+        across the interface times the contrast outweigh the sharp value. The
+        mimetic rows (fast band, ``h_ratio=1.2``) stay positive up to
+        eps_in / eps_out = 23 (at 20 the smallest value is 0.17 outside,
+        which shortens the stable step 2.4x; at 4 it is 0.87), at any spacing.
 
     Examples
     --------
@@ -339,7 +342,9 @@ def jump_permittivity(operator: ArrayLike, phi: ArrayLike, eps_in: float, eps_ou
     if not (eps > 0).all():
         k = int(np.argmin(eps))
         raise ValueError(f"the jump-corrected permittivity is not positive at particle {k} ({eps[k]:.4g}): the "
-                         f"interface is not resolved by the operator's rows (refine, or use the cell average)")
+                         f"contrast eps_in / eps_out = {eps_in / eps_out:.4g} is too high for the operator's "
+                         f"negative weights across the interface (the correction scales with the contrast, not "
+                         f"with the spacing); use the cell average")
     return eps
 
 
