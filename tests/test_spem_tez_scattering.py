@@ -126,7 +126,7 @@ def test_jittered_exterior_layout():
     assert np.array_equal(lay.hz, again.hz) and np.array_equal(lay.wall, lat.wall)
     for p, q in ((lay.hz, lat.hz), (lay.ex, lat.ex), (lay.ey, lat.ey)):
         assert p.shape == q.shape
-        assert np.hypot(*p.T).min() >= A + 0.05 * dr - 1e-12  # never in (or on) the conductor
+        assert np.hypot(*p.T).min() >= A + ts.JITTER_CLEARANCE * dr - 1e-12  # never in (or on) the conductor
         moved = np.abs(p - q).max(axis=1)
         assert moved.max() <= 0.2 * dr + 1e-12 and moved.max() > 0.1 * dr
         assert np.all(moved[np.abs(q).max(axis=1) > 0.2] == 0)  # the lattice beyond jitter_width
