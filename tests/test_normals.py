@@ -637,6 +637,19 @@ def test_voronoi_poles_give_the_normal_line_on_a_torus(n, max_mean, max_max):
     np.testing.assert_allclose(gap, radius[~hull], rtol=1e-6)
 
 
+def test_voronoi_poles_with_duplicate_points():
+    # an exact duplicate is a vertex of no tetrahedron: its pole is zero, and poles=True then
+    # keeps its normal (same normals as the default on a torus with 50 duplicated points)
+    from manifold_sph.scans.poles import voronoi_poles
+
+    c = shapes.torus(2000)
+    p = np.vstack([c.points, c.points[:50]])
+    pole, radius, second = voronoi_poles(p)
+    zero = np.linalg.norm(pole, axis=1) == 0
+    assert zero.sum() == 50 and np.all(radius[zero] == 0)
+    np.testing.assert_array_equal(estimate_normals(p, poles=True), estimate_normals(p))
+
+
 def test_voronoi_poles_bad_input():
     from manifold_sph.scans.poles import voronoi_poles
 

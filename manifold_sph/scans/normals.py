@@ -1,7 +1,8 @@
 """Normals for clouds that have none: fitted, oriented consistently and outward.
 
 Pipeline of :func:`estimate_normals` (default ``method="jet"``, ``degree=2``; steps 2b,
-5 and 7 with ``refine=True``, the default):
+5 and 7 with ``refine=True``, the default; step 8 with ``orient="visible"``, step 9 with
+``poles=True``):
 
 1. **PCA** on the ``min(k, 10)`` nearest neighbours gives a first, unsigned normal
    (the eigenvector of the smallest eigenvalue of the local covariance; all ``N``
