@@ -380,6 +380,15 @@ def test_spem_time_correction_only_for_the_scatter_cases(capsys):
     assert cli_main(["spem", "scatter-dielectric", "--n-radial", "4", "--periods", "6", "--coupling", "mimetic",
                      "--mimetic-fast", "--time-correction", "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["case"] == "dielectric"
+    # --interface: which treatment ran is in the output; refused for the PEC cylinder and the other cases
+    assert cli_main(["spem", "scatter-dielectric", "--n-radial", "4", "--periods", "6", "--interface", "average",
+                     "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["interface"] == "average"
+    for argv, msg in ((["scatter-pec", "--interface", "jump"], "does not apply to scatter-pec"),
+                      (["cavity", "--interface", "jump"], "--interface applies only to the cases"),
+                      (["tez-disk", "--interface", "jump"], "does not apply to case 'tez-disk'")):
+        assert cli_main(["spem", *argv]) == 2
+        assert msg in capsys.readouterr().err
 
 
 def test_spem_tez_disk_and_wall_closure(capsys):

@@ -128,7 +128,7 @@ def test_pec_layout_conforms_to_the_cylinder():
 def test_dielectric_cylinder_second_order():
     # measured (20 periods): 1.97e-1 / 5.03e-2 / 1.21e-2 at 4 / 8 / 16 spacings per radius (order 2.0);
     # here 8 periods (the slow ring-down of the cylinder's modes adds ~1e-3 at 8 spacings)
-    kw = dict(periods=8.0, dft_periods=2.0, sbp_layers=2)
+    kw = dict(periods=8.0, dft_periods=2.0, sbp_layers=2, interface="average")
     r4 = sc.run_scattering("dielectric", n_radial=4, **kw)
     r8 = sc.run_scattering("dielectric", n_radial=8, **kw)
     assert r4.error < 0.22 and r8.error < 0.06
@@ -153,7 +153,7 @@ def test_coated_cylinder():
 def test_time_correction_removes_the_leapfrog_dispersion():
     # the same semi-discrete phasor whatever the Courant number: measured (4 spacings per radius, sbp, 8
     # periods) 1.1e-3 apart at Courant 0.9 and 0.45 with the correction (the ramp's remnant), 1.1e-2 without
-    kw = dict(n_radial=4, periods=8.0, dft_periods=2.0, sbp_layers=2)
+    kw = dict(n_radial=4, periods=8.0, dft_periods=2.0, sbp_layers=2, interface="average")
     gap = []
     for tc in (False, True):
         a = sc.run_scattering("dielectric", courant=0.9, time_correction=tc, **kw)
@@ -272,7 +272,8 @@ def test_dielectric_cylinder_mimetic_beats_sbp_and_staircased_yee():
     the lattice: measured, 20 periods, 4 / 8 / 16 spacings per radius, in benchmarks/spem_mimetic.py
     --only scattering. Here 12 periods at 4 spacings: measured 4.2e-2 (sbp 2.0e-1; the staircased Yee
     grid 9.9e-2 at 20 periods)."""
-    r = sc.run_scattering("dielectric", n_radial=4, periods=12.0, coupling="mimetic", mimetic_fast=True)
+    r = sc.run_scattering("dielectric", n_radial=4, periods=12.0, coupling="mimetic", mimetic_fast=True,
+                          interface="average")
     assert r.error < 0.05
 
 
@@ -281,7 +282,7 @@ def test_dielectric_cylinder_mimetic_with_time_correction():
     --dielectric, 20 periods) 3.0e-2 / 7.1e-3 / 2.0e-3 / 4.5e-4 at 4 / 8 / 16 / 32 spacings per radius
     against 4.1e-2 / 1.04e-2 / 3.2e-3 without it (the staircased Yee grid: 9.9e-2 / 3.6e-2 / 1.7e-2 / 7.3e-3).
     Here 4 spacings, 20 periods (0.5 s)."""
-    kw = dict(n_radial=4, periods=20.0, coupling="mimetic", mimetic_fast=True, h_ratio=1.2)
+    kw = dict(n_radial=4, periods=20.0, coupling="mimetic", mimetic_fast=True, h_ratio=1.2, interface="average")
     on = sc.run_scattering("dielectric", time_correction=True, **kw)
     off = sc.run_scattering("dielectric", **kw)
     assert on.error < 0.032 and off.error > 0.038
@@ -366,9 +367,24 @@ def test_dielectric_cylinder_below_vacuum_permittivity():
     the cell average, 2.1e-3 with interface="jump" (20 periods at 8 spacings: 3.0e-3 / 1.5e-4)."""
     kw = dict(n_radial=4, eps_r=0.5, periods=12.0, coupling="mimetic", mimetic_fast=True, h_ratio=1.2,
               time_correction=True)
-    avg = sc.run_scattering("dielectric", **kw)
+    avg = sc.run_scattering("dielectric", interface="average", **kw)
     jump = sc.run_scattering("dielectric", interface="jump", **kw)
     assert avg.error < 0.02 and jump.error < 0.004
+    assert (avg.interface, jump.interface) == ("average", "jump")
+
+
+def test_interface_auto_is_jump_on_the_dielectric_and_average_elsewhere():
+    """The default interface="auto": "jump" on the dielectric cylinder (the same run bit for bit), "average"
+    on the coated one, and "average" where the jump correction is refused (eps_r 60 with the mimetic rows:
+    the contrast outweighs them); an explicit "jump" there raises."""
+    kw = dict(n_radial=4, periods=4.0, dft_periods=1.0)
+    auto, jump = (sc.run_scattering("dielectric", interface=i, **kw) for i in ("auto", "jump"))
+    assert auto.interface == "jump" and auto.error == jump.error
+    assert sc.run_scattering("coated", periods=4.0, dft_periods=1.0).interface == "average"
+    hard = dict(kw, eps_r=60.0, coupling="mimetic", mimetic_fast=True, h_ratio=1.2)
+    assert sc.run_scattering("dielectric", **hard).interface == "average"
+    with pytest.raises(ValueError, match="interface"):
+        sc.run_scattering("dielectric", interface="jump", **hard)
 
 
 def test_dielectric_cylinder_jump_interface_eps_r_2():

@@ -36,8 +36,8 @@ from .layouts import (LAYOUTS, Layout, disk_layout, jitter, line_layout, make_la
                       staggered_layout, yee_layout)
 from .operators import FORMS, cross_gradient, cross_pairs, sbp_pair
 from .pml import PML, sigma_max
-from .scattering import (SCATTERERS, ScatteringResult, mie_coefficients, run_scattering, scattered_field,
-                         scattering_layout, total_field)
+from .scattering import (INTERFACES, SCATTERERS, ScatteringResult, jump_permittivity, mie_coefficients, run_scattering,
+                         scattered_field, scattering_layout, total_field)
 from .tez import (TEzCavityResult, TEzLayout, TEzSolver, run_tez_cavity, run_tez_circular_cavity, tez_cavity_frequency,
                   tez_disk_frequency, tez_disk_layout, tez_disk_mode, tez_layout, wall_closure_layout)
 from .results import (CaseResult, CavityResult, FieldHistory, LineResult, PlanewaveResult, PMLResult, RunResult,
@@ -52,7 +52,7 @@ __all__ = [
     "staggered_layout", "yee_layout",
     "FORMS", "cross_gradient", "cross_pairs", "sbp_pair",
     "PML", "sigma_max",
-    "SCATTERERS", "ScatteringResult", "mie_coefficients", "run_scattering", "scattered_field", "scattering_layout",
+    "INTERFACES", "SCATTERERS", "ScatteringResult", "jump_permittivity", "mie_coefficients", "run_scattering", "scattered_field", "scattering_layout",
     "total_field", "TEzCavityResult", "TEzLayout", "TEzSolver", "run_tez_cavity", "tez_cavity_frequency",
     "tez_layout", "run_tez_circular_cavity", "tez_disk_frequency", "tez_disk_layout", "tez_disk_mode",
     "wall_closure_layout",

@@ -189,7 +189,7 @@ def run(args: argparse.Namespace) -> int:
 # ----------------------------------------------------------------------------- scattering and TEz cases (issue 21)
 #: The cylinder scattering cases of :mod:`.scattering` and the TEz cavities of :mod:`.tez`, beside :data:`.cases.CASES`.
 SCATTERING_CASES = ("scatter-pec", "scatter-dielectric", "scatter-coated", "tez-cavity", "tez-disk")
-_SCATTERING_OPTIONS = ("ka", "core_radius", "periods")
+_SCATTERING_OPTIONS = ("ka", "core_radius", "periods", "interface")
 _NOT_FOR_SCATTERING = ("spectrum_periods", "size", "freq", "pml_cells", "r0", "png", "gif", "ppw")
 
 
@@ -212,6 +212,9 @@ def _add_scattering_arguments(p: argparse.ArgumentParser) -> None:
                    help="tez-cavity: the walls as closure columns with fitted volumes (converges on jittered layouts)")
     g.add_argument("--mimetic-fast", action="store_true",
                    help="cavity and scatter-*, with --coupling mimetic: the faster correction (G exact for quadratics)")
+    g.add_argument("--interface", choices=("auto", "average", "jump"), default=None,
+                   help="scatter-dielectric, scatter-coated: the permittivity next to r = radius (default auto: "
+                        "jump-corrected on the dielectric, cell-averaged on the coated cylinder)")
 
 
 def _run_scattering(args: argparse.Namespace) -> int:
@@ -237,7 +240,7 @@ def _run_scattering(args: argparse.Namespace) -> int:
             for name in ("ka", "core_radius"):
                 if getattr(args, name) is not None:
                     raise ValueError(f"--{name.replace('_', '-')} does not apply to case {args.case!r}")
-            for flag in ("mimetic_fast", "time_correction"):
+            for flag in ("mimetic_fast", "time_correction", "interface"):
                 if getattr(args, flag):
                     raise ValueError(f"--{flag.replace('_', '-')} does not apply to case {args.case!r}")
             n_key = "n" if args.case == "tez-cavity" else "n_radial"
@@ -260,6 +263,10 @@ def _run_scattering(args: argparse.Namespace) -> int:
                 raise ValueError("--core-radius applies only to scatter-coated")
             if "eps_r" in kw and kind == "pec":
                 raise ValueError("--eps-r does not apply to scatter-pec")
+            if args.interface is not None:
+                if kind == "pec":
+                    raise ValueError("--interface does not apply to scatter-pec")
+                kw["interface"] = args.interface
             kw.setdefault("periods", 20.0)
             if args.mimetic_fast:
                 if kw["coupling"] != "mimetic":
