@@ -169,6 +169,8 @@ def test_band_correction_stays_near_the_walls_of_a_lattice():
         ops = mimetic_operators(lay.e, free, [(lay.hy, 0)], h=h, scale=dr, fast=True, band_layers=layers)
         (G, D), = ops.pairs
         assert ops.residual < 1e-7
+        assert ops.path == ("band" if layers else "whole")  # straight lattice walls: no wall band needed
+        assert set(ops.seconds) == {"fit", "assembly", "normal", "factor", "total"}
         np.testing.assert_allclose(G @ _quadratic(lay.e), -1.0 + 2.0 * x - 2.0 * y, atol=1e-6)
         np.testing.assert_allclose(D @ (2.0 * x - y + 1.0), 2.0, atol=1e-6)
         lhs = ops.vol_e[fidx][:, None] * D.toarray()
