@@ -455,11 +455,12 @@ def _correct(A: sp.csr_matrix, u0: np.ndarray, wt: np.ndarray, on: np.ndarray, o
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
     """The smallest ``wt^-1``-weighted change of ``u0`` among the unknowns ``on`` with ``A u = 0``.
 
-    Returns ``(u, delta, A u, path)``, ``path`` one of "band", "wall band", "whole". ``seconds`` (optional)
-    accumulates the time of the normal equations ("normal") and of their factorisation and solve ("factor"). With ``layers`` the change is sought in a band first (:func:`_band`); when
-    the band's misses a condition by more than :data:`BAND_ACCEPT` or a volume (``u[o_vh:]``) turns
-    non-positive, in the band of the unknowns ``on | wall`` (the wall closure's pairs, when ``wall`` adds
-    any), and then on the whole operator (``on``).
+    Returns ``(u, delta, A u, path)``, ``path`` one of "band", "wall band", "whole". With ``layers`` the
+    change is sought in a band first (:func:`_band`); when the band's misses a condition by more than
+    :data:`BAND_ACCEPT` or a volume (``u[o_vh:]``) turns non-positive, in the band of the unknowns
+    ``on | wall`` (the wall closure's pairs, when ``wall`` adds any), and then on the whole operator
+    (``on``). ``seconds`` (optional) accumulates the time of the normal equations ("normal") and of their
+    factorisation and solve ("factor").
     """
     n_u = len(u0)
     res = -(A @ u0)
