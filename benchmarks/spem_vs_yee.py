@@ -274,7 +274,8 @@ def scattering_main(full=False, kinds=("pec", "dielectric", "coated"), layouts=(
         if "jittered" in layouts:
             configs.append(("jittered", "auto", 0.7, (4, 8, 16) if full else (4, 8)))
         for layout, layers, h_ratio, sizes in configs:
-            rows = [run_spem_scattering(kind, n, periods=periods, layout=layout, sbp_layers=layers, h_ratio=h_ratio)
+            rows = [run_spem_scattering(kind, n, periods=periods, layout=layout, sbp_layers=layers, h_ratio=h_ratio,
+                                        interface="average")
                     for n in sizes]
             for r in rows:
                 r["method"] += ("" if layers == "auto" else f" {layers} rings") + ("" if h_ratio == 0.7
@@ -315,15 +316,15 @@ def dielectric_main(periods=20.0):
         line(r)
     for n in (4, 8, 16, 32):
         line(run_yee_scattering("dielectric", n, periods=periods, eps_mode="average", time_correction=True))
-    spem = {"mimetic-fast h/dr 1.2": dict(coupling="mimetic", mimetic_fast=True, h_ratio=1.2),
+    spem = {"mimetic-fast h/dr 1.2": dict(coupling="mimetic", mimetic_fast=True, h_ratio=1.2, interface="average"),
             "mimetic-fast h/dr 1.2 time-corr.": dict(coupling="mimetic", mimetic_fast=True, h_ratio=1.2,
-                                                      time_correction=True),
+                                                      time_correction=True, interface="average"),
             "mimetic-fast h/dr 1.2 time-corr. jump": dict(coupling="mimetic", mimetic_fast=True, h_ratio=1.2,
                                                            time_correction=True, interface="jump"),
             "mimetic-fast h/dr 1.2 time-corr. jump 40 periods": dict(coupling="mimetic", mimetic_fast=True,
                                                                       h_ratio=1.2, time_correction=True,
                                                                       interface="jump", periods=40.0),
-            "sbp time-corr.": dict(coupling="sbp", time_correction=True),
+            "sbp time-corr.": dict(coupling="sbp", time_correction=True, interface="average"),
             "sbp jump": dict(coupling="sbp", interface="jump")}
     rows = {}
     for name, kw in spem.items():
