@@ -279,11 +279,14 @@ fits do not help this measure.
    (inward or disagreeing) cow 53 -> 41, cheburashka 46 -> 45, beetle 33 -> 32, teapot 43 ->
    36; with ``orient="visible"`` cow 51 -> 42, cheburashka 43 -> 42, teapot 34 -> 27, beetle
    66 -> 64. The bunny (unchanged), beast (32,311 points; 91.11 -> 91.27 % agreeing) and
-   the well-sampled models barely change. The gain is one of the models' vertex sampling:
-   on area-uniform random samples of the same meshes (seeds 0, 1; against the face normals)
-   it is neutral: inward or disagreeing cow 45 / 79 -> 45 / 77 of 3000, cheburashka 37 / 67 ->
-   40 / 69 of 6000, teapot 53 / 84 -> 54 / 83, beetle 24 / 15 -> 22 / 16 of 2000, homer 7 / 54
-   -> 8 / 54 of 6000, spot 0 / 0. Not the default: the triangulation and the sign check cost
+   the well-sampled models barely change. On area-uniform random samples of the same meshes
+   (``python benchmarks/normals.py --random --poles``: as many points as vertices, seeds 0, 1,
+   against the normals of the faces sampled) the gain is smaller and mixed: inward or
+   disagreeing cow 74 / 59 -> 67 / 57, homer 6 / 71 -> 8 / 63, rocker-arm 1 / 0 unchanged,
+   cheburashka 42 / 48 -> 37 / 46, teapot 70 / 112 -> 66 / 107, beetle 24 / 15 -> 22 / 16,
+   alligator 0 (522 -> 490 in all); with other sample sizes (seeds 0, 1) cow 45 / 79 -> 45 / 77
+   of 3000, cheburashka 37 / 67 -> 40 / 69 of 6000, teapot 53 / 84 -> 54 / 83 of 3000, homer 7 /
+   54 -> 8 / 54 of 6000, spot 0 / 0 of 3000. Not the default: the triangulation and the sign check cost
    about 10 s more on the 35,000-point bunny (benchmark, loaded machine: 6.5 -> 16.4 s; the
    qhull triangulation alone 4.5-7 s, 28 s on Igea's 134,000 points), and noisy clouds get
    worse (the poles of a noisy layer are random): uniformly random spheres of 4000 points with noise of 0.1 / 0.3 / 0.5
@@ -1448,8 +1451,8 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: str | A
         frame as further candidates of step 7, and a last sign check by the winding
         number at each particle's two poles (module notes, step 9). Fewer wrong
         orientations at thin parts of coarse models sampled at their vertices (cow
-        51 -> 39 normals inward, beetle-alt 142 -> 74 disagreeing with the mesh; neutral
-        on random samples of the same surfaces, worse on noisy clouds), at the cost of
+        51 -> 39 normals inward, beetle-alt 142 -> 74 disagreeing with the mesh; smaller,
+        mixed gains on random samples of the same surfaces, worse on noisy clouds), at the cost of
         the triangulation (2.5 times the default's time on 35,000 points); not the default. Only with
         ``orient="outward"`` or ``"visible"`` (ignored otherwise) and at least 5
         points spanning a volume (ignored on planar clouds).
