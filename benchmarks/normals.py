@@ -98,8 +98,9 @@ disagreeing (open); with ``--poles`` / ``--visible`` for those variants too. Mea
 normals, seeds 0 / 1, default -> poles): cow 74 / 59 -> 67 / 57, homer 6 / 71 -> 8 / 63,
 rocker-arm 1 / 0 unchanged, cheburashka 42 / 48 -> 37 / 46, teapot 70 / 112 -> 66 / 107, beetle
 24 / 15 -> 22 / 16, alligator 0; medians 6.7-6.8 (cow), 3.1-3.2, 2.9, 2.2, 2.5-2.7, 5.7 deg
-either way. Random samples are harder than the vertices (cow 51, homer 1 wrong there); homer's
-71 at seed=1 are one flipped patch of 49 particles whose directions are right.
+either way. Random samples are harder than the vertices (cow 51, homer 1 wrong there); on
+homer with 6000 random points (seed=1) 49 of the 54 inward normals form one flipped patch
+whose directions are right (74 % within 30 degrees): a sign error, not a line error.
 
 orient="visible" on the models (inward or disagreeing normals, default -> visible): cow
 50 -> 50, cheburashka 68 -> 65, homer 1 -> 1, rocker-arm 0 -> 1, teapot 45 -> 33, beetle
