@@ -52,11 +52,13 @@ wall particles change the kernel volumes and fits within a support), beyond the 
 fast variant's corrected pairs, so those components could only be carried along the axis to the far walls:
 the whole operator. The band is therefore tried again with the wall closure's pairs (every pair with a
 wall column, at any distance within the support) before the whole operator: ``path`` "wall band". PEC /
-coated cylinder (``run_scattering``, ``mimetic_fast``) at 8 spacings per radius: set-up 33 / 44 s -> 5.5
-/ 3.3 s, error 6.5e-3 / 1.1e-1 -> 8.9e-3 / 1.5e-2; coated at 16: 793 s, 4.8e-3 -> 39 s, 1.1e-2 (the
-operators differ: the band's correction is local, the whole operator's reaches the far walls; relative
-change of ``G`` between them 0.12-0.15). The default variant (every pair correctable) meets the conditions
-in its first band.
+coated cylinder (``run_scattering``, ``mimetic_fast``, 12 periods; loaded machine) at 8 spacings per radius:
+set-up 33 / 44 s -> 4.5 / 4.2 s, error 6.5e-3 / 1.1e-1 -> 8.9e-3 / 1.5e-2; coated at 16: 793 s, 4.8e-3 ->
+14 s, 1.1e-2 (3 rings: 7.7e-3 at 16, 2.3e-2 at 8: the coated error moves by 2x with such changes); the PEC
+cylinder at 16 meets its conditions in the first band (4.5e-4, 12 s). The operators differ: the band's
+correction is local, the whole operator's reaches the far walls (relative change of ``G`` between them
+0.12-0.15 on a PEC cylinder at 8 spacings per radius). The default variant (every pair correctable) meets
+the conditions in its first band.
 
 Spurious modes. On independently sampled (Poisson) E and H sets the E -> E operator can have eigenvectors
 localised on a few particles with eigenvalues among the physical ones (:func:`localised_modes` reports them:
