@@ -260,6 +260,8 @@ def scattering_main():
                 if le_r < le.min():  # beyond Yee's finest grid: the line through its two finest points
                     slope = (lc[-1] - lc[-2]) / (le[-1] - le[-2])
                     cpu, note = math.exp(lc[-1] + slope * (le_r - le[-1])), " (extrapolated)"
+                elif le_r > le.max():
+                    cpu, note = math.exp(lc[0]), " (Yee's coarsest grid is already more accurate)"
                 else:
                     order_e = np.argsort(le)
                     cpu, note = math.exp(np.interp(le_r, le[order_e], lc[order_e])), ""
