@@ -211,6 +211,8 @@ def scattering_main():
        radius < r <= 2 radius), set-up and run seconds, and the fitted order.
     3. Yee's error at SPEM's unknowns and the Yee CPU for SPEM's error (log-log interpolation on
        Yee's own curves).
+    4. Other cylinders (PEC at ka = 1 and 3; dielectric eps_r = 2 at ka = 2 and eps_r = 9 at ka = 1),
+       SPEM on the lattice against Yee with the same anisotropic average, 8 and 16 spacings per radius.
     """
     print("TEz split-field PML (h/dr 0.8): reflection in dB at 0 / 30 / 45 degrees")
     for cells in (10, 20):
@@ -270,6 +272,18 @@ def scattering_main():
                       f"({e / r['error']:.1f}x), Yee CPU for SPEM's error {cpu:.3g} s{note}")
 
 
+def other_cylinders():
+    print("\nOther cylinders: error of the scattered Hz at 8 / 16 spacings per radius (order)")
+    for kind, kw in (("pec", dict(ka=1.0)), ("pec", dict(ka=3.0)), ("dielectric", dict(eps_r=2.0)),
+                     ("dielectric", dict(eps_r=9.0, ka=1.0))):
+        spem = [ts.run_tez_scattering(kind, n_radial=n, **kw).error for n in (8, 16)]
+        yee = [run_yee_tez_scattering(kind, n, average="anisotropic", **kw)["error"] for n in (8, 16)]
+        label = ", ".join(f"{k} {v:g}" for k, v in kw.items())
+        print(f"  {kind:<10s} {label:<18s} SPEM {spem[0]:.2e} / {spem[1]:.2e} ({math.log2(spem[0] / spem[1]):.2f})   "
+              f"Yee {'staircased' if kind == 'pec' else 'anisotropic'} {yee[0]:.2e} / {yee[1]:.2e} "
+              f"({math.log2(yee[0] / yee[1]):.2f})", flush=True)
+
+
 def main():
     p = argparse.ArgumentParser()
     p.add_argument("--sweep", action="store_true")
@@ -277,6 +291,7 @@ def main():
     args = p.parse_args()
     if args.scattering:
         scattering_main()
+        other_cylinders()
         return
     disk_kdr = lambda n: 1.8412 / n  # noqa: E731
     rect_kdr = lambda n: 0.6 * math.pi / n  # noqa: E731
