@@ -430,6 +430,9 @@ _THICK_FLOOR = 0.3  # at least this fraction of the usual offset (suzanne 30 -> 
 _THICK_PAR = 0.9  # across: a point steeply off the tangent plane with |n_i . n_j| above this (0: suzanne 42)
 _THICK_NOISE = 12.0  # and higher than this many noise levels (8: noisy random spheres flipped more, measured)
 _FLAG_S = 0.5  # probes with w_in + w_out below this (both outside: a flipped thin part) start patches (was -0.5)
+_FLAG_S_HIGH = 1.5  # ... or above this (both inside: a flipped patch in a crevice or narrow gap; None: off),
+_HIGH_MIN = 12  # (regions of fewer particles, connected over the spanning tree, are not flagged)
+_FLAG_S_EXPLAIN = 0.5  # patches of their own, flipped only where that leaves at most this part of their excess S - 1
 _ROW_K = 32  # step 2b: neighbours searched for points steeply above and below the fitted plane
 _ROW_STEEP = 2  # at least this many on each side
 _ROW_TAN = 1.0  # steep: height above the plane over the distance along it (1: 45 degrees)
@@ -1177,10 +1180,11 @@ def _patches(N, ta, tb, tconf, flag):
     return n_p, lab.astype(np.int64)
 
 
-def _best_signs(H, g, blocks):
+def _best_signs(H, g, blocks, margin=None):
     """Greedy minimum of ``s^T H s - 2 g^T s`` over s in {-1, 1}^n from s = 1 (diagonal of H ignored).
 
-    Moves: single entries, and whole blocks (rows of the 0/1 matrix ``blocks``).
+    Moves: single entries, and whole blocks (rows of the 0/1 matrix ``blocks``). An entry
+    with a ``margin`` leaves +1 only where that lowers the energy by more than its margin.
     """
     H = H.copy()
     np.fill_diagonal(H, 0.0)
@@ -1189,6 +1193,8 @@ def _best_signs(H, g, blocks):
     for _ in range(4 * H.shape[0] + 20):
         Hs = H @ s
         d1 = 4.0 * s * (g - Hs)  # energy change of flipping one entry
+        if margin is not None:
+            d1 = d1 + np.where(s > 0, margin, 0.0)
         j = int(np.argmin(d1))
         if d1[j] < -tol:
             s[j] = -s[j]
@@ -1267,6 +1273,20 @@ def _outward(pts, nrm, neighbors, distances, noise=0.0):
         if n_comp > 1:
             blocks[comp_of_patch, np.arange(n_p)] = 1.0
         sP = _best_signs(H, g, blocks)
+        if _FLAG_S_HIGH is not None and rnd > 0:
+            # patches cut for both probes inside (flag 2) flip only where the flip explains it, i.e. their
+            # probes are then no longer both inside (a part inside another shell reads both inside either way)
+            wt = np.bincount(pp, weights=omega, minlength=n_p)
+            high = (np.bincount(pp, weights=omega * (flag[probes] == 2), minlength=n_p) > 0.5 * wt) & (sP < 0)
+            if high.any():
+                sw = sP[pp] < 0
+                s_new = np.where(sw, w_out @ sP, w_in @ sP) + np.where(sw, w_in @ sP, w_out @ sP)
+                s_old = w_in.sum(axis=1) + w_out.sum(axis=1)
+                excess_new = np.bincount(pp, weights=omega * (s_new - 1.0), minlength=n_p)
+                excess_old = np.bincount(pp, weights=omega * (s_old - 1.0), minlength=n_p)
+                stay = high & (excess_new > np.where(excess_old > 0, _FLAG_S_EXPLAIN * excess_old, 0.0))
+                if stay.any():
+                    sP = _best_signs(H, g, blocks, np.where(stay, np.inf, 0.0))
         n = n * sP[lab][:, None]
         # field of the new orientation at the (possibly swapped) probes
         sw = sP[pp] < 0
@@ -1275,9 +1295,17 @@ def _outward(pts, nrm, neighbors, distances, noise=0.0):
         D, S = wi - wo, wi + wo
         if rnd > 0 and np.all(sP > 0):
             break
-        bad = (D < 0) | (S < _FLAG_S)
+        bad = ((D < 0) | (S < _FLAG_S)).astype(np.int64)
+        if _FLAG_S_HIGH is not None:  # a class of its own: cut from both the good and the flipped probes
+            bad[(bad == 0) & (S > _FLAG_S_HIGH)] = 2
         near = cKDTree(pts[probes]).query(pts, k=1, workers=get_num_threads())[1] if probes.size < N else np.arange(N)
         flag = bad[near]
+        if _FLAG_S_HIGH is not None and _HIGH_MIN > 1 and (flag == 2).any():  # only sizeable both-inside regions
+            both = (flag[ta] == 2) & (flag[tb] == 2)
+            _, hl = csgraph.connected_components(sp.coo_matrix((np.ones(int(both.sum())), (ta[both], tb[both])), shape=(N, N)),
+                                                 directed=False)
+            hsize = np.bincount(hl[flag == 2], minlength=N)
+            flag[(flag == 2) & (hsize[hl] < _HIGH_MIN)] = 0
     # flat sheets: no winding-number evidence either way -> mean normal with a positive largest component
     pc = comps[probes]
     evidence = np.bincount(pc, weights=omega * S, minlength=n_comp)
