@@ -69,6 +69,10 @@ MODULES = [
     "manifold_sph.spem.solver",
     "manifold_sph.spem.sources",
     "manifold_sph.spem.tez",
+    "manifold_sph.spem.tez_scattering",
+    "manifold_sph.spem.mimetic",
+    "manifold_sph.spem.stencil",
+    "manifold_sph.scans.poles",
 ]
 
 # module-level dunders that are part of a module's interface (PEP 562)

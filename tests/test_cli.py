@@ -406,3 +406,25 @@ def test_spem_tez_disk_and_wall_closure(capsys):
     assert cli_main(["spem", "cavity", "--wall-closure"]) == 2
     assert "--wall-closure applies only" in capsys.readouterr().err
     assert cli_main(["spem", "tez-disk", "--ka", "2"]) == 2
+
+
+def test_spem_tez_scattering_cases(capsys):
+    """TEz scattering by a PEC and a dielectric cylinder from the command line (measured at 4 spacings per
+    radius, 6 periods: PEC 8.3e-2, dielectric eps_r 2 with the adjoint coupling 1.2e-1); options that do not
+    apply are refused."""
+    from manifold_sph.cli import main as cli_main
+
+    assert cli_main(["spem", "tez-scatter-pec", "--n-radial", "4", "--periods", "6", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["case"] == "pec" and out["error"] < 0.12
+    assert cli_main(["spem", "tez-scatter-dielectric", "--n-radial", "4", "--periods", "6", "--eps-r", "2",
+                     "--coupling", "adjoint", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["case"] == "dielectric" and out["coupling"] == "adjoint" and out["error"] < 0.2
+    for argv, msg in ((["tez-scatter-pec", "--eps-r", "2"], "--eps-r does not apply to tez-scatter-pec"),
+                      (["tez-scatter-pec", "--coupling", "mimetic"], "coupling must be one of"),
+                      (["tez-scatter-dielectric", "--interface", "jump"], "--interface does not apply"),
+                      (["tez-scatter-dielectric", "--mimetic-fast"], "--mimetic-fast does not apply"),
+                      (["tez-scatter-dielectric", "--layout", "poisson"], "must be yee or jittered")):
+        assert cli_main(["spem", *argv]) == 2
+        assert msg in capsys.readouterr().err

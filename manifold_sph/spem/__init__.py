@@ -9,7 +9,8 @@ limits, the measured-spectrum check that refuses a growing "direct" coupling,
 PEC, materials, split-field PML), :mod:`.pml`, :mod:`.sources` (sinusoid,
 Gaussian pulse, hard/soft point and line sources), :mod:`.dirichlet` (the
 Kronecker-delta system), :mod:`.scattering` (plane-wave scattering by PEC, dielectric and
-coated cylinders: exact Bessel series and SPEM cases), :mod:`.tez` (TEz: Hz, Ex, Ey),
+coated cylinders: exact Bessel series and SPEM cases), :mod:`.tez` (TEz: Hz, Ex, Ey), :mod:`.tez_scattering` (TEz
+scattering by PEC and dielectric cylinders: exact Hz series, split-field PML),
 :mod:`.cases` / :mod:`.cases2d` (helpers in
 :mod:`._casekit`; :mod:`.cases` imports :mod:`.cases2d`, not the reverse) (the
 validation cases of the thesis [2] with exact references), :mod:`.results` (what ``run`` and
@@ -40,6 +41,9 @@ from .scattering import (INTERFACES, SCATTERERS, ScatteringResult, jump_permitti
                          scattered_field, scattering_layout, total_field)
 from .tez import (TEzCavityResult, TEzLayout, TEzSolver, run_tez_cavity, run_tez_circular_cavity, tez_cavity_frequency,
                   tez_disk_frequency, tez_disk_layout, tez_disk_mode, tez_layout, wall_closure_layout)
+from .tez_scattering import (EPS_AVERAGES, TEZ_SCATTERERS, TEzPMLResult, TEzPMLSolver, TEzScatteringResult,
+                             particle_permittivity, run_tez_pml, run_tez_scattering, tez_mie_coefficients,
+                             tez_scattered_field, tez_scattering_layout, tez_total_field)
 from .results import (CaseResult, CavityResult, FieldHistory, LineResult, PlanewaveResult, PMLResult, RunResult,
                       WaveguideResult)
 from .solver import COUPLINGS, DEFAULT_COUPLING, DEFAULT_H_RATIO, Line1DSolver, TMzSolver, cfl_number, leapfrog_growth
@@ -56,6 +60,9 @@ __all__ = [
     "total_field", "TEzCavityResult", "TEzLayout", "TEzSolver", "run_tez_cavity", "tez_cavity_frequency",
     "tez_layout", "run_tez_circular_cavity", "tez_disk_frequency", "tez_disk_layout", "tez_disk_mode",
     "wall_closure_layout",
+    "EPS_AVERAGES", "TEZ_SCATTERERS", "TEzPMLResult", "TEzPMLSolver", "TEzScatteringResult", "particle_permittivity",
+    "run_tez_pml", "run_tez_scattering", "tez_mie_coefficients", "tez_scattered_field", "tez_scattering_layout",
+    "tez_total_field",
     "RunResult", "CaseResult", "LineResult", "CavityResult", "PlanewaveResult", "WaveguideResult", "PMLResult",
     "FieldHistory",
     "COUPLINGS", "DEFAULT_COUPLING", "DEFAULT_H_RATIO", "Line1DSolver", "TMzSolver", "cfl_number", "leapfrog_growth",

@@ -188,7 +188,8 @@ def run(args: argparse.Namespace) -> int:
 
 # ----------------------------------------------------------------------------- scattering and TEz cases (issue 21)
 #: The cylinder scattering cases of :mod:`.scattering` and the TEz cavities of :mod:`.tez`, beside :data:`.cases.CASES`.
-SCATTERING_CASES = ("scatter-pec", "scatter-dielectric", "scatter-coated", "tez-cavity", "tez-disk")
+SCATTERING_CASES = ("scatter-pec", "scatter-dielectric", "scatter-coated", "tez-cavity", "tez-disk", "tez-scatter-pec",
+                    "tez-scatter-dielectric")
 _SCATTERING_OPTIONS = ("ka", "core_radius", "periods", "interface")
 _NOT_FOR_SCATTERING = ("spectrum_periods", "size", "freq", "pml_cells", "r0", "png", "gif", "ppw")
 
@@ -198,7 +199,10 @@ def _add_scattering_arguments(p: argparse.ArgumentParser) -> None:
                              "0.1 m; also --n-radial, default 8, --eps-r, default 4, --layout yee|jittered, "
                              "--coupling, --h-ratio), tez-cavity (TEz modes of a 0.1 x 0.06 m PEC rectangle; "
                              "--n-radial: spacings along 0.06 m, default 12) and tez-disk (TE11 + TE21 of a circular "
-                             "PEC cavity of radius 0.1 m, curved walls; --n-radial, default 20; --coupling sbp|adjoint)")
+                             "PEC cavity of radius 0.1 m, curved walls; --n-radial, default 20; --coupling sbp|adjoint), "
+                             "tez-scatter-pec, tez-scatter-dielectric (TEz plane wave on a cylinder of radius 0.1 m: "
+                             "exact Hz series, split-field PML; --n-radial, default 8, --eps-r, default 4, --layout "
+                             "yee|jittered, --coupling sbp|adjoint, --h-ratio, default 0.8, --ka, --periods, default 12)")
     g.add_argument("--ka", type=_positive(float), default=None, help="wavenumber times radius (default 2)")
     g.add_argument("--core-radius", type=_positive(float), default=None,
                    help="scatter-coated: PEC core radius in m (default 0.05)")
@@ -236,7 +240,22 @@ def _run_scattering(args: argparse.Namespace) -> int:
         kw = {"layout": args.layout, "coupling": args.coupling or DEFAULT_COUPLING}
         if args.wall_closure and args.case != "tez-cavity":
             raise ValueError(f"--wall-closure applies only to case 'tez-cavity', not {args.case!r}")
-        if args.case in ("tez-cavity", "tez-disk"):
+        if args.case.startswith("tez-scatter-"):
+            from .tez_scattering import run_tez_scattering
+
+            kind = args.case.rsplit("-", 1)[1]
+            for name in ("core_radius", "mimetic_fast", "time_correction", "interface"):
+                if getattr(args, name) not in (None, False):
+                    raise ValueError(f"--{name.replace('_', '-')} does not apply to case {args.case!r}")
+            if args.form != "fpm" or args.kernel != "cubic":
+                raise ValueError(f"--form and --kernel do not apply to case {args.case!r}")
+            if args.eps_r is not None and kind == "pec":
+                raise ValueError("--eps-r does not apply to tez-scatter-pec")
+            for name in ("n_radial", "eps_r", "h_ratio", "ka", "periods"):
+                if getattr(args, name) is not None:
+                    kw[name] = getattr(args, name)
+            result = run_tez_scattering(kind, **kw)
+        elif args.case in ("tez-cavity", "tez-disk"):
             for name in ("ka", "core_radius"):
                 if getattr(args, name) is not None:
                     raise ValueError(f"--{name.replace('_', '-')} does not apply to case {args.case!r}")
