@@ -92,7 +92,8 @@ bunny 0.82 / 24 / 100 % unchanged (6.47 -> 16.43 s); extra models: spot 1.07 / 5
 -> 2.49 / 1889 / 91.27 % (12.2 -> 23.2 s).
 
 ``--random`` prints, instead, area-uniform random samples of the models (or of the
-``--models`` meshes; as many points as vertices, at least 2000, seeds 0 and 1) against the
+``--models`` meshes; as many points as vertices, at least 2000, seeds 0 and 1, or those of
+``--seeds=0-7`` / ``--seeds=0,3``) against the
 normals of the faces sampled: median angle, more than 30 degrees off, inward (closed) or
 disagreeing (open); with ``--poles`` / ``--visible`` for those variants too. Measured (wrong
 normals, seeds 0 / 1, default -> poles): cow 74 / 59 -> 67 / 57, homer 6 / 71 -> 8 / 63,
@@ -586,7 +587,13 @@ if __name__ == "__main__":
         raise SystemExit
     if "--random" in sys.argv:  # area-uniform random samples of the models (and --models meshes), face normals
         paths = [Path(a) for a in sys.argv[sys.argv.index("--models") + 1:] if not a.startswith("--")] if "--models" in sys.argv else MODELS
-        random_table(paths, variants=variants)
+        seeds = (0, 1)
+        for a in sys.argv:  # --seeds=0-7 or --seeds=0,3,5
+            if a.startswith("--seeds="):
+                v = a.split("=", 1)[1]
+                lo, _, hi = v.partition("-")
+                seeds = tuple(range(int(lo), int(hi) + 1)) if hi else tuple(int(x) for x in v.split(","))
+        random_table(paths, variants=variants, seeds=seeds)
         raise SystemExit
     if "--models" in sys.argv:  # any meshes: python benchmarks/normals.py --models a.obj b.ply ...
         model_table([Path(a) for a in sys.argv[sys.argv.index("--models") + 1:] if not a.startswith("--")], variants=variants)
