@@ -4,6 +4,7 @@ Run: .venv/bin/python benchmarks/spem_tez.py            (about 1 min)
      .venv/bin/python benchmarks/spem_tez.py --sweep    (also h_ratio 0.6-2 and eps_r on the disk: 10^4 steps each)
      .venv/bin/python benchmarks/spem_tez.py --scattering   (only the TEz scattering table, about 10 min: see
      :func:`scattering_main`)
+     .venv/bin/python benchmarks/spem_tez.py --jump   (the fitted dielectric interface, about 5 min: :func:`jump_table`)
 
 Disk: ``run_tez_circular_cavity`` (radius 0.1 m, TE11 + TE21; error after one TE11 period; the TE11
 resonance fitted to the projection of Hz onto the mode and read from a probe spectrum, 10 periods).
@@ -284,11 +285,38 @@ def other_cylinders():
               f"({math.log2(yee[0] / yee[1]):.2f})", flush=True)
 
 
+def jump_table():
+    """The fitted interface (``average="jump"``, :func:`.tez_jump_permittivity`) against the anisotropic average.
+
+    Dielectric cylinders on the lattice (ka = 2 and eps_r = 4 unless given), 4 / 8 / 16 spacings per
+    radius: SPEM with the anisotropic average, SPEM "jump", and the Yee grid with the same anisotropic
+    average (:func:`run_yee_tez_scattering`); the error of the scattered Hz (``growth``: the field's
+    last-period growth, about 1 at a steady state).
+    """
+    print("\nTEz dielectric cylinders: error of the scattered Hz at 4 / 8 / 16 spacings per radius")
+    for kw in (dict(), dict(eps_r=2.0), dict(eps_r=9.0), dict(ka=1.0), dict(ka=3.0)):
+        label = ", ".join(f"{k} {v:g}" for k, v in kw.items()) or "ka 2, eps_r 4"
+        for name, fn in (("SPEM anisotropic", lambda n: ts.run_tez_scattering("dielectric", n_radial=n, **kw)),
+                         ("SPEM jump", lambda n: ts.run_tez_scattering("dielectric", n_radial=n, average="jump",
+                                                                       **kw)),
+                         ("Yee anisotropic", lambda n: run_yee_tez_scattering("dielectric", n, average="anisotropic",
+                                                                              **kw))):
+            res = [fn(n) for n in (4, 8, 16)]
+            err = [r.error if hasattr(r, "error") else r["error"] for r in res]
+            growth = [r.field_growth if hasattr(r, "field_growth") else r.get("growth", float("nan")) for r in res]
+            print(f"  {label:<14s} {name:<17s} " + " / ".join(f"{e:.2e}" for e in err)
+                  + "   growth " + " / ".join(f"{g:.3f}" for g in growth), flush=True)
+
+
 def main():
     p = argparse.ArgumentParser()
     p.add_argument("--sweep", action="store_true")
     p.add_argument("--scattering", action="store_true", help="only the TEz scattering table (scattering_main)")
+    p.add_argument("--jump", action="store_true", help="only the fitted-interface table (jump_table)")
     args = p.parse_args()
+    if args.jump:
+        jump_table()
+        return
     if args.scattering:
         scattering_main()
         other_cylinders()

@@ -253,3 +253,67 @@ def test_jittered_cylinders_converge():
     for kind in ("pec", "dielectric"):
         r8, r16 = (ts.run_tez_scattering(kind, n_radial=n, layout="jittered") for n in (8, 16))
         assert math.log2(r8.error / r16.error) > 1.3
+
+
+# ----------------------------------------------------------------------------- the fitted ("jump") interface
+def _cut_row_residual(s, eps_x, eps_y, eps_r, n):
+    """|A f - target| on the Hz rows within 3 dr of the circle for the static field rho^n cos(n theta) (n >= 1)."""
+    lay = s.layout
+    r = np.hypot(*lay.hz.T)
+    th = np.arctan2(lay.hz[:, 1], lay.hz[:, 0])
+    rho = r / A
+    a, b = (1 + 1 / eps_r) / 2, (1 - 1 / eps_r) / 2
+    piece = np.where(rho < 1, rho**n, a * rho**n + b * rho ** (-n)) * np.cos(n * th)
+    ext_in, ext_out = rho**n * np.cos(n * th), (a * rho**n + b * rho ** (-n)) * np.cos(n * th)
+
+    def op(h, bx, by):
+        return s.Dy @ (bx * (s.Gy @ h)) + s.Dx @ (by * (s.Gx @ h))
+
+    one_x, one_y = np.ones(len(lay.ex)), np.ones(len(lay.ey))
+    target = np.where(rho < 1, op(ext_in, one_x, one_y) / eps_r, op(ext_out, one_x, one_y))
+    rows = np.abs(r - A) < 3 * lay.dr
+    return np.linalg.norm((op(piece, 1 / eps_x, 1 / eps_y) - target)[rows])
+
+
+def test_jump_permittivity_fits_the_cut_rows_and_is_the_identity_without_contrast():
+    dr = A / 6
+    lay = ts.tez_scattering_layout("dielectric", A, dr, 2.5 * A)
+    s = ts.TEzSolver(lay, h_ratio=ts.DISK_H_RATIO)
+    far_x, far_y = np.hypot(*lay.ex.T) > A + 3 * dr, np.hypot(*lay.ey.T) > A + 3 * dr
+    for eps_r in (2.0, 4.0, 9.0):
+        ex = ts.particle_permittivity(lay.ex, 0, dr, A, eps_r)
+        ey = ts.particle_permittivity(lay.ey, 1, dr, A, eps_r)
+        fx, fy = ts.tez_jump_permittivity(s, A, eps_r, ex, ey)
+        lo, hi = 1 / (2 * max(1.0, 1 / eps_r)), 1 / (0.5 * min(1.0, 1 / eps_r))
+        assert fx.min() >= lo - 1e-12 and fy.max() <= hi + 1e-12 and fy.min() >= lo - 1e-12
+        assert np.array_equal(fx[far_x], ex[far_x]) and np.array_equal(fy[far_y], ey[far_y])
+        assert not np.allclose(fx, ex)
+        # a field of the fit (n = 2) and one outside it (n = 5): the cut rows are closer to their own sides
+        for n, gain in ((2, 0.7), (5, 0.95)):
+            before, after = (_cut_row_residual(s, x, y, eps_r, n) for x, y in ((ex, ey), (fx, fy)))
+            assert after < gain * before, (eps_r, n, before, after)
+    # no contrast: nothing to fit, the start comes back
+    ones_x, ones_y = np.ones(len(lay.ex)), np.ones(len(lay.ey))
+    fx, fy = ts.tez_jump_permittivity(s, A, 1.0, ones_x, ones_y)
+    assert np.abs(fx - 1).max() < 1e-9 and np.abs(fy - 1).max() < 1e-9
+
+
+def test_jump_permittivity_bad_input():
+    lay = ts.tez_scattering_layout("dielectric", A, A / 4, 2.5 * A)
+    s = ts.TEzSolver(lay, h_ratio=ts.DISK_H_RATIO)
+    ex, ey = np.ones(len(lay.ex)), np.ones(len(lay.ey))
+    with pytest.raises(TypeError, match="solver"):
+        ts.tez_jump_permittivity(lay, A, 4.0, ex, ey)
+    for kw, name in ((dict(reach=0.0), "reach"), (dict(damping=-1.0), "damping"), (dict(n_max=-1), "n_max")):
+        with pytest.raises(ValueError, match=name):
+            ts.tez_jump_permittivity(s, A, 4.0, ex, ey, **kw)
+    with pytest.raises(ValueError, match="eps_ex"):
+        ts.tez_jump_permittivity(s, A, 4.0, ex[:-1], ey)
+    with pytest.raises(ValueError, match="eps_r"):
+        ts.tez_jump_permittivity(s, A, 0.0, ex, ey)
+
+
+def test_dielectric_cylinder_jump_interface():
+    r = ts.run_tez_scattering("dielectric", n_radial=4, average="jump")
+    # measured 1.16e-1 (the anisotropic average 2.76e-1; but at 16 spacings 1.96e-2 against 1.19e-2)
+    assert r.error < 0.16 and r.average == "jump" and 0.99 < r.field_growth < 1.01
