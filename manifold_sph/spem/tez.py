@@ -71,7 +71,8 @@ from .solver import COUPLINGS, DEFAULT_COUPLING, DEFAULT_H_RATIO, STABILITY_MARG
 #: Couplings of :class:`TEzSolver` (those of :class:`.TMzSolver` but "mimetic").
 TEZ_COUPLINGS = tuple(c for c in COUPLINGS if c != "mimetic")
 
-__all__ = ["TEzLayout", "tez_layout", "tez_disk_layout", "wall_closure_layout", "TEzSolver", "TEzCavityResult",
+__all__ = ["TEZ_LAYOUT_KINDS", "POISSON_H_RATIO", "TEzLayout", "tez_layout",
+           "tez_disk_layout", "wall_closure_layout", "TEzSolver", "TEzCavityResult",
            "tez_cavity_frequency",
            "run_tez_cavity", "tez_disk_frequency", "tez_disk_mode", "run_tez_circular_cavity"]
 
@@ -83,6 +84,11 @@ DISK_H_RATIO = 0.8
 DISK_VOLUME_WEIGHT = 0.01
 #: The wall correction changes flux weights and volumes within ``max(DISK_BAND * dr, 2 kappa h)`` of the wall.
 DISK_BAND = 3.0
+#: Default ``h / dr`` of Poisson layouts (:func:`tez_layout` ``kind="poisson"`` / ``"poisson-shared"``) with the
+#: wall closure. Measured (0.1 x 0.06 m, TE10 + TE11, seeds 0-2 at 12 and 24 spacings): 0.8 was refused on
+#: 9 of 12 layouts (the wall correction drove a volume negative or missed its conditions), 1.0 on 2 of 12,
+#: 1.2 on none (benchmarks/spem_tez_poisson.py).
+POISSON_H_RATIO = 1.2
 #: Closure (wall) columns get every Hz particle within ``max(DISK_CLOSURE_REACH * dr, kappa h)`` of the wall particle.
 DISK_CLOSURE_REACH = 2.0
 
@@ -134,12 +140,47 @@ class TEzLayout:
         return len(self.hz) + len(self.ex) + len(self.ey) + (0 if self.wall is None else len(self.wall))
 
 
-def tez_layout(bounds: Sequence[float], dr: float, *, amplitude: float = 0.0, seed: int | None = 0) -> TEzLayout:
-    """The TEz Yee lattice in a PEC rectangle (the sides multiples of ``dr``), optionally jittered.
+#: Layout kinds of :func:`tez_layout` and :func:`tez_disk_layout`: the Yee lattice (optionally jittered),
+#: independent Poisson-disk sets for Hz, Ex and Ey ("poisson"), or one Poisson set carrying both Ex and Ey
+#: ("poisson-shared").
+TEZ_LAYOUT_KINDS = ("lattice", "poisson", "poisson-shared")
+
+
+def _poisson_sets(kind, boxes, rng):
+    """Hz, Ex and Ey particles of a Poisson TEz layout: each set a near-uniform sampling
+    (:func:`manifold_sph.reference.sampling.square`) of its box (``boxes``: ``(bounds, n)`` for Hz, Ex, Ey,
+    and for the E set of "poisson-shared", which carries both Ex and Ey)."""
+    from ..reference.sampling import square
+
+    def sample(box):
+        return square(max(10, int(box[1])), bounds=box[0], sampling="poisson", seed=rng)
+
+    hz = sample(boxes[0])
+    if kind == "poisson-shared":
+        e = sample(boxes[3])
+        return hz, e, e.copy()
+    return hz, sample(boxes[1]), sample(boxes[2])
+
+
+def tez_layout(bounds: Sequence[float], dr: float, *, amplitude: float = 0.0, seed: int | None = 0,
+               kind: str = "lattice") -> TEzLayout:
+    """The TEz Yee lattice in a PEC rectangle (the sides multiples of ``dr``), optionally jittered, or a
+    Poisson layout.
 
     ``amplitude`` > 0 moves every Hz particle and every free E particle by a
     uniform random offset of at most ``amplitude * dr`` per coordinate
     (clipped into the rectangle); the wall E particles stay on the walls.
+
+    ``kind="poisson"``: the wall E particles of the lattice (Ex on ``y = const``,
+    Ey on ``x = const``, spacing ``dr``), and independent near-uniform random
+    sets (:func:`manifold_sph.reference.sampling.square`, seeded) of mean spacing
+    ``dr``: Hz in the rectangle, free Ex and free Ey in the rectangle shrunk by
+    ``dr / 2`` on each side. ``kind="poisson-shared"``: one such E set carries
+    both Ex and Ey (``ex`` and ``ey`` hold the same free points). The Hz
+    particles nearest the 2 x 2 corner cells of each corner move to those cells'
+    centres (else the closure next to a corner could not meet its conditions).
+    ``amplitude`` applies to the lattice only. Run Poisson layouts through
+    :func:`wall_closure_layout` (as ``run_tez_cavity(wall_closure=True)`` does).
 
     >>> lay = tez_layout((0.0, 1.0, 0.0, 0.5), 0.25)
     >>> len(lay.hz), len(lay.ex), int(lay.ex_fixed.sum()), len(lay.ey), int(lay.ey_fixed.sum())
@@ -158,6 +199,7 @@ def tez_layout(bounds: Sequence[float], dr: float, *, amplitude: float = 0.0, se
         X, Y = np.meshgrid(b[0] + (np.arange(mx) + ox) * dr, b[2] + (np.arange(my) + oy) * dr, indexing="ij")
         return np.column_stack([X.ravel(), Y.ravel()])
 
+    check_in("kind", kind, TEZ_LAYOUT_KINDS)
     hz = grid(nx, ny, 0.5, 0.5)
     ex = grid(nx, ny + 1, 0.5, 0.0)
     ey = grid(nx + 1, ny, 0.0, 0.5)
@@ -167,6 +209,31 @@ def tez_layout(bounds: Sequence[float], dr: float, *, amplitude: float = 0.0, se
     amplitude = check_positive("amplitude", amplitude, allow_zero=True)
     if amplitude >= 0.5:
         raise ValueError(f"amplitude must be below 0.5 (particles would cross), got {amplitude}")
+    if kind != "lattice":
+        if amplitude:
+            raise ValueError(f"amplitude applies to kind='lattice' only, got amplitude={amplitude} with kind={kind!r}")
+        rng = np.random.default_rng(seed)
+        # free Ex / Ey stay dr / 2 off the walls on which they are tangential (the sampler keeps about half
+        # a spacing off every side of its box: the first free row is about dr from the wall particles)
+        full = tuple(float(v) for v in b)
+        boxes = ((full, nx * ny), ((b[0], b[1], b[2] + 0.5 * dr, b[3] - 0.5 * dr), nx * (ny - 1)),
+                 ((b[0] + 0.5 * dr, b[1] - 0.5 * dr, b[2], b[3]), (nx - 1) * ny), (full, nx * ny))
+        hz, exf, eyf = _poisson_sets(kind, boxes, rng)
+        # the 2 x 2 cells at each corner get lattice Hz particles (the nearest Poisson ones move there): the
+        # sampler leaves the corners sparse, and the closure of the wall particles there (2-3 Hz particles
+        # within reach, nearly collinear) could not meet its conditions (residual 0.3-0.5, seed=1 at 12 and 24)
+        hz = hz.copy()
+        used = np.zeros(len(hz), bool)
+        for cx in (b[0] + 0.5 * dr, b[0] + 1.5 * dr, b[1] - 1.5 * dr, b[1] - 0.5 * dr):
+            for cy in (b[2] + 0.5 * dr, b[2] + 1.5 * dr, b[3] - 1.5 * dr, b[3] - 0.5 * dr):
+                d = np.where(used, np.inf, np.hypot(hz[:, 0] - cx, hz[:, 1] - cy))
+                j = int(np.argmin(d))
+                hz[j], used[j] = (cx, cy), True
+        ex = np.vstack([exf, ex[ex_fixed]])
+        ey = np.vstack([eyf, ey[ey_fixed]])
+        ex_fixed = np.r_[np.zeros(len(exf), bool), np.ones(int(ex_fixed.sum()), bool)]
+        ey_fixed = np.r_[np.zeros(len(eyf), bool), np.ones(int(ey_fixed.sum()), bool)]
+        return TEzLayout(hz, ex, ey, ex_fixed, ey_fixed, dr, tuple(float(v) for v in b))
     if amplitude:
         rng = np.random.default_rng(seed)
         lo, hi = np.array([b[0], b[2]]), np.array([b[1], b[3]])
@@ -184,7 +251,7 @@ def tez_layout(bounds: Sequence[float], dr: float, *, amplitude: float = 0.0, se
 
 def tez_disk_layout(center: ArrayLike, radius: float, dr: float, *, wall_spacing: float = 0.5,
                     wall_margin: float = 0.3, partner_reach: float = 0.8, amplitude: float = 0.0,
-                    seed: int | None = 0) -> TEzLayout:
+                    seed: int | None = 0, kind: str = "lattice") -> TEzLayout:
     """The TEz Yee lattice clipped to a circular PEC cavity, with wall particles on the circle.
 
     Hz at ``c + (i + 1/2, j + 1/2) dr``, Ex at ``c + (i + 1/2, j) dr``, Ey at
@@ -200,6 +267,11 @@ def tez_disk_layout(center: ArrayLike, radius: float, dr: float, *, wall_spacing
     then moves every Hz and E particle by a uniform random offset of at most
     ``amplitude * dr`` per coordinate (seeded; particles pushed beyond
     ``radius - 0.05 dr`` are put back on that circle): a jittered layout.
+    ``kind="poisson"`` / ``"poisson-shared"``: the Hz, Ex and Ey sets (one E set
+    for both components with "poisson-shared") are near-uniform random samplings
+    (:func:`manifold_sph.reference.sampling.square`, seeded) of the circle's
+    bounding square at density ``1 / dr^2``, clipped as the lattice's
+    (``amplitude`` must be 0).
 
     Examples
     --------
@@ -234,10 +306,20 @@ def tez_disk_layout(center: ArrayLike, radius: float, dr: float, *, wall_spacing
         p = np.column_stack([X.ravel(), Y.ravel()])
         return p[np.hypot(p[:, 0], p[:, 1]) < radius - margin]
 
-    hz = grid(0.5, 0.5, 0.0)
+    check_in("kind", kind, TEZ_LAYOUT_KINDS)
+    if kind == "lattice":
+        hz = grid(0.5, 0.5, 0.0)
+        candidates = (grid(0.5, 0.0, wall_margin * dr), grid(0.0, 0.5, wall_margin * dr))
+    else:
+        if amplitude:
+            raise ValueError(f"amplitude applies to kind='lattice' only, got amplitude={amplitude} with kind={kind!r}")
+        box = ((-radius, radius, -radius, radius), round((2 * radius / dr) ** 2))
+        hz, px, py = _poisson_sets(kind, (box, box, box, box), np.random.default_rng(seed))
+        hz = hz[np.hypot(hz[:, 0], hz[:, 1]) < radius]
+        candidates = tuple(p[np.hypot(p[:, 0], p[:, 1]) < radius - wall_margin * dr] for p in (px, py))
     tree = cKDTree(hz)
     e_sets = []
-    for p, axis in ((grid(0.5, 0.0, wall_margin * dr), 1), (grid(0.0, 0.5, wall_margin * dr), 0)):
+    for p, axis in zip(candidates, (1, 0)):
         near = np.flatnonzero(np.hypot(p[:, 0], p[:, 1]) > radius - 1.5 * dr)
         keep = np.ones(len(p), bool)
         for q, nb in zip(near, tree.query_ball_point(p[near], partner_reach * dr)):
@@ -709,15 +791,16 @@ def run_tez_cavity(*, a: float = 0.1, b: float = 0.06, n: int = 12, modes: Seque
     spectrum_periods = check_positive("spectrum_periods", spectrum_periods)
     modes = _check_modes(modes)
     dr = check_positive("b", b) / n
-    check_in("layout", layout, ("yee", "jittered"))
-    lay = tez_layout((0.0, check_positive("a", a), 0.0, b), dr, amplitude=amplitude if layout == "jittered" else 0.0,
-                     seed=seed)
+    check_in("layout", layout, ("yee", "jittered", "poisson", "poisson-shared"))
     if not isinstance(wall_closure, bool):
         raise TypeError(f"wall_closure must be True or False, got {wall_closure!r}")
+    lay = tez_layout((0.0, check_positive("a", a), 0.0, b), dr, amplitude=amplitude if layout == "jittered" else 0.0,
+                     seed=seed, kind=layout if layout.startswith("poisson") else "lattice")
     if wall_closure:
         lay = wall_closure_layout(lay)
     if h_ratio is None:
-        h_ratio = DISK_H_RATIO if wall_closure else DEFAULT_H_RATIO
+        h_ratio = (POISSON_H_RATIO if layout.startswith("poisson") else DISK_H_RATIO) if wall_closure \
+            else DEFAULT_H_RATIO
     s = TEzSolver(lay, h_ratio=h_ratio, eps_r=eps_r, coupling=coupling, courant=courant, sbp_layers=sbp_layers)
     x, y = lay.hz.T
     shapes = [np.cos(m * np.pi * x / a) * np.cos(k * np.pi * y / b) for m, k in modes]
@@ -792,7 +875,7 @@ def tez_disk_mode(points: ArrayLike, center: ArrayLike, radius: float, m: int, n
 
 def run_tez_circular_cavity(*, radius: float = 0.1, n_radial: int = 20,
                             modes: Sequence[tuple[int, int]] = ((1, 1), (2, 1)), eps_r: float = 1.0,
-                            coupling: str = DEFAULT_COUPLING, h_ratio: float = DISK_H_RATIO, courant: float = 0.9,
+                            coupling: str = DEFAULT_COUPLING, h_ratio: float | None = None, courant: float = 0.9,
                             periods: float = 1.0, spectrum_periods: float = 10.0, wall_spacing: float = 0.5,
                             wall_margin: float = 0.3, layout: str = "yee", amplitude: float = 0.2,
                             seed: int | None = 0) -> TEzCavityResult:
@@ -806,7 +889,9 @@ def run_tez_circular_cavity(*, radius: float = 0.1, n_radial: int = 20,
     Hz at the particle where that mode is largest (``probe_frequency_error``:
     Hann window, zero padding, parabolic peak). ``layout="jittered"``: every
     particle moved by up to ``amplitude * dr`` (seeded; the wall correction then
-    covers the whole operator).
+    covers the whole operator); ``"poisson"`` / ``"poisson-shared"``: the Poisson
+    layouts of :func:`tez_disk_layout` (seeded). ``h_ratio`` defaults to
+    :data:`DISK_H_RATIO` on the lattice, :data:`POISSON_H_RATIO` on Poisson layouts.
 
     Examples
     --------
@@ -827,11 +912,15 @@ def run_tez_circular_cavity(*, radius: float = 0.1, n_radial: int = 20,
         raise ValueError("coupling must be 'sbp' or 'adjoint' for the circular cavity ('direct' is not available "
                          "with curved walls)")
     check_in("coupling", coupling, ("sbp", "adjoint"))
-    check_in("layout", layout, ("yee", "jittered"))
+    check_in("layout", layout, ("yee", "jittered", "poisson", "poisson-shared"))
+    poisson = layout.startswith("poisson")
+    if h_ratio is None:
+        h_ratio = POISSON_H_RATIO if poisson else DISK_H_RATIO
     dr = radius / n_radial
     c = (radius, radius)
     lay = tez_disk_layout(c, radius, dr, wall_spacing=wall_spacing, wall_margin=wall_margin,
-                          amplitude=amplitude if layout == "jittered" else 0.0, seed=seed)
+                          amplitude=amplitude if layout == "jittered" else 0.0, seed=seed,
+                          kind=layout if poisson else "lattice")
     s = TEzSolver(lay, h_ratio=h_ratio, eps_r=eps_r, coupling=coupling, courant=courant)
     shapes = [tez_disk_mode(lay.hz, c, radius, m, k) for m, k in modes]
     freqs = [tez_disk_frequency(radius, m, k, eps_r) for m, k in modes]
