@@ -225,7 +225,8 @@ def test_dielectric_cylinder_converges():
 def test_cases_bad_input():
     for kw, name in ((dict(kind="coated"), "kind"), (dict(radius=0.0), "radius"), (dict(n_radial=1), "n_radial"),
                      (dict(kind="dielectric", eps_r=-2.0), "eps_r"), (dict(layout="random"), "layout"),
-                     (dict(average="mean"), "average"), (dict(ka=0.0), "ka"), (dict(dft_periods=20.0), "dft_periods"),
+                     (dict(average="mean"), "average"), (dict(ka=0.0), "ka"),
+                     (dict(jump_energy_weight=-1.0), "jump_energy_weight"), (dict(dft_periods=20.0), "dft_periods"),
                      (dict(coupling="direct"), "coupling")):
         with pytest.raises(ValueError, match=name):
             ts.run_tez_scattering(**kw)
@@ -297,6 +298,15 @@ def test_jump_permittivity_fits_the_cut_rows_and_is_the_identity_without_contras
     sv.set_initial(np.exp(-((lay.hz[:, 0] - A) ** 2 + lay.hz[:, 1] ** 2) / (2 * dr) ** 2))
     sv.run(500)
     assert abs(sv.energy() / sv.energy0 - 1) < 1e-10
+    # energy_weight holds the start's energy of the test fields (here eps_r 9, the uniform field along x)
+    gy, gx = s.Gy @ lay.hz[:, 0] / dr, s.Gx @ lay.hz[:, 0] / dr
+
+    def energy(bx, by):
+        return (s.vol_ex * bx) @ gy**2 + (s.vol_ey * by) @ gx**2
+
+    e0 = energy(1 / ex, 1 / ey)
+    held = ts.tez_jump_permittivity(s, A, 9.0, ex, ey, energy_weight=10.0)
+    assert abs(energy(1 / held[0], 1 / held[1]) / e0 - 1) < 0.2 * abs(energy(1 / fx, 1 / fy) / e0 - 1)
     # no contrast: nothing to fit, the start comes back
     ones_x, ones_y = np.ones(len(lay.ex)), np.ones(len(lay.ey))
     fx, fy = ts.tez_jump_permittivity(s, A, 1.0, ones_x, ones_y)
@@ -309,7 +319,8 @@ def test_jump_permittivity_bad_input():
     ex, ey = np.ones(len(lay.ex)), np.ones(len(lay.ey))
     with pytest.raises(TypeError, match="solver"):
         ts.tez_jump_permittivity(lay, A, 4.0, ex, ey)
-    for kw, name in ((dict(reach=0.0), "reach"), (dict(damping=-1.0), "damping"), (dict(n_max=-1), "n_max")):
+    for kw, name in ((dict(reach=0.0), "reach"), (dict(damping=-1.0), "damping"), (dict(n_max=-1), "n_max"),
+                     (dict(energy_weight=-1.0), "energy_weight")):
         with pytest.raises(ValueError, match=name):
             ts.tez_jump_permittivity(s, A, 4.0, ex, ey, **kw)
     with pytest.raises(ValueError, match="eps_ex"):
