@@ -228,7 +228,7 @@ def test_tez_refuses_bad_input():
     with pytest.raises(ValueError, match="modes"):
         tez.run_tez_cavity(modes=[])
     with pytest.raises(ValueError, match="layout"):
-        tez.run_tez_cavity(layout="poisson")
+        tez.run_tez_cavity(layout="hexagonal")
 
 
 def test_cli_runs_the_new_cases(capsys):
