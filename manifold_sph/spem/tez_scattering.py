@@ -425,14 +425,15 @@ def tez_jump_permittivity(solver, radius: float, eps_r: float, eps_ex: ArrayLike
         Weight (>= 0) of the equations that keep, for each test field ``f``,
         the start's discrete energy ``sum_e V_e (1/eps_e) (G f)_e^2`` over the
         fitted particles (the fields scaled as above). Measured with 0.01
-        (the average's in brackets): ka 2, eps_r 4: 2.63e-1 / 5.80e-2 /
-        1.17e-2 at 4 / 8 / 16 spacings (2.76e-1 / 5.91e-2 / 1.19e-2); ka 1 at
-        8: 1.94e-2 (2.06e-2); eps_r 2 at 8 / 16: 2.90e-2 / 6.79e-3 (2.88e-2 /
-        6.92e-3); ka 3 at 8 / 16: 2.34e-1 / 5.37e-2 (2.39e-1 / 4.93e-2); 0.1
-        and more give the average's errors within 3 %. The unconstrained
-        fit's gains and losses come from the energy it moves (the cylinder's
-        effective permittivity), not from the rows' consistency: with the
-        energy held the fit is the average within +-9 %.
+        (``benchmarks/spem_tez.py --jump``, "jump held"; the average's in
+        brackets), 4 / 8 / 16 spacings: ka 2, eps_r 4: 2.63e-1 / 5.80e-2 /
+        1.17e-2 (2.76e-1 / 5.91e-2 / 1.19e-2); eps_r 2: 1.19e-1 / 2.90e-2 /
+        6.79e-3 (1.22e-1 / 2.88e-2 / 6.92e-3); ka 3: 1.34 / 2.34e-1 / 5.37e-2
+        (1.36 / 2.39e-1 / 4.93e-2); ka 1: 7.5e-2 / 1.94e-2 / 1.67e-2 (4.0e-2 /
+        2.06e-2 / 1.49e-2). With the energy held the fit is close to the
+        average (and worse at ka 1, 4 spacings): the unconstrained fit's
+        gains and losses come mostly from the energy it moves (the cylinder's
+        effective permittivity), not from the rows' consistency.
 
     Returns
     -------
