@@ -45,6 +45,26 @@ Curved PEC walls (:func:`tez_disk_layout`, :func:`run_tez_circular_cavity`)
     Without the quadrature condition the frequency does not converge
     (the closure then places the wall O(dr) off).
 
+Poisson layouts (``kind="poisson"`` / ``"poisson-shared"`` of :func:`tez_layout` and :func:`tez_disk_layout`)
+    Near-uniform random Hz, Ex and Ey sets (or one E set carrying both
+    components), run with the wall correction above (the rectangle through
+    :func:`wall_closure_layout`) at ``h / dr`` = :data:`POISSON_H_RATIO`.
+    Measured (benchmarks/spem_tez_poisson.py, seeds 0-2): the error of smooth
+    modes converges at second order (rectangle 12 / 24 / 48 spacings:
+    1.3e-1 / 2.9e-2 / 6.3e-3, the jittered lattice 1.9e-2 / 3.8e-3 / 9.0e-4),
+    energy is conserved, but the Hz operator has spurious modes below the
+    fundamental (11-24 of its 24 lowest on the rectangle at 18 spacings and the
+    disk at 12 per radius, at 0.35-0.9 of the fundamental frequency, spread
+    over 5-80 particles; none on the lattices): the CSPM gradient at the E
+    particles, averaged over a kernel of 2.4 dr, hardly sees short-wave Hz
+    patterns of an unstaggered set (larger ``h`` lowers them further; below
+    1.2 dr the wall correction was refused on most layouts). Adding E particles
+    where Hz outnumbers them (``layouts.balance_h``) or relaxing the E sets
+    into the Hz gaps (``layouts.relax_h``) did not remove them (rectangle,
+    seed=1, 18 spacings: all 13 lowest non-static modes below TE10, the lowest
+    at 0.62 / 0.53 of it, against 11 and 0.64 without). Smooth fields hardly
+    excite them; a broadband source would.
+
 Examples
 --------
 >>> r = run_tez_cavity(n=6, modes=((1, 0),))
