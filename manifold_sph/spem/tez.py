@@ -54,8 +54,8 @@ Poisson layouts (``kind="poisson"`` / ``"poisson-shared"`` of :func:`tez_layout`
     1.3e-1 / 2.9e-2 / 6.3e-3, the jittered lattice 1.9e-2 / 3.8e-3 / 9.0e-4),
     energy is conserved, but the Hz operator has spurious modes below the
     fundamental (11-24 of its 24 lowest on the rectangle at 18 spacings and the
-    disk at 12 per radius, at 0.35-0.9 of the fundamental frequency, spread
-    over 5-80 particles; none on the lattices): the CSPM gradient at the E
+    disk at 12 per radius, the lowest at 0.36-0.66 of the fundamental frequency,
+    spread over 7-80 particles; none on the lattices): the CSPM gradient at the E
     particles, averaged over a kernel of 2.4 dr, hardly sees short-wave Hz
     patterns of an unstaggered set (larger ``h`` lowers them further; below
     1.2 dr the wall correction was refused on most layouts). Adding E particles
