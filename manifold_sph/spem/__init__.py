@@ -41,8 +41,9 @@ from .scattering import (INTERFACES, SCATTERERS, ScatteringResult, jump_permitti
                          scattered_field, scattering_layout, total_field)
 from .tez import (TEzCavityResult, TEzLayout, TEzSolver, run_tez_cavity, run_tez_circular_cavity, tez_cavity_frequency,
                   tez_disk_frequency, tez_disk_layout, tez_disk_mode, tez_layout, wall_closure_layout)
-from .tez_scattering import (EPS_AVERAGES, TEZ_SCATTERERS, TEzPMLResult, TEzPMLSolver, TEzScatteringResult,
-                             particle_permittivity, run_tez_pml, run_tez_scattering, tez_mie_coefficients,
+from .tez_scattering import (EPS_AVERAGES, TEZ_INTERFACES, TEZ_SCATTERERS, TEzPMLResult, TEzPMLSolver, TEzScatteringResult,
+                             particle_permittivity, run_tez_pml, run_tez_scattering, tez_jump_permittivity,
+                             tez_mie_coefficients,
                              tez_scattered_field, tez_scattering_layout, tez_total_field)
 from .results import (CaseResult, CavityResult, FieldHistory, LineResult, PlanewaveResult, PMLResult, RunResult,
                       WaveguideResult)
@@ -60,7 +61,7 @@ __all__ = [
     "total_field", "TEzCavityResult", "TEzLayout", "TEzSolver", "run_tez_cavity", "tez_cavity_frequency",
     "tez_layout", "run_tez_circular_cavity", "tez_disk_frequency", "tez_disk_layout", "tez_disk_mode",
     "wall_closure_layout",
-    "EPS_AVERAGES", "TEZ_SCATTERERS", "TEzPMLResult", "TEzPMLSolver", "TEzScatteringResult", "particle_permittivity",
+    "EPS_AVERAGES", "TEZ_INTERFACES", "TEZ_SCATTERERS", "tez_jump_permittivity", "TEzPMLResult", "TEzPMLSolver", "TEzScatteringResult", "particle_permittivity",
     "run_tez_pml", "run_tez_scattering", "tez_mie_coefficients", "tez_scattered_field", "tez_scattering_layout",
     "tez_total_field",
     "RunResult", "CaseResult", "LineResult", "CavityResult", "PlanewaveResult", "WaveguideResult", "PMLResult",
