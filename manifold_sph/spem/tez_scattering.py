@@ -361,7 +361,7 @@ def _harmonic_fields(p, radius, eps_r, dr, side, n_max):
     return np.column_stack(cols)
 
 
-def tez_jump_permittivity(solver, radius: float, eps_r: float, eps_ex: ArrayLike, eps_ey: ArrayLike, *,
+def tez_jump_permittivity(solver: "TEzPMLSolver", radius: float, eps_r: float, eps_ex: ArrayLike, eps_ey: ArrayLike, *,
                           reach: float = 2.5, damping: float = 0.1, n_max: int = 4,
                           energy_weight: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Per-E-particle permittivities fitted so the Hz rows ``D eps^-1 G`` see a dielectric disk's jump conditions.
