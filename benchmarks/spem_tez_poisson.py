@@ -2,7 +2,7 @@
 
 Run: .venv/bin/python benchmarks/spem_tez_poisson.py                 (about 20 min)
      .venv/bin/python benchmarks/spem_tez_poisson.py --only modes    (one of: convergence, energy, modes,
-                                                                      disk, disk-modes)
+                                                                      disk, disk-modes, edges)
      .venv/bin/python benchmarks/spem_tez_poisson.py --ns 12 24 --seeds 0 1
 
 Layouts (:func:`manifold_sph.spem.tez.tez_layout`): "poisson" (independent Poisson Hz, Ex, Ey sets),
@@ -30,6 +30,10 @@ Measured (2 Dec 2026, 2 shared cores):
   refused: a fitted volume at 2 % of its cell); jittered 1.98e-2 / 7.07e-3 / 2.69e-3.
 * energy over 10^4 steps (12 spacings): |E/E0 - 1| <= 2e-15 on every layout; set-up 0.2-0.4 s against
   0.03-0.06 s per 1000 steps.
+* edges (a lead, not in the package; 18 spacings, seeds 0-2): one E set at the Delaunay-edge midpoints of
+  the Poisson Hz set (about 2.8 E per Hz particle) leaves no mode below TE10 and 7 / 15 / 1 spurious ones
+  between TE10 and TE01 (the lowest at 1.49 / 1.32 / 1.56 f_10); a Poisson E set of the same count 22 / 23 / 16
+  (the lowest at 1.01-1.22 f_10): staggering, not only the count, pushes them up.
 * modes: rectangle (18 spacings, seeds 0-2) "poisson" 18 / 11 / 11 and "poisson-shared" 24 / 21 / 24 of
   the 24 lowest non-static modes below 0.98 f_10, the lowest at 0.36-0.65 f_10 (participation 14-25 of 540
   Hz particles); the jittered lattice: none (all 24 within 5 % of the exact TE_mn); disk (12 per radius)
@@ -185,9 +189,50 @@ def disk_modes(n=12, k=24, seeds=(0, 1, 2)):
                   f"{len(r)} Hz)", flush=True)
 
 
+def edges(n=18, k=24, seeds=(0, 1, 2)):
+    """A lead, not in the package: the Poisson Hz set with one E set (both components) at the midpoints of its
+    Delaunay edges shorter than 1.6 dr (a staggered unstructured layout, about 3 E per Hz particle), against a
+    Poisson E set of the same count (not staggered); h/dr 1.2, wall closure, rectangle."""
+    from scipy.spatial import Delaunay
+
+    from manifold_sph.reference.sampling import square
+
+    dr = B / n
+    exact = np.array(sorted(tez.tez_cavity_frequency(A, B, m, q) for m in range(8) for q in range(8) if m or q))
+    print(f"\nLead: E at Delaunay-edge midpoints of the Poisson Hz set (n = {n}); f / f_10 of the lowest modes "
+          f"(exact: {', '.join(f'{v:.3f}' for v in exact[:6] / exact[0])})")
+    for seed in seeds:
+        base = tez.tez_layout((0.0, A, 0.0, B), dr, kind="poisson", seed=seed)
+        hz = base.hz
+        tri = Delaunay(hz).simplices
+        pairs = np.unique(np.sort(np.vstack([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [0, 2]]]), axis=1), axis=0)
+        length = np.linalg.norm(hz[pairs[:, 0]] - hz[pairs[:, 1]], axis=1)
+        mid = 0.5 * (hz[pairs[:, 0]] + hz[pairs[:, 1]])[length < 1.6 * dr]
+        dense = square(len(mid), bounds=base.bounds, sampling="poisson", seed=seed + 100)
+        for name, e in (("edge midpoints", mid), ("Poisson, same count", dense)):
+            ex = e[(e[:, 1] > 0.3 * dr) & (e[:, 1] < B - 0.3 * dr)]
+            ey = e[(e[:, 0] > 0.3 * dr) & (e[:, 0] < A - 0.3 * dr)]
+            fx, fy = base.ex_fixed, base.ey_fixed
+            lay = tez.TEzLayout(hz, np.vstack([ex, base.ex[fx]]), np.vstack([ey, base.ey[fy]]),
+                                np.r_[np.zeros(len(ex), bool), np.ones(int(fx.sum()), bool)],
+                                np.r_[np.zeros(len(ey), bool), np.ones(int(fy.sum()), bool)], dr, base.bounds)
+            try:
+                s = tez.TEzSolver(tez.wall_closure_layout(lay), h_ratio=tez.POISSON_H_RATIO)
+            except ValueError as exc:
+                print(f"  seed={seed} {name}: refused ({str(exc)[:80]})")
+                continue
+            r = np.sqrt(s.vol_hz)
+            L = (s.Dx @ s.Gx + s.Dy @ s.Gy).toarray() / (s.eps * s.mu)
+            S = -(r[:, None] * L / r[None, :])
+            f = np.sqrt(np.maximum(np.linalg.eigvalsh(0.5 * (S + S.T))[1 : k + 1], 0.0)) / (2 * math.pi) / exact[0]
+            print(f"  seed={seed} {name:>20} ({len(e)} E): below 0.98 f_10 {int(np.sum(f < 0.98))}, between TE10 and "
+                  f"TE01 {int(np.sum((f > 1.02) & (f < 0.98 * exact[1] / exact[0])))}; lowest "
+                  f"{', '.join(f'{v:.3f}' for v in f[:6])}", flush=True)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--only", choices=("convergence", "energy", "modes", "disk", "disk-modes"))
+    ap.add_argument("--only", choices=("convergence", "energy", "modes", "disk", "disk-modes", "edges"))
     ap.add_argument("--disk-ns", type=int, nargs="+", default=[10, 20, 40])
     ap.add_argument("--ns", type=int, nargs="+", default=[12, 24, 48])
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
@@ -202,6 +247,8 @@ def main():
         disk_modes(seeds=tuple(args.seeds))
     if args.only in (None, "disk"):
         disk_convergence(args.disk_ns, args.seeds)
+    if args.only in (None, "edges"):
+        edges(seeds=tuple(args.seeds))
 
 
 if __name__ == "__main__":
