@@ -134,7 +134,8 @@ def modes(n=18, k=24, seeds=(0, 1, 2)):
             part = 1.0 / (V**4).sum(axis=0)
             low = part < 0.05 * len(s.vol_hz)
             print(f"{kind:>15} seed={seed}: below 0.98 f_10 {int(np.sum(f < 0.98 * exact[0]))} of {k}; lowest "
-                  f"{f[0] / exact[0]:.3f} f_10 (participation {part[0]:.0f}); f/exact {', '.join(f'{a / b:.3f}' for a, b in zip(f[:8], exact))} ...; max |f/exact - 1| "
+                  f"{f[0] / exact[0]:.3f} f_10 (participation {part[0]:.0f}); f/exact "
+                  f"{', '.join(f'{a / b:.3f}' for a, b in zip(f[:8], exact))} ...; max |f/exact - 1| "
                   f"(first {k}) {float(np.max(np.abs(f / np.array(exact[:k]) - 1))):.3f}; min participation "
                   f"{part.min():.0f} of {len(s.vol_hz)}; localised {int(low.sum())}", flush=True)
 

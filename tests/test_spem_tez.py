@@ -268,7 +268,8 @@ def test_poisson_rectangle_energy_is_conserved_and_spurious_modes_are_present():
 
 def test_poisson_disk_layout_converges_and_has_spurious_modes():
     """Poisson disk (h/dr 1.2). Measured (seed=0, 8 / 16 spacings per radius; 2 spectrum periods): error
-    3.3e-1 / 6.9e-2, TE11 frequency error 3.1e-3 / 2.5e-3; the Hz operator has modes below TE11 (benchmarks/spem_tez_poisson.py --only disk-modes:
+    3.3e-1 / 6.9e-2, TE11 frequency error 3.1e-3 / 2.5e-3; the Hz operator has modes below TE11
+    (benchmarks/spem_tez_poisson.py --only disk-modes:
     15-24 of the 24 lowest at 12 per radius; none on the lattice)."""
     c = np.array([A, A])
     for kind in ("poisson", "poisson-shared"):

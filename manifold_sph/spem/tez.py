@@ -63,7 +63,10 @@ Poisson layouts (``kind="poisson"`` / ``"poisson-shared"`` of :func:`tez_layout`
     into the Hz gaps (``layouts.relax_h``) did not remove them (rectangle,
     seed=1, 18 spacings: all 13 lowest non-static modes below TE10, the lowest
     at 0.62 / 0.53 of it, against 11 and 0.64 without). Smooth fields hardly
-    excite them; a broadband source would.
+    excite them; a broadband source would. A lead (not built): one E set at
+    the midpoints of the Hz set's Delaunay edges left none below TE10 on the
+    rectangle (the lowest spurious at 1.3-1.6 f_10; a Poisson E set of the
+    same count: 1.0-1.2; benchmarks/spem_tez_poisson.py --only edges).
 
 Examples
 --------
