@@ -39,7 +39,7 @@ from .operators import FORMS, cross_gradient, cross_pairs, sbp_pair
 from .pml import PML, sigma_max
 from .scattering import (INTERFACES, SCATTERERS, ScatteringResult, jump_permittivity, mie_coefficients, run_scattering,
                          scattered_field, scattering_layout, total_field)
-from .tez import (TEzCavityResult, TEzLayout, TEzSolver, run_tez_cavity, run_tez_circular_cavity, tez_cavity_frequency,
+from .tez import (POISSON_H_RATIO, TEZ_LAYOUT_KINDS, TEzCavityResult, TEzLayout, TEzSolver, run_tez_cavity, run_tez_circular_cavity, tez_cavity_frequency,
                   tez_disk_frequency, tez_disk_layout, tez_disk_mode, tez_layout, wall_closure_layout)
 from .tez_scattering import (EPS_AVERAGES, TEZ_INTERFACES, TEZ_SCATTERERS, TEzPMLResult, TEzPMLSolver, TEzScatteringResult,
                              particle_permittivity, run_tez_pml, run_tez_scattering, tez_jump_permittivity,
@@ -58,7 +58,7 @@ __all__ = [
     "FORMS", "cross_gradient", "cross_pairs", "sbp_pair",
     "PML", "sigma_max",
     "INTERFACES", "SCATTERERS", "ScatteringResult", "jump_permittivity", "mie_coefficients", "run_scattering", "scattered_field", "scattering_layout",
-    "total_field", "TEzCavityResult", "TEzLayout", "TEzSolver", "run_tez_cavity", "tez_cavity_frequency",
+    "total_field", "POISSON_H_RATIO", "TEZ_LAYOUT_KINDS", "TEzCavityResult", "TEzLayout", "TEzSolver", "run_tez_cavity", "tez_cavity_frequency",
     "tez_layout", "run_tez_circular_cavity", "tez_disk_frequency", "tez_disk_layout", "tez_disk_mode",
     "wall_closure_layout",
     "EPS_AVERAGES", "TEZ_INTERFACES", "TEZ_SCATTERERS", "tez_jump_permittivity", "TEzPMLResult", "TEzPMLSolver", "TEzScatteringResult", "particle_permittivity",
