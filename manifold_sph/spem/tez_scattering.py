@@ -196,14 +196,16 @@ def _partnered(e, hz, axis, near, reach, dr):
     """For the E particles ``near``: an Hz particle on each side along ``axis`` within ``reach`` (lateral <= 0.6 dr)."""
     from scipy.spatial import cKDTree
 
-    ok = np.ones(len(near), bool)
-    if not len(near):
-        return ok
-    for j, nb in enumerate(cKDTree(hz).query_ball_point(e[near], reach * dr)):
-        d = (hz[nb] - e[near[j]]) / dr
-        lateral = np.abs(d[:, 1 - axis]) <= 0.6
-        ok[j] = bool(((d[:, axis] > 0.05) & lateral).any() and ((d[:, axis] < -0.05) & lateral).any())
-    return ok
+    n = len(near)
+    if not n:
+        return np.ones(0, bool)
+    pairs = cKDTree(e[near]).sparse_distance_matrix(cKDTree(hz), reach * dr, output_type="ndarray")
+    rows, cols = pairs["i"], pairs["j"]
+    d = (hz[cols] - e[near][rows]) / dr
+    lateral = np.abs(d[:, 1 - axis]) <= 0.6
+    above = np.bincount(rows, weights=(d[:, axis] > 0.05) & lateral, minlength=n) > 0
+    below = np.bincount(rows, weights=(d[:, axis] < -0.05) & lateral, minlength=n) > 0
+    return above & below
 
 
 def tez_scattering_layout(kind: str, radius: float, dr: float, half_width: float, *, amplitude: float = 0.0,
