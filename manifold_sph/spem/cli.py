@@ -198,7 +198,7 @@ def _add_scattering_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("scatter-pec, scatter-dielectric, scatter-coated (plane wave on a cylinder of radius "
                              "0.1 m; also --n-radial, default 8, --eps-r, default 4, --layout yee|jittered, "
                              "--coupling, --h-ratio), tez-cavity (TEz modes of a 0.1 x 0.06 m PEC rectangle; "
-                             "--n-radial: spacings along 0.06 m, default 12) and tez-disk (TE11 + TE21 of a circular "
+                             "--n-radial: spacings along 0.06 m, default 12; --layout poisson with --wall-closure) and tez-disk (TE11 + TE21 of a circular "
                              "PEC cavity of radius 0.1 m, curved walls; --n-radial, default 20; --coupling sbp|adjoint), "
                              "tez-scatter-pec, tez-scatter-dielectric (TEz plane wave on a cylinder of radius 0.1 m: "
                              "exact Hz series, split-field PML; --n-radial, default 8, --eps-r, default 4, --layout "
@@ -235,8 +235,13 @@ def _run_scattering(args: argparse.Namespace) -> int:
         for name in _NOT_FOR_SCATTERING:
             if getattr(args, name, None) not in (None, False):
                 raise ValueError(f"--{name.replace('_', '-')} does not apply to case {args.case!r}")
-        if args.layout not in ("yee", "jittered"):
-            raise ValueError(f"--layout for case {args.case!r} must be yee or jittered, got {args.layout!r}")
+        tez_cavity = args.case in ("tez-cavity", "tez-disk")
+        if args.layout not in ("yee", "jittered") and not (tez_cavity and args.layout == "poisson"):
+            allowed = "yee, jittered or poisson" if tez_cavity else "yee or jittered"
+            raise ValueError(f"--layout for case {args.case!r} must be {allowed}, got {args.layout!r}")
+        if args.case == "tez-cavity" and args.layout == "poisson" and not args.wall_closure:
+            raise ValueError("--layout poisson for case 'tez-cavity' needs --wall-closure (the walls as closure "
+                             "columns; without them Poisson TEz rectangles lose particles' neighbours at the walls)")
         kw = {"layout": args.layout, "coupling": args.coupling or DEFAULT_COUPLING}
         if args.wall_closure and args.case != "tez-cavity":
             raise ValueError(f"--wall-closure applies only to case 'tez-cavity', not {args.case!r}")
