@@ -350,6 +350,16 @@ def jump_permittivity(operator: ArrayLike, phi: ArrayLike, eps_in: float, eps_ou
     return eps
 
 
+def _domain(radius, ka, n_radial, margin, pml_thickness):
+    """Frequency, spacing, interior and outer half widths of the scattering cases (TMz and TEz)."""
+    freq = ka * C0 / (2 * math.pi * radius)
+    lam = C0 / freq
+    dr = radius / n_radial
+    inner = dr * math.ceil((radius + margin * lam) / dr - 1e-9)
+    outer = inner + dr * math.ceil(pml_thickness * lam / dr - 1e-9)
+    return freq, dr, inner, outer
+
+
 def _ring(radius, dr):
     m = max(8, int(math.ceil(2 * math.pi * radius / dr)))
     th = 2 * math.pi * (np.arange(m) + 0.5) / m
@@ -651,11 +661,7 @@ def run_scattering(kind: str = "dielectric", *, n_radial: int = 8, radius: float
     dft_periods = check_positive("dft_periods", dft_periods)
     if dft_periods > periods - ramp:
         raise ValueError(f"dft_periods must be at most periods - ramp = {periods - ramp:g}, got {dft_periods}")
-    freq = ka * C0 / (2 * math.pi * radius)
-    lam = C0 / freq
-    dr = radius / n_radial
-    inner = dr * math.ceil((radius + margin * lam) / dr - 1e-9)
-    outer = inner + dr * math.ceil(pml_thickness * lam / dr - 1e-9)
+    freq, dr, inner, outer = _domain(radius, ka, n_radial, margin, pml_thickness)
     lay = scattering_layout(kind, radius, dr, outer, core_radius=core_radius,
                             amplitude=amplitude if layout == "jittered" else 0.0, seed=seed)
     e = lay.e

@@ -58,7 +58,7 @@ from scipy.special import h1vp, hankel1, jv, jvp
 from .._validation import as_points, check_in, check_int, check_positive
 from .constants import C0, EPS0, MU0
 from .pml import PML
-from .scattering import _n_terms, _series, _Switched, cell_fraction, l2_error, wavenumber
+from .scattering import _domain, _n_terms, _series, _Switched, cell_fraction, l2_error, wavenumber
 from .tez import DISK_H_RATIO, TEzLayout, TEzSolver, tez_layout
 
 __all__ = ["TEZ_SCATTERERS", "EPS_AVERAGES", "tez_mie_coefficients", "tez_scattered_field", "tez_total_field",
@@ -723,16 +723,6 @@ class TEzScatteringResult:
         return {k: getattr(self, k) for k in ("case", "error", "ring_error", "particles", "steps", "seconds",
                                                "setup_seconds", "dr", "dt", "layout", "coupling", "average",
                                                "n_radial", "stable_fraction", "field_growth")}
-
-
-def _domain(radius, ka, n_radial, margin, pml_thickness):
-    """Frequency, spacing, interior and outer half widths of the scattering cases (as :func:`.run_scattering`)."""
-    freq = ka * C0 / (2 * math.pi * radius)
-    lam = C0 / freq
-    dr = radius / n_radial
-    inner = dr * math.ceil((radius + margin * lam) / dr - 1e-9)
-    outer = inner + dr * math.ceil(pml_thickness * lam / dr - 1e-9)
-    return freq, dr, inner, outer
 
 
 def run_tez_scattering(kind: str = "pec", *, n_radial: int = 8, radius: float = 0.1, ka: float = 2.0,
