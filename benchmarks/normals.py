@@ -175,6 +175,7 @@ import scipy.sparse as sp
 from scipy.sparse import csgraph
 
 from manifold_sph.reference import shapes
+from manifold_sph.reference.sampling import sample_triangles
 from manifold_sph.scans.io import read_mesh
 from manifold_sph.scans.normals import estimate_normals
 
@@ -499,12 +500,7 @@ def random_table(paths, variants=(("default", {}),), seeds=(0, 1)):
         closed = bool(np.all(np.unique(e, axis=0, return_counts=True)[1] == 2))
         m = max(2000, int(np.unique(F).size))
         for seed in seeds:
-            rng = np.random.default_rng(seed)
-            f = rng.choice(len(F), m, p=A / A.sum())
-            u, v = rng.random(m), rng.random(m)
-            flip = u + v > 1
-            u[flip], v[flip] = 1 - u[flip], 1 - v[flip]
-            P = U[F[f, 0]] + u[:, None] * (U[F[f, 1]] - U[F[f, 0]]) + v[:, None] * (U[F[f, 2]] - U[F[f, 0]])
+            P, f = sample_triangles(U, F, m, seed)
             for label, kw in variants:
                 t = time.perf_counter()
                 d = np.einsum("ij,ij->i", estimate_normals(P, **kw), fn[f])

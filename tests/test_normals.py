@@ -727,6 +727,7 @@ def test_poles_option_orients_thin_parts_of_coarse_models(name, before, after):
 def _random_sample(name, seed, m=None):
     """Area-uniform random points of a model (as many as it has vertices, at least 2000; the
     sampling of ``benchmarks/normals.py --random``), their face normals, and closed?"""
+    from manifold_sph.reference.sampling import sample_triangles
     from manifold_sph.scans.io import read_mesh
 
     path = MODELS / name
@@ -741,12 +742,7 @@ def _random_sample(name, seed, m=None):
     e = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
     closed = bool(np.all(np.unique(e, axis=0, return_counts=True)[1] == 2))
     m = max(2000, int(np.unique(F).size)) if m is None else m
-    rng = np.random.default_rng(seed)
-    f = rng.choice(len(F), m, p=A / A.sum())
-    u, v = rng.random(m), rng.random(m)
-    flip = u + v > 1
-    u[flip], v[flip] = 1 - u[flip], 1 - v[flip]
-    P = U[F[f, 0]] + u[:, None] * (U[F[f, 1]] - U[F[f, 0]]) + v[:, None] * (U[F[f, 2]] - U[F[f, 0]])
+    P, f = sample_triangles(U, F, m, seed)
     return P, c[f] / A[f, None], closed
 
 

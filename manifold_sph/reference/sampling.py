@@ -49,6 +49,7 @@ __all__ = [
     "POISSON_ITERATIONS",
     "fibonacci_sphere",
     "sample_surface",
+    "sample_triangles",
     "square",
     "nearest_neighbor_distances",
     "nearest_neighbor_cv",
@@ -288,6 +289,62 @@ def sample_surface(
 # ----------------------------------------------------------------------------
 # planar square
 # ----------------------------------------------------------------------------
+def sample_triangles(vertices: ArrayLike, faces: ArrayLike, n: int, seed: int | None = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Area-uniform random points on a triangle mesh (the uniformly random samples of a model).
+
+    Each point picks a face with probability proportional to its area, then a
+    uniform point in it (two uniforms, reflected when their sum exceeds 1).
+
+    Parameters
+    ----------
+    vertices : array_like, shape (V, 3)
+    faces : array_like of int, shape (F, 3)
+        Vertex indices; at least one face of positive area.
+    n : int
+        Number of points (>= 1).
+    seed : int, None or numpy Generator
+        Reproducible draws.
+
+    Returns
+    -------
+    points : ndarray, shape (n, 3)
+    face : ndarray of int, shape (n,)
+        The face each point lies on (its normal is the face's).
+
+    Raises
+    ------
+    ValueError
+        On non-finite vertices, faces that are not (F, 3) indices into them, or a
+        mesh without area.
+
+    Examples
+    --------
+    >>> V = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]])
+    >>> p, f = sample_triangles(V, [[0, 1, 2], [1, 3, 2]], 1000, seed=0)
+    >>> p.shape, bool(np.all((p >= 0) & (p <= 1))), bool(np.allclose(p[:, 2], 0))
+    ((1000, 3), True, True)
+    """
+    U = np.asarray(vertices, dtype=np.float64)
+    if U.ndim != 2 or U.shape[1] != 3 or not np.isfinite(U).all():
+        raise ValueError(f"vertices must be a finite (V, 3) array, got shape {U.shape}")
+    F = np.asarray(faces)
+    if F.ndim != 2 or F.shape[1] != 3 or not np.issubdtype(F.dtype, np.integer) or F.size == 0:
+        raise ValueError(f"faces must be a non-empty (F, 3) integer array, got shape {F.shape} of {F.dtype}")
+    if F.min() < 0 or F.max() >= len(U):
+        raise ValueError(f"faces must index the {len(U)} vertices, got indices {F.min()}..{F.max()}")
+    n = check_int("n", n, minimum=1)
+    A = np.linalg.norm(np.cross(U[F[:, 1]] - U[F[:, 0]], U[F[:, 2]] - U[F[:, 0]]), axis=1)
+    if not A.sum() > 0:
+        raise ValueError("faces have no area: cannot sample the mesh")
+    rng = _rng(seed)
+    f = rng.choice(len(F), n, p=A / A.sum())
+    u, v = rng.random(n), rng.random(n)
+    flip = u + v > 1
+    u[flip], v[flip] = 1 - u[flip], 1 - v[flip]
+    P = U[F[f, 0]] + u[:, None] * (U[F[f, 1]] - U[F[f, 0]]) + v[:, None] * (U[F[f, 2]] - U[F[f, 0]])
+    return P, f
+
+
 def _as_bounds(bounds):
     try:
         b = np.asarray(bounds, dtype=np.float64)
