@@ -55,6 +55,17 @@ A, B = 0.1, 0.06
 KINDS = ("poisson", "poisson-shared", "jittered")
 
 
+
+def _summary(kind, ns, seeds, errs, ferrs, refused):
+    """Mean error and frequency error over the seeds where every seed ran, and their orders."""
+    full = [n for n in ns if len(errs[n]) == len(seeds)]
+    if len(full) >= 2:
+        me = [float(np.mean(errs[n])) for n in full]
+        mf = [float(np.mean(ferrs[n])) for n in full]
+        print(f"{kind:>15} mean over seeds: error {', '.join(f'{v:.2e}' for v in me)}; f error "
+              f"{', '.join(f'{v:.2e}' for v in mf)} (n = {full}); order error {order(full, me):.2f}, "
+              f"f {order(full, mf):.2f}; refused {refused}")
+
 def order(ns, values):
     """Least-squares slope of log(value) against log(n)."""
     return float(-np.polyfit(np.log(ns), np.log(values), 1)[0])
@@ -93,13 +104,7 @@ def convergence(ns, seeds):
                       f"{r.dt / cfl:7.3f} {r.seconds:6.1f}", flush=True)
                 errs[n].append(r.error)
                 ferrs[n].append(r.frequency_error)
-        full = [n for n in ns if len(errs[n]) == len(seeds)]
-        if len(full) >= 2:
-            me = [float(np.mean(errs[n])) for n in full]
-            mf = [float(np.mean(ferrs[n])) for n in full]
-            print(f"{kind:>15} mean over seeds: error {', '.join(f'{v:.2e}' for v in me)}; f error "
-                  f"{', '.join(f'{v:.2e}' for v in mf)} (n = {full}); order error {order(full, me):.2f}, "
-                  f"f {order(full, mf):.2f}; refused {refused}")
+        _summary(kind, ns, seeds, errs, ferrs, refused)
 
 
 def energy(n=12, steps=10_000, seeds=(0,)):
@@ -159,13 +164,7 @@ def disk_convergence(ns, seeds):
                       f"{r.probe_frequency_error:9.2e} {r.stable_fraction:7.3f} {r.seconds:6.1f}", flush=True)
                 errs[n].append(r.error)
                 ferrs[n].append(r.frequency_error)
-        full = [n for n in ns if len(errs[n]) == len(seeds)]
-        if len(full) >= 2:
-            me = [float(np.mean(errs[n])) for n in full]
-            mf = [float(np.mean(ferrs[n])) for n in full]
-            print(f"{kind:>15} mean over seeds: error {', '.join(f'{v:.2e}' for v in me)}; f error "
-                  f"{', '.join(f'{v:.2e}' for v in mf)} (n = {full}); order error {order(full, me):.2f}, "
-                  f"f {order(full, mf):.2f}; refused {refused}")
+        _summary(kind, ns, seeds, errs, ferrs, refused)
 
 
 def disk_modes(n=12, k=24, seeds=(0, 1, 2)):
