@@ -786,7 +786,7 @@ def test_best_signs_margin_keeps_an_entry():
     assert np.array_equal(_best_signs(H, g, blocks, np.array([0.0, np.inf])), [-1.0, 1.0])
 
 
-def _crossing_spheres(n_outer, parts, sampling="random", seed=0):
+def _crossing_spheres(parts, sampling="random", seed=0):
     clouds = [shapes.sphere(n, radius=r, center=c, sampling=sampling, seed=seed + 10 * i) for i, (n, r, c) in enumerate(parts)]
     return np.vstack([c.points for c in clouds]), np.vstack([c.normals for c in clouds])
 
@@ -799,7 +799,7 @@ def test_closed_surfaces_passing_through_each_other_face_out(monkeypatch, sampli
     # judged by their own field: measured 7-10 (random), 0-1 (Poisson) wrong, seeds 0-2
     from manifold_sph.scans import normals as mod
 
-    P, exact = _crossing_spheres(4000, [(4000, 1.0, (0, 0, 0)), (2560, 0.8, (1.2, 0, 0))], sampling, seed)
+    P, exact = _crossing_spheres([(4000, 1.0, (0, 0, 0)), (2560, 0.8, (1.2, 0, 0))], sampling, seed)
     assert (dots(estimate_normals(P), exact) < 0).sum() <= 0.005 * len(P)
     monkeypatch.setattr(mod, "_SHEETS", False)
     assert (dots(estimate_normals(P), exact) < 0).sum() >= 0.1 * len(P)  # the test can tell
@@ -808,7 +808,7 @@ def test_closed_surfaces_passing_through_each_other_face_out(monkeypatch, sampli
 def test_sphere_wholly_inside_another_keeps_the_whole_fields_answer():
     # nested closed spheres: the inner one is the inner wall of a hollow ball (normals into the
     # cavity), as without the closed sheets; a sheet wholly inside another keeps the whole field
-    P, exact = _crossing_spheres(4000, [(4000, 1.0, (0, 0, 0)), (1000, 0.5, (0.1, 0, 0))])
+    P, exact = _crossing_spheres([(4000, 1.0, (0, 0, 0)), (1000, 0.5, (0.1, 0, 0))])
     d = dots(estimate_normals(P), exact)
     assert (d[:4000] < 0).sum() == 0 and (d[4000:] < 0).sum() == 1000
 
