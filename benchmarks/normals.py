@@ -579,7 +579,11 @@ def _crossing_cloud(name, sampling, seed, noise):
              "torus through sphere": [(shapes.sphere, 3000, dict(radius=0.8)),
                                       (shapes.torus, 4000, dict(R=1.0, r=0.25, center=(0.9, 0, 0)))],
              "2 unequal spheres": [(shapes.sphere, 3000, dict(radius=1.0)), (shapes.sphere, 3000, dict(radius=0.9, center=(0.9, 0.3, 0)))],
-             "nested spheres": [(shapes.sphere, 4000, dict(radius=1.0)), (shapes.sphere, 1000, dict(radius=0.5, center=(0.1, 0, 0)))]}[name]
+             "nested spheres": [(shapes.sphere, 4000, dict(radius=1.0)), (shapes.sphere, 1000, dict(radius=0.5, center=(0.1, 0, 0)))],
+             # a head (12,000 points) with two eyes half out of it and six teeth across its surface
+             "head, eyes, teeth": [(shapes.sphere, 12000, dict(radius=1.0))]
+             + [(shapes.sphere, 400, dict(radius=0.18, center=(x, 0.3, np.sqrt(1 - x * x - 0.09) - 0.08))) for x in (-0.35, 0.35)]
+             + [(shapes.sphere, 150, dict(radius=0.06, center=(x, -0.5, np.sqrt(1 - x * x - 0.25)))) for x in np.linspace(-0.25, 0.25, 6)]}[name]
     clouds = [f(n, sampling=sampling, seed=seed + 10 * i, **kw) for i, (f, n, kw) in enumerate(parts)]
     P = np.vstack([c.points for c in clouds])
     spacing = np.sqrt(4 * np.pi / 4000)
@@ -595,7 +599,7 @@ def crossing(seeds=(0, 1, 2)):
     from manifold_sph.scans import normals as mod
 
     print(f"\n{'crossing surfaces':22s} {'sampling':>8s} {'noise':>5s} {'points':>6s} {'wrong, sheets off':>22s} {'wrong, on (default)':>22s}")
-    for name in ("2 spheres", "3 spheres", "torus through sphere", "2 unequal spheres", "nested spheres"):
+    for name in ("2 spheres", "3 spheres", "torus through sphere", "2 unequal spheres", "head, eyes, teeth", "nested spheres"):
         for sampling in ("random", "poisson"):
             for noise in (0.0, 0.1):
                 res = {}
