@@ -1460,8 +1460,14 @@ def _closed_sheets(pts, nrm, neighbors, probes, delta, area, h):
     # each sheet oriented consistently on its own edges (propagation over the whole graph may have
     # mixed its signs where it crosses another), for the test of closure below
     inner = edge.ravel() & (lab[rows] == lab[cols]) & (lab[rows] < big.size)
-    a, b, sa, length = _pair_edges(pts, nrm, rows[inner], cols[inner])
-    sn = nrm * _spanning_forest(N, a, b, sa, length)[0][:, None]
+    ri, ci = rows[inner], cols[inner]
+    Lu = L[inner] / np.sqrt(np.maximum(l2[inner], 1e-300))[:, None]
+    pred = nrm[ri] - 2.0 * np.einsum("ij,ij->i", nrm[ri], Lu)[:, None] * Lu  # the reflection rule of step 3
+    sgn = np.where(np.einsum("ij,ij->i", pred, nrm[ci]) < 0, -1.0, 1.0)
+    Sg = sp.coo_matrix((sgn, (ri, ci)), shape=(N, N)).tocsr()
+    Sg = Sg + Sg.T  # (a pair found from both ends has the same sign twice)
+    roots = np.unique(csgraph.connected_components(Sg, directed=False)[1], return_index=True)[1]
+    sn = nrm * _tree_signs(N, Sg, roots, lambda child, par: np.sign(np.asarray(Sg[child, par]).ravel()))[:, None]
     q = np.vstack([pts[probes] - delta[:, None] * sn[probes], pts[probes] + delta[:, None] * sn[probes]])
     W = _winding_numbers(q, pts, sn, area, 0.2 * h, lab, big.size + 1)
     own = lab[probes]
