@@ -615,7 +615,42 @@ def crossing(seeds=(0, 1, 2)):
                 print(f"{name:22s} {sampling:>8s} {noise:5.1f} {len(P):6d} {res[False]:>22s} {res[True]:>22s}", flush=True)
 
 
+def noisy(paths, noises=(0.1, 0.3), seeds=(0, 1)):
+    """The models' vertices with Gaussian noise of ``noise`` nearest-neighbour spacings (per
+    coordinate, seeded): normals disagreeing in sign with the mesh's, with the thin-part cuts of
+    step 3 (``_CUT_THIN``) off and on (the default)."""
+    from scipy.spatial import cKDTree
+
+    from manifold_sph.scans import normals as mod
+
+    print(f"\n{'noisy vertices':14s} {'points':>7s} " + " ".join(f"{f'{z:g} sp, seed {s}':>16s}" for z in noises for s in seeds))
+    print(f"{'':14s} {'':>7s} " + " ".join(f"{'off -> on':>16s}" for _ in noises for _ in seeds))
+    for path in paths:
+        if not path.exists():
+            print(f"{path.stem:14s} (missing, skipped)")
+            continue
+        P, ref, _, _ = mesh_reference(path)
+        h = np.median(cKDTree(P).query(P, 2)[0][:, 1])
+        cells = []
+        for z in noises:
+            for seed in seeds:
+                Q = P + z * h * np.random.default_rng(seed).normal(size=P.shape)
+                wrong = []
+                for cut in (0.0, mod._CUT_THIN):
+                    saved, mod._CUT_THIN = mod._CUT_THIN, cut
+                    try:
+                        wrong.append(int((np.einsum("ij,ij->i", estimate_normals(Q), ref) < 0).sum()))
+                    finally:
+                        mod._CUT_THIN = saved
+                cells.append(f"{wrong[0]:>7d} -> {wrong[1]:<5d}")
+        print(f"{path.stem:14s} {len(P):7d} " + " ".join(f"{c:>16s}" for c in cells), flush=True)
+
+
 if __name__ == "__main__":
+    if "--noisy" in sys.argv:  # the models' vertices with noise, thin-part cuts of step 3 off and on
+        noisy([Path(a) for a in sys.argv[sys.argv.index("--models") + 1:] if not a.startswith("--")] if "--models" in sys.argv
+              else MODELS + SCANS[:1])
+        raise SystemExit
     if "--crossing" in sys.argv:  # closed surfaces passing through each other, sheets of step 4 off and on
         crossing()
         raise SystemExit
