@@ -67,7 +67,7 @@ Pipeline of :func:`estimate_normals` (default ``method="jet"``, ``degree=2``; st
    spacings, seeds 0 and 1, wrong normals in all 3,270 -> 1,568 on the test models and the bunny,
    19,259 -> 15,806 with the extra spot, suzanne, beetle-alt, woody and beast: alligator 1089 -> 3,
    teapot 652 -> 198, beetle 134 -> 38, beast 3921 -> 2432, homer 74 -> 51 / 87 -> 59; worse:
-   teapot 60 -> 72 at 0.1, beast 1912 -> 2381 at 0.1 seed 1, cow 111 -> 112). Noise-free vertex clouds: the same but the
+   teapot 60 -> 72 at 0.1, beast 1912 -> 2381 at 0.1 with seed=1, cow 111 -> 112). Noise-free vertex clouds: the same but the
    teapot 40 -> 43 and the extra beast 2400 -> 2300; random samples (seeds 0-3, all models and the
    extra ones) 2716 -> 2608 in all; a closed slab half a spacing thick (hopeless either way) 537 /
    473 -> 589 / 527 inward of 2000, one spacing thick 160 / 86 -> 151 / 86.
@@ -136,33 +136,36 @@ Pipeline of :func:`estimate_normals` (default ``method="jet"``, ``degree=2``; st
    artist's character with its eyes and teeth, an assembly) read both inside where one lies inside
    the other, and the patch check flipped those parts (two spheres through each other: 1037-1109 of
    6560 wrong). The cloud is therefore cut into sheets: k-NN edges whose ends lie within
-   ``atan(0.6)`` of each other's tangent plane with ``|n_i . n_j| > 0.8``, without junctions
-   (particles two of whose sheet neighbours are not parallel: a normal averaged over both
-   surfaces) and without edges in fewer than 2 triangles of sheet edges (bridges). Sheets of at
-   least 100 particles (and 0.5 % of the cloud) keep their label; left-out particles (junctions,
-   small pieces) join the sheet of a neighbour over a sheet edge, over up to 30 rings. Each sheet
-   is then oriented on its own edges (the propagation over the whole graph may have mixed its
-   signs where it crosses another) and is closed where its own field is decisive
+   ``atan(0.6)`` of each other's tangent plane with ``|n_i . n_j| > 0.8``, without junctions and
+   without edges in fewer than 2 triangles of sheet edges (bridges). A junction is a particle two
+   of whose sheet neighbours are not parallel (``|n_j . n_k| < 0.8``: a normal averaged over both
+   surfaces) unless one shape operator explains its neighbours' normals (the tangent part of
+   ``n_j`` fitted as ``S (p_j - p_i) + c`` with a symmetric ``S``, to a residual below 0.42 of their
+   spread: on one strongly curved surface the normal turns linearly with the position, across a
+   crossing it jumps; without this, small teeth 3 spacings in radius were all junctions). Sheets
+   of at least 100 particles (and 0.5 % of the cloud) keep their label; left-out particles
+   (junctions, small pieces) join the sheet of a neighbour over a sheet edge, over up to 30 rings.
+   Each sheet is then oriented on its own edges (the propagation over the whole graph may have
+   mixed its signs where it crosses another) and is closed where its own field is decisive
    (``|mean(w_in + w_out)| >= 0.6``). A closed sheet wholly inside the others (95 % of its probes)
    and sealed (``>= 0.8``) is the inner wall of a hollow part and keeps the whole field (it faces
    the cavity, as before); one inside but open has lost its outside part where it crosses another
    surface (an eye whose outer cap joined the head's sheet) and stays closed. Where at least two
    closed sheets exist and one has at least 10 % of its probes inside the others' field, the
    probes of every closed sheet see only their own sheet's patches, and patches do not cross
-   sheet borders. Nothing changes where more than 25 % of the particles are junctions (coarse
-   vertex clouds: cow, homer, cheburashka 12-59 %) or where no closed sheet crosses another (the
-   random samples of cheburashka have pieces reading up to 7 % inside: 0.5 % flipped 75 more of
-   their normals). ``python benchmarks/normals.py --crossing`` (wrong normals, seeds 0-2, sheets
-   off -> on): two spheres (6560) 1037-1109 -> 0-18 (random or Poisson, noise 0 or 0.1 spacings);
-   three spheres (8000) 1647-1797 -> 2-37, but 689 on one seed (the third sphere's cap inside the
-   first is a sheet of its own, open, and follows the whole field); a torus through a sphere
-   (7000) 1152-1228 -> 4-41, one noisy seed unchanged; unequal spheres with a large overlap mixed
-   (1424-1557 -> 0-1526); a head of 12,000 points with two eyes half out of it (400 points each)
-   and six teeth across its surface (150 each) 1081-1161 -> 456-621 noise-free (the eyes 480-521
-   -> 0-11 wrong; the teeth, 3 spacings in radius, are all junctions and keep 375-422 of 900
-   wrong), with noise 597-1175; never worse. Nested spheres: unchanged (the inner one faces the
-   cavity). The model tables (vertices, random samples seeds 0-7 of every model and the extra
-   models) and the synthetic table are the same bit for bit.
+   sheet borders. Nothing changes where more than 25 % of the particles are junctions or where no
+   closed sheet crosses another (the random samples of cheburashka have pieces reading up to 7 %
+   inside: 0.5 % flipped 75 more of their normals). ``python benchmarks/normals.py --crossing``
+   (wrong normals, seeds 0-2, random and Poisson samples, noise 0 and 0.1 spacings, sheets off ->
+   on): two spheres (6560) 1037-1109 -> 0-28; three spheres (8000) 1647-1797 -> 2-45, but 685 on one
+   seed (the third sphere's cap inside the first is a sheet of its own, open, and follows the whole
+   field); a torus through a sphere (7000) 1152-1228 -> 4-82; unequal spheres with a large overlap
+   mostly unchanged (0-1526); a head of 12,000 points with two eyes half out of it (400 points each)
+   and six teeth across its surface (150 each) 1081-1198 -> 50-646 (Poisson, noise-free: 50 / 56 /
+   256; the eyes from 480-521 to 0-16 of 800 in 10 of the 12 runs, the teeth from about 400 to
+   31-453 of 900); never worse. Nested spheres: unchanged (the inner one faces the cavity). The
+   vertex tables are the same but the teapot, whose lid and body cross (43 -> 50 of 3241
+   disagreeing), the random samples of every model and the synthetic table the same bit for bit.
    The winding number is summed with a two-level cell
    approximation (exact near, one dipole per cell and patch far). A patch with no
    evidence either way (a flat sheet) is oriented so that its mean normal has a
@@ -262,7 +265,7 @@ Pipeline of :func:`estimate_normals` (default ``method="jet"``, ``degree=2``; st
 against area-weighted mesh normals; default): median angle 5.18 deg on the cow, 1.74
 homer, 2.77 rocker-arm, 1.03 cheburashka, 1.95 teapot, 8.82 beetle, 0 alligator, 0.82
 bunny; inward 1.76 % (cow), 0.02, 0, 0.67 % (cheburashka; 1.02 before the thickness-adapted
-probes of step 4); agreeing with the mesh 98.7 % (teapot; 98.8 before the thin-part cuts of step 3), 97.0 % (beetle). Against the
+probes of step 4); agreeing with the mesh 98.5 % (teapot; 98.8 before the thin-part cuts of step 3 and the crossing sheets of step 4), 97.0 % (beetle). Against the
 normals of the Loop limit surface at the vertices (exact; a second reference) the medians are
 within 0.3 deg of these (cow 5.45, beetle 9.06): the reference is not what keeps the cow and the
 beetle above 3 degrees. On the limit surfaces themselves, sampled at the models' vertices (exact
@@ -503,6 +506,7 @@ _SHEET_JUNCTION = 0.8  # a junction: two of its sheet neighbours with |n_j . n_k
 _SHEET_SUPPORT = 2  # sheet edges lie in at least this many triangles of sheet edges
 _SHEET_PRUNE = 2  # (pruned this many times)
 _SHEET_GROW = 30  # rings over which left-out particles join a sheet (over sheet edges)
+_SHEET_SHAPE = 0.42  # ... unless a shape operator explains their normals to this relative residual
 _SHEET_MIN = 100  # sheets have at least this many particles
 _SHEET_FRACTION = 0.005  # ... and this fraction of the cloud
 _SHEET_CLOSED = 0.6  # ... and |mean(w_in + w_out)| of their own field at least this
@@ -1450,10 +1454,33 @@ def _closed_sheets(pts, nrm, neighbors, probes, delta, area, h):
     t2 = _SHEET_TAN**2
     par = np.abs(np.einsum("ij,ij->i", nrm[rows], nrm[cols])) > _SHEET_DOT
     edge = (par & (zi * zi <= t2 * np.maximum(l2 - zi * zi, 0.0)) & (zj * zj <= t2 * np.maximum(l2 - zj * zj, 0.0))).reshape(N, ko - 1)
-    # a junction: its sheet neighbours are not parallel among themselves (a normal averaged over two crossing sheets)
+    # a junction: its sheet neighbours are not parallel among themselves (a normal averaged over two
+    # crossing sheets) and their normals do not follow one shape operator (on one strongly curved
+    # surface the normal turns linearly with the position; across a crossing it jumps)
     nb = nrm[neighbors[:, 1:ko]] * edge[:, :, None]
     G = np.abs(np.einsum("nkj,nlj->nkl", nb, nb))
     junction = np.any(edge[:, :, None] & edge[:, None, :] & (G < _SHEET_JUNCTION), axis=(1, 2))
+    if _SHEET_SHAPE and junction.any():
+        r = np.flatnonzero(junction)
+        t1, t2 = _tangents(nrm[r])
+        Lr = L.reshape(N, ko - 1, 3)[r]
+        x, y = np.einsum("nkj,nj->nk", Lr, t1), np.einsum("nkj,nj->nk", Lr, t2)
+        nj = nrm[neighbors[r, 1:ko]]
+        nj = nj * np.where(np.einsum("nkj,nj->nk", nj, nrm[r]) < 0, -1.0, 1.0)[:, :, None]
+        u, v = np.einsum("nkj,nj->nk", nj, t1), np.einsum("nkj,nj->nk", nj, t2)
+        wgt = edge[r].astype(np.float64)
+        # u = a x + b y + u0, v = b x + c y + v0 (a symmetric shape operator and an offset), least squares
+        Z = np.zeros_like(x)
+        O = np.ones_like(x)
+        A = np.concatenate([np.stack([x, y, Z, O, Z], axis=2), np.stack([Z, x, y, Z, O], axis=2)], axis=1)
+        rhs = np.concatenate([u, v], axis=1)
+        W2 = np.concatenate([wgt, wgt], axis=1)
+        M = np.einsum("nki,nk,nkj->nij", A, W2, A) + 1e-12 * np.eye(5)[None]
+        coef = np.linalg.solve(M, np.einsum("nki,nk,nk->ni", A, W2, rhs)[..., None])[..., 0]
+        res = rhs - np.einsum("nki,ni->nk", A, coef)
+        dev = rhs - (np.einsum("nk,nk->n", W2, rhs) / np.maximum(W2.sum(axis=1), 1e-300))[:, None]
+        rel = np.sqrt(np.einsum("nk,nk->n", W2, res * res) / np.maximum(np.einsum("nk,nk->n", W2, dev * dev), 1e-300))
+        junction[r[rel < _SHEET_SHAPE]] = False
     if junction.mean() > _SHEET_MAX_JUNCTION:  # coarse or noisy: the sheets are not trusted
         return None
     keep = (edge & ~junction[:, None]).ravel() & ~junction[cols]
