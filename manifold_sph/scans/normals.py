@@ -502,14 +502,14 @@ _CUT_THIN = 0.5  # step 3: tree edges where the reflection and parallel rules di
 _SHEETS = True  # step 4: closed sheets (crossing surfaces cut apart) are judged by their own field
 _SHEET_DOT = 0.8  # sheet edges: |n_i . n_j| above this
 _SHEET_TAN = 0.6  # ... and each end within atan(this) of the other's tangent plane
-_SHEET_JUNCTION = 0.8  # a junction: two of its sheet neighbours with |n_j . n_k| below this
+_SHEET_JUNCTION = 0.8  # a junction: two of its sheet neighbours with |n_j . n_k| below this,
+_SHEET_SHAPE = 0.42  # unless one shape operator explains their normals to this relative residual
 _SHEET_SUPPORT = 2  # sheet edges lie in at least this many triangles of sheet edges
 _SHEET_PRUNE = 2  # (pruned this many times)
 _SHEET_GROW = 30  # rings over which left-out particles join a sheet (over sheet edges)
-_SHEET_SHAPE = 0.42  # ... unless a shape operator explains their normals to this relative residual
 _SHEET_MIN = 100  # sheets have at least this many particles
 _SHEET_FRACTION = 0.005  # ... and this fraction of the cloud
-_SHEET_CLOSED = 0.6  # ... and |mean(w_in + w_out)| of their own field at least this
+_SHEET_CLOSED = 0.6  # closed: |mean(w_in + w_out)| of a sheet's own field at least this
 _SHEET_NESTED = 0.95  # ... unless this share of their probes lies inside the other sheets' field
 _SHEET_SEALED = 0.8  # (wholly inside and sealed: |mean(w_in + w_out)| at least this; a sheet inside but open
 #  lost its outside part where it crosses another surface)
