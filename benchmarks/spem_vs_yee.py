@@ -380,8 +380,8 @@ def run_offcentre_dielectric(n_radial, centre, interface, *, radius=0.1, ka=2.0,
     curvature, mimetic fast band, h/dr 1.2, time correction, the same PML and DFT. Returns (error, set-up s,
     run s); the exact field is the centred series shifted (the incident phase ``exp(i k cx)``)."""
     from manifold_sph.spem.pml import PML
-    from manifold_sph.spem.scattering import (_Switched, _VolumeDrive, cell_fraction, jump_permittivity, l2_error,
-                                              scattered_field, scattering_layout)
+    from manifold_sph.spem.scattering import (_interior_particles, _run_phasor, _Switched, _VolumeDrive, cell_fraction,
+                                              jump_permittivity, l2_error, scattered_field, scattering_layout)
     from manifold_sph.spem.solver import TMzSolver
     from manifold_sph.spem.sources import Source
 
@@ -423,18 +423,12 @@ def run_offcentre_dielectric(n_radial, centre, interface, *, radius=0.1, ka=2.0,
     s.set_dt(dt)
     drive.dt = s.dt
     steps, n_dft = int(round(periods * per)), 2 * per
-    free = np.zeros(len(e), bool)
-    free[s.free] = True
-    ev = np.flatnonzero(free & (np.abs(e[:, 0]) <= inner) & (np.abs(e[:, 1]) <= inner))
+    ev = _interior_particles(s, e, inner)
     setup = time.perf_counter() - t0
-    acc = np.zeros(len(ev), dtype=complex)
-    for k in range(steps):
-        s.step()
-        if k >= steps - n_dft:
-            acc += s.e_field[ev] * np.exp(1j * w * s.t)
+    phasor = _run_phasor(s, ev, w, steps, n_dft)
     exact = scattered_field(e[ev] - [cx, cy], "dielectric", freq=freq, radius=radius, eps_r=eps_r)
     exact = exact * np.exp(1j * k0 * cx)
-    return l2_error(acc * (2.0 / n_dft), exact), setup, time.perf_counter() - t0 - setup
+    return l2_error(phasor, exact), setup, time.perf_counter() - t0 - setup
 
 
 # ----------------------------------------------------------------------------- scattering (issue 21 item 3)

@@ -526,6 +526,23 @@ class ScatteringResult:
                                                "interface")}
 
 
+def _interior_particles(s, e, inner):
+    """Indices of the solver's free E particles inside the interior box ``|x|, |y| <= inner``."""
+    free = np.zeros(len(e), bool)
+    free[s.free] = True
+    return np.flatnonzero(free & (np.abs(e[:, 0]) <= inner) & (np.abs(e[:, 1]) <= inner))
+
+
+def _run_phasor(s, ev, w, steps, n_dft):
+    """Run ``steps`` steps; the DFT phasor at angular frequency ``w`` of ``Ez[ev]`` over the last ``n_dft``."""
+    acc = np.zeros(len(ev), dtype=complex)
+    for n in range(steps):  # a loop over time steps
+        s.step()
+        if n >= steps - n_dft:
+            acc += s.e_field[ev] * np.exp(1j * w * s.t)
+    return acc * (2.0 / n_dft)
+
+
 def run_scattering(kind: str = "dielectric", *, n_radial: int = 8, radius: float = 0.1, ka: float = 2.0,
                    eps_r: float = 4.0, core_radius: float | None = None, layout: str = "yee", amplitude: float = 0.2,
                    seed: int | None = 0, margin: float = 0.5, pml_thickness: float = 0.5, pml_order: int = 3,
@@ -742,16 +759,9 @@ def run_scattering(kind: str = "dielectric", *, n_radial: int = 8, radius: float
         drive.dt = s.dt
     steps = int(round(periods * per))
     n_dft = int(round(dft_periods * per))
-    free = np.zeros(len(e), bool)
-    free[s.free] = True
-    ev = np.flatnonzero(free & (np.abs(e[:, 0]) <= inner) & (np.abs(e[:, 1]) <= inner))
+    ev = _interior_particles(s, e, inner)
     setup = time.perf_counter() - t_start
-    acc = np.zeros(len(ev), dtype=complex)
-    for n in range(steps):
-        s.step()
-        if n >= steps - n_dft:
-            acc += s.e_field[ev] * np.exp(1j * w * s.t)
-    phasor = acc * (2.0 / n_dft)
+    phasor = _run_phasor(s, ev, w, steps, n_dft)
     pts = e[ev]
     exact = scattered_field(pts, kind, freq=freq, radius=radius, eps_r=eps_r, core_radius=core_radius)
     r_ev = np.hypot(pts[:, 0], pts[:, 1])
