@@ -69,6 +69,7 @@ __all__ = [
     "SolverConvergenceError",
     "SparseSolver",
     "cholesky_available",
+    "choose_spd_method",
     "linear_solver",
     "spd_solver",
 ]
@@ -182,7 +183,8 @@ def _available_bytes() -> float:
         return float(pages * os.sysconf("SC_PAGE_SIZE")) if pages else float("inf")
 
 
-def _choose_spd(n: int) -> str:
+def choose_spd_method(n: int) -> str:
+    """``"cholesky"`` or ``"amg"``: what ``method="auto"`` picks for ``n`` unknowns on this machine now."""
     if cholesky_available() and n <= CHOLESKY_MAX_N and _estimated_cholesky_bytes(n) <= 0.25 * _available_bytes():
         return "cholesky"
     return "amg"
@@ -467,7 +469,7 @@ def spd_solver(
     if asym > 0:
         A = ((A + A.T) * 0.5).tocsr()
     if method == "auto":
-        method = _choose_spd(A.shape[0])
+        method = choose_spd_method(A.shape[0])
     return SparseSolver(A, method, rtol=rtol, maxiter=maxiter, progress=progress)
 
 
@@ -516,7 +518,7 @@ def linear_solver(
         if asym > 0:
             A = ((A + A.T) * 0.5).tocsr()
         try:  # CG that stalls (an indefinite matrix) hands over to LU at the first solve
-            return SparseSolver(A, _choose_spd(A.shape[0]), rtol=rtol, maxiter=maxiter, progress=progress,
+            return SparseSolver(A, choose_spd_method(A.shape[0]), rtol=rtol, maxiter=maxiter, progress=progress,
                                 lu_fallback=True)
         except NotPositiveDefiniteError:
             pass  # symmetric indefinite: LU below
