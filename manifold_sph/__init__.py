@@ -27,25 +27,17 @@ from .scans.normals import estimate_normals
 from .threads import get_num_threads, set_num_threads
 from .exceptions import ManifoldSPHWarning
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
 # Public submodules loaded on attribute access (heavy ones such as viz and spem are not
 # imported until asked for). The flat core follows the pipeline; scans, reference and viz
 # group the periphery.
 _SUBMODULES = (
     "area", "assembly", "cli", "distributed", "domain", "exceptions", "frames", "geometry", "kernels",
-    "neighbors", "operators", "pde", "pointcloud", "schemes", "spem", "surface", "threads", "voronoi",
+    "neighbors", "operators", "pde", "pointcloud", "results", "schemes", "spem", "surface", "threads", "voronoi",
     "scans", "reference", "viz",
 )
 
-#: Modules that moved into the subpackages in 0.2: the old names still resolve (with a
-#: DeprecationWarning) until 0.3.
-_MOVED = {
-    "io": "scans.io", "io_read": "scans.io_read", "io_write": "scans.io_write", "normals": "scans.normals",
-    "cleaning": "scans.cleaning", "boundary": "scans.boundary", "shapes": "reference.shapes",
-    "sampling": "reference.sampling", "functions": "reference.functions", "errors": "reference.errors",
-    "accuracy": "reference.accuracy", "render": "viz.render", "plots": "viz.plots",
-}
 
 __all__ = ["PointCloud", "Surface", "Domain2D", "read", "write", "estimate_normals", "get_num_threads",
            "set_num_threads", "ManifoldSPHWarning", "__version__"]
@@ -54,12 +46,6 @@ __all__ = ["PointCloud", "Surface", "Domain2D", "read", "write", "estimate_norma
 def __getattr__(name: str):
     if name in _SUBMODULES:
         return _importlib.import_module(f"{__name__}.{name}")
-    if name in _MOVED:
-        import warnings
-
-        warnings.warn(f"manifold_sph.{name} moved to manifold_sph.{_MOVED[name]}: import it from there",
-                      DeprecationWarning, stacklevel=2)
-        return _importlib.import_module(f"{__name__}.{_MOVED[name]}")
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 

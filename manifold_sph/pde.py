@@ -27,8 +27,8 @@ Which Laplacian (``laplacian=`` of every solver):
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Callable, NamedTuple
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 import scipy.sparse as sp
@@ -36,7 +36,7 @@ import scipy.sparse.linalg as spla
 from numpy.typing import ArrayLike
 
 from .exceptions import ManifoldSPHWarning
-from ._results import LegacyArray, short_repr, to_dict
+from .results import Result
 from ._sparse import RowBlocks, _dot, bicgstab_csr
 from ._validation import as_field, check_in, check_int, check_positive
 from .operators import OperatorSet
@@ -64,8 +64,8 @@ __all__ = [
 HEAT_METHODS = ("explicit", "implicit", "crank-nicolson")
 
 
-@dataclass(frozen=True, eq=False)
-class Solution(LegacyArray):
+@dataclass(frozen=True, eq=False, repr=False)
+class Solution(Result):
     """What :func:`heat` and :func:`wave` return, whatever the options.
 
     Attributes
@@ -80,10 +80,6 @@ class Solution(LegacyArray):
     laplacian : str
         The Laplacian the steps used: ``"strong"``, ``"stable"`` (what ``"auto"``
         chose) or ``"matrix"`` (one passed in).
-
-    Until 0.3 a Solution also stands in for 0.1's return values (the final array
-    without ``every=``, ``Snapshots(snapshots, times)`` with it), with a
-    DeprecationWarning naming the attribute to use.
 
     Examples
     --------
@@ -100,22 +96,6 @@ class Solution(LegacyArray):
     times: np.ndarray
     snapshots: np.ndarray
     laplacian: str
-    _legacy_kind: str = field(default="none", repr=False)
-
-    def to_dict(self) -> dict:
-        """The fields as a dict (arrays stay arrays)."""
-        return to_dict(self, skip=("_legacy_kind",))
-
-    def __repr__(self) -> str:
-        return short_repr(self)
-
-
-def __getattr__(name: str) -> type:
-    if name == "Snapshots":  # 0.1's return type of heat/wave with every=, until 0.3
-        warnings.warn("pde.Snapshots is deprecated: heat and wave return pde.Solution (.snapshots, .times, .u)",
-                      DeprecationWarning, stacklevel=2)
-        return Solution
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 # ----------------------------------------------------------------------------- helpers
@@ -302,8 +282,7 @@ class _Recorder:
             self.times.append(step * self.dt)
 
     def result(self, u, laplacian):
-        return Solution(u, np.array(self.times), np.array(self.saved), laplacian,
-                        "snapshots" if self.every else "array")
+        return Solution(u, np.array(self.times), np.array(self.saved), laplacian)
 
 
 def _check_steps(dt, steps, every):
@@ -387,14 +366,13 @@ def _rho_of(op: _Operator) -> float:
 
 
 def explicit_dt_limit(surface: OperatorSet, *, equation: str = "heat", diffusivity: float = 1.0, c: float = 1.0,
-                      laplacian: str | sp.spmatrix | sp.sparray | np.ndarray | None = "auto", k: float | None = None) -> float:
+                      laplacian: str | sp.spmatrix | sp.sparray | np.ndarray | None = "auto") -> float:
     """Largest stable time step of the explicit schemes, from the spectral radius ``rho`` of ``L``.
 
     Heat (forward Euler): ``2 / (diffusivity rho)``. Wave (centred): ``2 / (c sqrt(rho))``.
     Exact for eigenvalues on the negative real axis (always the case with
     ``laplacian="stable"``); complex eigenvalues near the imaginary axis are not
-    covered (use an implicit method). ``laplacian`` as in :func:`heat`. ``k`` is the
-    deprecated name of ``diffusivity`` (heat) or ``c`` (wave).
+    covered (use an implicit method). ``laplacian`` as in :func:`heat`.
 
     Examples
     --------
@@ -407,20 +385,10 @@ def explicit_dt_limit(surface: OperatorSet, *, equation: str = "heat", diffusivi
     """
     check_in("equation", equation, ("heat", "wave"))
     if equation == "heat":
-        speed = check_positive("diffusivity", _renamed("k", k, "diffusivity", diffusivity, 1.0))
+        speed = check_positive("diffusivity", diffusivity)
     else:
-        speed = check_positive("c", _renamed("k", k, "c", c, 1.0))
+        speed = check_positive("c", c)
     return _dt_limit(surface, _operator(surface, laplacian), speed, equation)
-
-
-def _renamed(old: str, old_value, new: str, new_value, default):
-    """``new_value``, or ``old_value`` passed under the deprecated name ``old`` (with a warning)."""
-    if old_value is None:
-        return new_value
-    if new_value != default:
-        raise TypeError(f"pass {new}= only: {old}= is its deprecated name")
-    warnings.warn(f"{old}= is deprecated: pass {new}=", DeprecationWarning, stacklevel=3)
-    return old_value
 
 
 def _dt_limit(surface, op: _Operator, k: float, equation: str) -> float:
@@ -452,7 +420,6 @@ def heat(
     callback: Callable | None = None,
     laplacian: str | sp.spmatrix | sp.sparray | np.ndarray | None = "auto",
     solver: str = "auto",
-    k: float | None = None,
 ) -> Solution:
     """Heat equation ``u_t = diffusivity Lap_S u``.
 
@@ -485,8 +452,6 @@ def heat(
         particles ``sum(M u)`` is conserved to round-off, and implicit Euler keeps
         ``u`` within the range of the initial values (discrete maximum principle;
         Crank-Nicolson does so only for small ``dt``).
-    k : float, optional
-        Deprecated name of ``diffusivity`` (a DeprecationWarning says so).
     solver : {"auto", "direct", "iterative"}
         Implicit steps: one sparse LU reused for all steps ("direct"), or
         Jacobi-preconditioned BiCGSTAB on both cores, started from the current
@@ -499,9 +464,7 @@ def heat(
     -------
     Solution
         ``.u`` the final state (N,), ``.snapshots`` (S, N) saved at ``.times`` (S,),
-        ``.laplacian`` the Laplacian used. (0.1 returned the array, or a
-        ``Snapshots`` tuple with ``every=``; that use works until 0.3 with a
-        DeprecationWarning.)
+        ``.laplacian`` the Laplacian used.
 
     Examples
     --------
@@ -518,7 +481,7 @@ def heat(
     n = surface.n_points
     u = as_field("u0", u0, n).copy()
     dt, steps, every = _check_steps(dt, steps, every)
-    k = check_positive("diffusivity", _renamed("k", k, "diffusivity", diffusivity, 1.0))
+    k = check_positive("diffusivity", diffusivity)
     check_in("method", method, HEAT_METHODS)
     check_in("solver", solver, ("auto", "direct", "iterative"))
     op = _operator(surface, laplacian)

@@ -2,16 +2,12 @@
 
 from __future__ import annotations
 
-import warnings
-from typing import TYPE_CHECKING
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from ._validation import as_points
-
-if TYPE_CHECKING:
-    from .reference.shapes import ImplicitShape
 
 __all__ = ["PointCloud", "MIN_POINTS"]
 
@@ -31,8 +27,6 @@ class PointCloud:
     geometry : object, optional
         The exact geometry the cloud samples (an implicit shape from
         :mod:`manifold_sph.reference.shapes`), giving exact references. ``None`` for scans.
-    shape : object, optional
-        Deprecated name of ``geometry`` (a DeprecationWarning says so).
 
     Raises
     ------
@@ -55,14 +49,8 @@ class PointCloud:
         points: ArrayLike,
         normals: ArrayLike | None = None,
         *,
-        geometry: ImplicitShape | None = None,
-        shape: ImplicitShape | None = None,
+        geometry: Any = None,
     ) -> None:
-        if shape is not None:
-            if geometry is not None:
-                raise TypeError("pass geometry= only: shape= is its deprecated name")
-            warnings.warn("PointCloud(shape=...) is deprecated: pass geometry=", DeprecationWarning, stacklevel=2)
-            geometry = shape
         pts = as_points("points", points)
         n = pts.shape[0]
         if n < MIN_POINTS:
@@ -86,14 +74,7 @@ class PointCloud:
             self._normals = nrm / length[:, None]
             self._normals.flags.writeable = False
         #: The exact geometry the cloud samples (a :mod:`manifold_sph.reference.shapes` shape), or None.
-        self.geometry: ImplicitShape | None = geometry
-
-    @property
-    def shape(self) -> ImplicitShape | None:
-        """Deprecated: the sampled geometry, now :attr:`geometry` (``.shape`` suggested an array shape)."""
-        warnings.warn("PointCloud.shape is deprecated (it is the sampled geometry, not an array shape): "
-                      "use PointCloud.geometry", DeprecationWarning, stacklevel=2)
-        return self.geometry
+        self.geometry: Any = geometry
 
     @property
     def points(self) -> np.ndarray:

@@ -292,7 +292,8 @@ def _mesh_reference(name):
     path = MODELS / f"{name}.obj"
     if not path.is_file():
         pytest.skip(f"{path} not found (the models live outside the repository)")
-    from manifold_sph.scans.io import mesh_vertex_normals, read_mesh
+    from manifold_sph.scans.convert import mesh_vertex_normals
+    from manifold_sph.scans.io import read_mesh
 
     v, f = read_mesh(path)
     u, inv = np.unique(v, axis=0, return_inverse=True)

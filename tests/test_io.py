@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from manifold_sph.reference import shapes
-from manifold_sph.scans import io
+from manifold_sph.scans import convert
 from manifold_sph.scans.io import ReadError, read, read_mesh, write
 
 FORMATS = ["ply", "pcd", "xyz", "txt", "csv", "obj", "npy", "npz", "vtk", "vtp"]
@@ -82,7 +82,7 @@ def test_ply_faces_give_mesh_normals(tmp_path, fmt):
     v, f = read_mesh(path)
     np.testing.assert_array_equal(v, OCT_V)
     np.testing.assert_array_equal(f, OCT_F)
-    np.testing.assert_allclose(io.mesh_vertex_normals(v, f), OCT_V / 1.0, atol=1e-12)
+    np.testing.assert_allclose(convert.mesh_vertex_normals(v, f), OCT_V / 1.0, atol=1e-12)
 
 
 def test_ply_triangle_strips(tmp_path):
@@ -206,31 +206,31 @@ def test_write_bad_input(tmp_path, cloud):
 
 
 def test_conversions(cloud):
-    pv_mesh = io.to_pyvista(cloud, {"u": np.arange(200.0)})
-    back, fields = io.from_pyvista(pv_mesh, return_fields=True)
+    pv_mesh = convert.to_pyvista(cloud, {"u": np.arange(200.0)})
+    back, fields = convert.from_pyvista(pv_mesh, return_fields=True)
     np.testing.assert_array_equal(back.points, cloud.points)
     np.testing.assert_allclose(back.normals, cloud.normals)
     assert fields["u"][5] == 5.0
 
-    tm = io.to_trimesh(cloud)
-    back = io.from_trimesh(tm)
+    tm = convert.to_trimesh(cloud)
+    back = convert.from_trimesh(tm)
     np.testing.assert_array_equal(back.points, cloud.points)
     np.testing.assert_allclose(back.normals, cloud.normals)
 
     import trimesh.creation
 
     ico = trimesh.creation.icosphere(subdivisions=2)
-    back = io.from_trimesh(ico)
+    back = convert.from_trimesh(ico)
     assert np.einsum("ij,ij->i", back.normals, back.points).min() > 0.95
 
-    o3 = io.to_open3d(cloud)
-    back = io.from_open3d(o3)
+    o3 = convert.to_open3d(cloud)
+    back = convert.from_open3d(o3)
     np.testing.assert_array_equal(back.points, cloud.points)
     np.testing.assert_allclose(back.normals, cloud.normals)
 
     with pytest.raises(TypeError, match="pyvista DataSet"):
-        io.from_pyvista(cloud)
+        convert.from_pyvista(cloud)
     with pytest.raises(TypeError, match="trimesh"):
-        io.from_trimesh(cloud)
+        convert.from_trimesh(cloud)
     with pytest.raises(TypeError, match="open3d"):
-        io.from_open3d(cloud)
+        convert.from_open3d(cloud)

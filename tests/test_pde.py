@@ -237,18 +237,10 @@ def test_targets_at_8672():
     assert np.abs(u).max() <= np.abs(u0).max()
 
 
-def test_diffusivity_replaces_k():
-    """The diffusivity is spelled out (k read like a count of neighbours or eigenvalues); k= works for
-    one release with a DeprecationWarning, and both at once is an error."""
+def test_options_are_keyword_only():
     s = Surface(shapes.sphere(500), area="shepard")
     z = s.points[:, 2]
-    new = pde.heat(s, z, dt=0.01, steps=3, diffusivity=2.0).u
-    with pytest.warns(DeprecationWarning, match="k= is deprecated: pass diffusivity="):
-        old = pde.heat(s, z, dt=0.01, steps=3, k=2.0).u
-    np.testing.assert_array_equal(new, old)
-    with pytest.raises(TypeError, match="pass diffusivity= only"):
-        pde.heat(s, z, dt=0.01, steps=3, diffusivity=2.0, k=2.0)
-    with pytest.warns(DeprecationWarning, match="k= is deprecated: pass c="):
-        assert pde.explicit_dt_limit(s, equation="wave", k=3.0) == pde.explicit_dt_limit(s, equation="wave", c=3.0)
     with pytest.raises(TypeError):
-        pde.heat(s, z, 0.01, 3, 1.0, "implicit")  # options are keyword-only
+        pde.heat(s, z, 0.01, 3, 1.0, "implicit")
+    with pytest.raises(TypeError):
+        pde.heat(s, z, dt=0.01, steps=3, k=2.0)  # k is a count in this package, never a diffusivity

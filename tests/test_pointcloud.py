@@ -49,20 +49,12 @@ def test_non_numeric_is_a_type_error():
         PointCloud([["a", "b", "c"]] * 12)
 
 
-def test_geometry_replaces_the_shape_name():
-    """``PointCloud.shape`` read like numpy's array shape but held the sampled geometry: it is now
-    ``geometry``; the old name still works for one release, with a DeprecationWarning."""
+def test_a_cloud_keeps_the_geometry_it_samples():
     from manifold_sph.reference import shapes
 
     c = shapes.sphere(50)
     assert c.geometry is not None and c.geometry.name == "sphere"
-    with pytest.warns(DeprecationWarning, match="PointCloud.shape is deprecated"):
-        assert c.shape is c.geometry
-    with pytest.warns(DeprecationWarning, match=r"PointCloud\(shape=...\) is deprecated"):
-        old = PointCloud(c.points, shape=c.geometry)
-    assert old.geometry is c.geometry
-    with pytest.raises(TypeError, match="pass geometry= only"):
-        PointCloud(c.points, geometry=c.geometry, shape=c.geometry)
+    assert PointCloud(c.points, geometry=c.geometry).geometry is c.geometry
     assert "geometry=sphere" in repr(c)
 
 

@@ -1,4 +1,4 @@
-"""One convention for results (issue 17): frozen dataclasses with named fields, 0.1's access kept until 0.3."""
+"""One convention for results: frozen dataclasses with named fields, ``to_dict()`` and a short repr."""
 
 import ast
 import dataclasses
@@ -41,41 +41,6 @@ def test_heat_and_wave_return_a_solution_whatever_the_options(surf):
     assert "array (400,)" in repr(w)  # arrays shown by shape, not printed
 
 
-def test_heat_without_every_still_acts_as_the_final_array_until_0_3(surf):
-    z = surf.points[:, 2]
-    sol = pde.heat(surf, z, dt=0.01, steps=3)
-    u = sol.u
-    with pytest.warns(DeprecationWarning, match=r"Solution used as an array is deprecated .* use \.u"):
-        np.testing.assert_array_equal(sol - z, u - z)
-    with pytest.warns(DeprecationWarning, match="Solution used as an array"):
-        np.testing.assert_array_equal(2.0 * sol, 2.0 * u)
-    with pytest.warns(DeprecationWarning, match="Solution used as an array"):
-        assert np.linalg.norm(sol) == np.linalg.norm(u)
-    with pytest.warns(DeprecationWarning, match="Solution used as an array"):
-        assert sol.shape == (400,) and sol.max() == u.max()
-    with pytest.warns(DeprecationWarning, match="Solution used as an array"):
-        assert sol[7] == u[7] and len(sol) == 400
-    with pytest.raises(AttributeError):
-        sol.no_such_attribute  # noqa: B018 - only ndarray names are forwarded
-
-
-def test_wave_with_every_still_unpacks_as_snapshots_until_0_3(surf):
-    sol = pde.wave(surf, surf.points[:, 2], dt=0.01, steps=4, every=2)
-    with pytest.warns(DeprecationWarning, match=r"Solution used as a \(snapshots, times\) tuple"):
-        snaps, times = sol
-    assert snaps is sol.snapshots and times is sol.times
-    with pytest.raises(TypeError):  # a Snapshots tuple was never an array
-        np.asarray(sol)
-    with pytest.warns(DeprecationWarning, match=r"pde\.Snapshots is deprecated"):
-        assert pde.Snapshots is pde.Solution
-
-
-def test_the_suite_turns_our_result_deprecations_into_errors(surf):
-    """pyproject's filterwarnings: our own code and tests must use the new attributes."""
-    sol = pde.heat(surf, surf.points[:, 2], dt=0.01, steps=1)
-    with pytest.raises(DeprecationWarning):
-        sol + 1.0  # noqa: B018
-
 
 def test_spem_run_returns_a_run_result():
     lay = yee_layout((0.0, 0.1, 0.0, 0.1), 0.01)
@@ -86,9 +51,6 @@ def test_spem_run_returns_a_run_result():
     assert res.times.shape == (6,) and res.probes.shape == (6, 2) and res.seconds >= 0
     assert res.snapshots.shape == (2, s.n_e) and np.allclose(res.snapshot_times, res.times[[2, 5]])
     np.testing.assert_array_equal(res.snapshots[-1], s.e_field)
-    with pytest.warns(DeprecationWarning, match=r"RunResult\['snapshots'\] is deprecated .* use \.snapshots"):
-        old = res["snapshots"]  # 0.1's list of (time, field)
-    assert [t for t, _ in old] == res.snapshot_times.tolist()
     empty = s.run(2)
     assert empty.snapshots.shape == (0, s.n_e) and empty.probes.shape == (2, 0)
 
@@ -96,7 +58,7 @@ def test_spem_run_returns_a_run_result():
 @pytest.fixture(scope="module")
 def cavity():
     # frames=1: one snapshot, at the last step (with frames=2 the last snapshot falls on the last step only
-    # when the step count is even: 5 steps since the cavity's denser wall, issue 21)
+    # when the step count is even)
     return run_case("cavity", n_radial=4, periods=0.2, frames=1)
 
 
@@ -112,16 +74,6 @@ def test_spem_cases_return_named_fields_and_json(cavity):
     np.testing.assert_allclose(f.times[-1], r.steps * r.dt)
 
 
-def test_spem_case_dict_access_works_until_0_3_with_a_warning(cavity):
-    with pytest.warns(DeprecationWarning, match=r"CavityResult\['error'\] is deprecated .* use \.error"):
-        assert cavity["error"] == cavity.error
-    with pytest.warns(DeprecationWarning, match=r"CavityResult\['_points'\]"):
-        assert cavity["_points"] is cavity.fields.points
-    with pytest.warns(DeprecationWarning):
-        assert "f1_error" not in cavity  # 0.1 left out what was not computed
-    with pytest.warns(DeprecationWarning, match="use to_dict"):
-        assert set(cavity.keys()) >= {"case", "particles", "steps", "seconds", "step_seconds", "error"}
-
 
 def _imports(path):
     tree = ast.parse(path.read_text())
@@ -129,7 +81,7 @@ def _imports(path):
 
 
 def test_spem_case_modules_import_one_way():
-    """Issue 17: cases and cases2d imported each other; now cases -> cases2d -> _casekit -> results only."""
+    """The case modules import one way: cases -> cases2d -> _casekit -> results."""
     assert "cases" not in _imports(SPEM / "cases2d.py")
     assert not {"cases", "cases2d"} & _imports(SPEM / "_casekit.py")
     assert not {"cases", "cases2d", "solver", "_casekit"} & _imports(SPEM / "results.py")

@@ -201,13 +201,3 @@ def test_poisson_large(name):
     assert len(p) == 131072
     assert nearest_neighbor_cv(p) < 0.1
 
-
-def test_old_spelling_still_works_with_a_warning():
-    """The public API spells "neighbor" (as find_neighbors, Neighborhood, neighbors=); the British
-    names of the sampling helpers remain for one release."""
-    import manifold_sph.reference.sampling as smp
-
-    with pytest.warns(DeprecationWarning, match="use nearest_neighbor_cv"):
-        assert smp.nearest_neighbour_cv is nearest_neighbor_cv
-    with pytest.raises(AttributeError):
-        smp.nearest_neighbour_nothing

@@ -28,8 +28,8 @@ Every random sampler takes ``seed`` and is reproducible
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
-from typing import TYPE_CHECKING, Any
+from collections.abc import Sequence
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -39,8 +39,24 @@ from .._validation import as_points, check_finite, check_in, check_int, check_po
 from ..pointcloud import MIN_POINTS
 from ..threads import get_num_threads
 
-if TYPE_CHECKING:
-    from .shapes import ImplicitShape
+
+
+class ImplicitShape(Protocol):
+    """What the surface samplers need of a shape (:class:`manifold_sph.reference.shapes.ImplicitShape`)."""
+
+    area: float
+
+    def normal(self, x: ArrayLike) -> np.ndarray: ...
+
+    def project(self, x: ArrayLike) -> np.ndarray: ...
+
+    def project_near(self, x: np.ndarray) -> np.ndarray: ...
+
+    def axis_coordinate(self, x: ArrayLike) -> np.ndarray: ...
+
+    def uniform_random_points(self, n: int, rng: np.random.Generator) -> np.ndarray: ...
+
+    def fibonacci_points(self, n: int) -> np.ndarray: ...
 
 __all__ = [
     "SURFACE_SAMPLINGS",
@@ -203,9 +219,9 @@ def _relax(P, spacing, move, n_iter, ghosts=None):
 
 def _surface_move(shape):
     def move(P, disp):
-        n, _ = shape._unit_normal(P)
+        n = shape.normal(P)
         disp = disp - np.einsum("ni,ni->n", disp, n)[:, None] * n
-        return shape._approx_project(P + disp)
+        return shape.project_near(P + disp)
 
     return move
 
@@ -252,13 +268,13 @@ def sample_surface(
     density_ratio = check_positive("density_ratio", density_ratio)
     iterations = POISSON_ITERATIONS if iterations is None else check_int("iterations", iterations, minimum=0)
     if sampling == "fibonacci":
-        return shape._fibonacci(n)
+        return shape.fibonacci_points(n)
     rng = _rng(seed)
     if sampling == "random":
-        return shape._uniform_random(n, rng)
+        return shape.uniform_random_points(n, rng)
     area = shape.area
     if sampling == "poisson":
-        P = shape._uniform_random(n, rng)
+        P = shape.uniform_random_points(n, rng)
         s0 = math.sqrt(_HEX * area / n)
         P = _relax(P, lambda Q: np.full(len(Q), s0), _surface_move(shape), iterations)
         return shape.project(P)
@@ -269,7 +285,7 @@ def sample_surface(
     got = 0
     while got < n:
         m = int(2.5 * wmax * (n - got)) + 64
-        cand = shape._uniform_random(m, rng)
+        cand = shape.uniform_random_points(m, rng)
         w = _density_weight(shape.axis_coordinate(cand), q)
         wsum += float(w.sum())
         m_total += m
@@ -468,14 +484,3 @@ def square(
         raise RuntimeError("square sampling produced duplicate points; try another seed")
     return P
 
-
-def __getattr__(name: str) -> Callable[..., Any]:
-    """The old British spellings, kept for one release (the public API spells ``neighbor``)."""
-    old = {"nearest_neighbour_distances": nearest_neighbor_distances, "nearest_neighbour_cv": nearest_neighbor_cv}
-    if name in old:
-        import warnings
-
-        new = old[name].__name__
-        warnings.warn(f"manifold_sph.reference.sampling.{name} is deprecated: use {new}", DeprecationWarning, stacklevel=2)
-        return old[name]
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

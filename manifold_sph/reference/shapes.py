@@ -281,7 +281,7 @@ class ImplicitShape:
         step[big] *= (self._max_step / slen[big])[:, None]
         return x - step, np.abs(f) / np.sqrt(g2)
 
-    def _approx_project(self, x: np.ndarray) -> np.ndarray:
+    def project_near(self, x: np.ndarray) -> np.ndarray:
         """Cheap projection for points already near the surface (two Newton steps)."""
         x, _ = self._newton_step(x)
         x, _ = self._newton_step(x)
@@ -446,7 +446,7 @@ class ImplicitShape:
         """Surface area: exact when known, else a numerical estimate (see subclass)."""
         return self._numerical_area()
 
-    def _uniform_random(self, n: int, rng: np.random.Generator) -> np.ndarray:
+    def uniform_random_points(self, n: int, rng: np.random.Generator) -> np.ndarray:
         """``n`` area-uniform random points (default: via a fine triangle mesh).
 
         Triangles of the projected, once-subdivided marching-cubes mesh are drawn
@@ -585,14 +585,14 @@ class Sphere(ImplicitShape):
             raise ValueError("cannot project the sphere's center onto the sphere")
         return self.center + self.radius * d / dn[:, None]
 
-    def _approx_project(self, x):
+    def project_near(self, x: np.ndarray) -> np.ndarray:
         return self.project(x)
 
-    def _uniform_random(self, n, rng):
+    def uniform_random_points(self, n: int, rng: np.random.Generator) -> np.ndarray:
         g = rng.standard_normal((n, 3))
         return self.center + self.radius * g / np.linalg.norm(g, axis=1)[:, None]
 
-    def _fibonacci(self, n):
+    def fibonacci_points(self, n: int) -> np.ndarray:
         return self.center + self.radius * _sampling.fibonacci_sphere(n)
 
 
@@ -695,7 +695,7 @@ class Torus(ImplicitShape):
             raise ValueError("cannot project points on the torus core circle: every tube point is closest")
         return self.center + core + self.r * e / en[:, None]
 
-    def _approx_project(self, x):
+    def project_near(self, x: np.ndarray) -> np.ndarray:
         return self.project(x)
 
     def parametrization(self, t: ArrayLike, p: ArrayLike) -> np.ndarray:
@@ -705,7 +705,7 @@ class Torus(ImplicitShape):
         w = self.R + self.r * np.cos(t)
         return self.center + np.stack([w * np.cos(p), w * np.sin(p), self.r * np.sin(t)], axis=-1)
 
-    def _uniform_random(self, n, rng):
+    def uniform_random_points(self, n: int, rng: np.random.Generator) -> np.ndarray:
         # area element r (R + r cos t) dt dp: rejection in t
         out = np.empty(0)
         while out.size < n:
@@ -1035,7 +1035,7 @@ class Sausage(ImplicitShape):
         """The two tips (theta = +theta0 and -theta0), shape (2, 3)."""
         return self.parametrization(np.array([self.theta0, -self.theta0]), np.zeros(2))
 
-    def _uniform_random(self, n, rng):
+    def uniform_random_points(self, n: int, rng: np.random.Generator) -> np.ndarray:
         # rejection in (theta, alpha) with the bounded area density
         r, Rc = self.tube_radius, self.arc_radius
         bound = math.hypot(r * (Rc + r), 0.5 * r * r * self.power / self.theta0)

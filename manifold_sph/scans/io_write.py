@@ -186,7 +186,7 @@ def write_format(tmp: Path, fmt: str, points: np.ndarray, normals: np.ndarray | 
                  raw_fields: dict[str, np.ndarray], binary: bool, cloud_for_vtk: PointCloud | np.ndarray) -> None:
     """Write the data in format ``fmt`` to the temporary file ``tmp``."""
     if fmt == "vtk":
-        from .io import to_pyvista
+        from .convert import to_pyvista
 
         to_pyvista(cloud_for_vtk, raw_fields).save(str(tmp), binary=binary)
         return

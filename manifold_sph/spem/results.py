@@ -6,8 +6,7 @@ Frozen dataclasses with named fields (the package's convention, README
 ``seconds`` (wall time of the whole call), ``step_seconds`` (the stepping
 alone), ``error``, ``dt``, ``dr`` and ``fields`` (the E field for pictures,
 :class:`FieldHistory`, when asked for with ``frames=``), plus its own
-quantities. Until 0.3, ``r["error"]`` (0.1's dicts) still works with a
-DeprecationWarning.
+quantities.
 
 Examples
 --------
@@ -21,18 +20,18 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 
-from .._results import DictAccess, short_repr, to_dict
+from ..results import Result
 
 __all__ = ["RunResult", "FieldHistory", "CaseResult", "LineResult", "CavityResult", "PlanewaveResult",
            "WaveguideResult", "PMLResult"]
 
 
 @dataclass(frozen=True, repr=False, eq=False)
-class RunResult(DictAccess):
+class RunResult(Result):
     """What :meth:`TMzSolver.run <manifold_sph.spem.TMzSolver.run>` and ``Line1DSolver.run`` return.
 
     Attributes
@@ -54,12 +53,6 @@ class RunResult(DictAccess):
     snapshot_times: np.ndarray
     seconds: float
 
-    # 0.1's "snapshots" key was a list of (time, field) pairs
-    _LEGACY_KEYS = {"snapshots": lambda r: list(zip(r.snapshot_times.tolist(), r.snapshots))}
-
-    def __repr__(self) -> str:
-        return short_repr(self)
-
 
 class FieldHistory(NamedTuple):
     """The E field of a case for pictures: ``snapshots[i]`` at ``times[i]`` on ``points``; ``exact`` or None."""
@@ -71,7 +64,7 @@ class FieldHistory(NamedTuple):
 
 
 @dataclass(frozen=True, repr=False, eq=False, kw_only=True)
-class CaseResult(DictAccess):
+class CaseResult(Result):
     """The fields every validation case reports (:mod:`manifold_sph.spem.cases`).
 
     ``error`` is mean |numerical - exact| / max |exact| over the case's
@@ -89,17 +82,7 @@ class CaseResult(DictAccess):
     dr: float
     fields: FieldHistory | None = dataclasses.field(default=None, repr=False)
 
-    # 0.1's private picture keys
-    _LEGACY_KEYS = {"_points": lambda r: r.fields.points if r.fields else None,
-                    "_snapshots": lambda r: list(zip(r.fields.times.tolist(), r.fields.snapshots)) if r.fields else None,
-                    "_exact": lambda r: r.fields.exact if r.fields else None}
-
-    def to_dict(self) -> dict[str, Any]:
-        """The JSON-ready fields (every field but ``fields``)."""
-        return to_dict(self, skip=("fields",))
-
-    def __repr__(self) -> str:
-        return short_repr(self)
+    _dict_skip = ("fields",)
 
 
 @dataclass(frozen=True, repr=False, eq=False, kw_only=True)

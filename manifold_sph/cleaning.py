@@ -1,8 +1,0 @@
-"""Deprecated location of :mod:`manifold_sph.scans.cleaning` (moved in 0.2; this path works until 0.3)."""
-
-import importlib as _importlib
-import sys as _sys
-import warnings as _warnings
-
-_warnings.warn("manifold_sph.cleaning moved to manifold_sph.scans.cleaning: import it from there", DeprecationWarning, stacklevel=2)
-_sys.modules[__name__] = _importlib.import_module("manifold_sph.scans.cleaning")
