@@ -58,7 +58,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numpy.typing import ArrayLike
 
-from ._results import short_repr, to_dict
+from .results import Result
 from ._validation import check_bool, check_in, check_int, check_positive
 
 __all__ = [
@@ -95,8 +95,8 @@ class SolverConvergenceError(RuntimeError):
     """An iterative solve did not reach its tolerance in its iteration budget."""
 
 
-@dataclasses.dataclass(frozen=True)
-class SolveInfo:
+@dataclasses.dataclass(frozen=True, repr=False)
+class SolveInfo(Result):
     """What a :class:`SparseSolver` did: its method, set-up and the last solve.
 
     Attributes
@@ -128,13 +128,6 @@ class SolveInfo:
     iterations: int
     residual: float
     seconds: float
-
-    def to_dict(self) -> dict[str, Any]:
-        """The fields as a dict (JSON-ready)."""
-        return to_dict(self)
-
-    def __repr__(self) -> str:
-        return short_repr(self)
 
 
 def cholesky_available() -> bool:
