@@ -75,7 +75,7 @@ sampled on 40 meridian circles of 16 points, thin closed slabs: flat ellipsoids 
 third semi-axis of 0.5, 1 and 2 spacings, 2000 area-uniform random points): median
 angle, particles more than 30 degrees off and pointing inward, with everything ("all"),
 without the consensus of step 7 and without the row normals of step 2b (module notes of
-manifold_sph.scans.normals). The slabs with the default, inward (seeds 0, 1): 540 / 472,
+manifold_sph.normals). The slabs with the default, inward (seeds 0, 1): 540 / 472,
 160 / 86 and 7 / 9 of 2000 (a band of one face next to the rim); with
 ``orient="visible"`` (step 8) 11 / 5, 7 / 7 and 4 / 1.
 
@@ -177,7 +177,7 @@ from scipy.sparse import csgraph
 from manifold_sph.reference import shapes
 from manifold_sph.reference.sampling import sample_triangles
 from manifold_sph.scans.io import read_mesh
-from manifold_sph.scans.normals import estimate_normals
+from manifold_sph.normals import estimate, estimate_normals, tuning
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 MODELS = [DATA / "models" / f for f in ("cow.obj", "homer.obj", "rocker-arm.obj", "cheburashka.obj", "teapot.obj", "beetle.obj", "alligator.obj")]
@@ -548,25 +548,23 @@ def flat_ellipsoid(n=2000, thickness=1.0, seed=0):
 
 
 def synthetic():
-    from manifold_sph.scans import normals as mod
-
     clouds = [(f"thin torus seed {s}", shapes.thin_torus(seed=s)) for s in range(3)]
     clouds += [(f"ring sphere seed {s}", shapes.ring_sphere(seed=s)) for s in range(3)]
     cases = [(name, (c.points, c.normals)) for name, c in clouds]
     cases += [(f"meridian torus {s}", meridian_torus(seed=s)) for s in range(2)]
     cases += [(f"slab {t:g} sp seed {s}", flat_ellipsoid(thickness=t, seed=s)) for t in (0.5, 1.0, 2.0) for s in range(2)]
     print(f"\n{'cloud':20s} {'points':>7s} {'steps':>10s} {'median':>7s} {'>30deg':>7s} {'inward':>7s}")
-    original, steep = mod._consensus, mod._ROW_STEEP
+    original, steep = estimate.consensus_normals, tuning.ROW_STEEP
     for name, (p, exact) in cases:
         for label in ("all", "no step 7", "no 2b"):
             if label == "no step 7":
-                mod._consensus = lambda pts, nb, n, fixed=None: (n, None)
+                estimate.consensus_normals = lambda pts, nb, n, fixed=None: (n, None)
             if label == "no 2b":
-                mod._ROW_STEEP = 0
+                tuning.ROW_STEEP = 0
             try:
                 d = np.einsum("ij,ij->i", estimate_normals(p), exact)
             finally:
-                mod._consensus, mod._ROW_STEEP = original, steep
+                estimate.consensus_normals, tuning.ROW_STEEP = original, steep
             ang = np.degrees(np.arccos(np.clip(np.abs(d), 0.0, 1.0)))
             print(f"{name:20s} {len(p):7d} {label:>10s} {np.median(ang):6.2f}d {int((ang > 30).sum()):7d} {int((d < 0).sum()):7d}", flush=True)
 
@@ -594,23 +592,21 @@ def _crossing_cloud(name, sampling, seed, noise):
 def crossing(seeds=(0, 1, 2)):
     """Closed surfaces passing through each other (the parts of artists' models, assemblies):
     normals disagreeing with each surface's own outward normal, without and with the closed
-    sheets of step 4 (``_SHEETS``). Nested spheres: the inner one wholly inside keeps the
+    sheets of step 4 (``tuning.SHEETS``). Nested spheres: the inner one wholly inside keeps the
     whole field's answer (inward, the inner wall of a hollow ball)."""
-    from manifold_sph.scans import normals as mod
-
     print(f"\n{'crossing surfaces':22s} {'sampling':>8s} {'noise':>5s} {'points':>6s} {'wrong, sheets off':>22s} {'wrong, on (default)':>22s}")
     for name in ("2 spheres", "3 spheres", "torus through sphere", "2 unequal spheres", "head, eyes, teeth", "nested spheres"):
         for sampling in ("random", "poisson"):
             for noise in (0.0, 0.1):
                 res = {}
                 for flag in (False, True):
-                    mod._SHEETS, wrong = flag, []
+                    tuning.SHEETS, wrong = flag, []
                     try:
                         for seed in seeds:
                             P, exact = _crossing_cloud(name, sampling, seed, noise)
                             wrong.append(int((np.einsum("ij,ij->i", estimate_normals(P), exact) < 0).sum()))
                     finally:
-                        mod._SHEETS = True
+                        tuning.SHEETS = True
                     res[flag] = "/".join(map(str, wrong))
                 print(f"{name:22s} {sampling:>8s} {noise:5.1f} {len(P):6d} {res[False]:>22s} {res[True]:>22s}", flush=True)
 
@@ -618,10 +614,8 @@ def crossing(seeds=(0, 1, 2)):
 def noisy(paths, noises=(0.1, 0.3), seeds=(0, 1)):
     """The models' vertices with Gaussian noise of ``noise`` nearest-neighbour spacings (per
     coordinate, seeded): normals disagreeing in sign with the mesh's, with the thin-part cuts of
-    step 3 (``_CUT_THIN``) off and on (the default)."""
+    step 3 (``tuning.CUT_THIN``) off and on (the default)."""
     from scipy.spatial import cKDTree
-
-    from manifold_sph.scans import normals as mod
 
     print(f"\n{'noisy vertices':14s} {'points':>7s} " + " ".join(f"{f'{z:g} sp, seed {s}':>16s}" for z in noises for s in seeds))
     print(f"{'':14s} {'':>7s} " + " ".join(f"{'off -> on':>16s}" for _ in noises for _ in seeds))
@@ -636,12 +630,12 @@ def noisy(paths, noises=(0.1, 0.3), seeds=(0, 1)):
             for seed in seeds:
                 Q = P + z * h * np.random.default_rng(seed).normal(size=P.shape)
                 wrong = []
-                for cut in (0.0, mod._CUT_THIN):
-                    saved, mod._CUT_THIN = mod._CUT_THIN, cut
+                for cut in (0.0, tuning.CUT_THIN):
+                    saved, tuning.CUT_THIN = tuning.CUT_THIN, cut
                     try:
                         wrong.append(int((np.einsum("ij,ij->i", estimate_normals(Q), ref) < 0).sum()))
                     finally:
-                        mod._CUT_THIN = saved
+                        tuning.CUT_THIN = saved
                 cells.append(f"{wrong[0]:>7d} -> {wrong[1]:<5d}")
         print(f"{path.stem:14s} {len(P):7d} " + " ".join(f"{c:>16s}" for c in cells), flush=True)
 

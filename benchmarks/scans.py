@@ -46,7 +46,7 @@ from manifold_sph.reference.accuracy import operator_errors
 from manifold_sph.scans.boundary import detect_boundary
 from manifold_sph.scans.cleaning import clean
 from manifold_sph.scans.io import read
-from manifold_sph.scans.normals import estimate_normals
+from manifold_sph.normals import estimate_normals
 from manifold_sph.pde import heat
 
 SCHEMES = ["standard", "cspm", "msph", "ncsph"]

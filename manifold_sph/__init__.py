@@ -23,7 +23,7 @@ from .pointcloud import PointCloud
 from .surface import Surface
 from .domain import Domain2D
 from .scans.io import read, write
-from .scans.normals import estimate_normals
+from .normals import estimate_normals
 from .threads import get_num_threads, set_num_threads
 from .exceptions import ManifoldSPHWarning
 
@@ -34,7 +34,7 @@ __version__ = "0.2.0"
 # group the periphery.
 _SUBMODULES = (
     "area", "assembly", "cli", "distributed", "domain", "exceptions", "frames", "geometry", "kernels",
-    "neighbors", "operators", "pde", "pointcloud", "results", "schemes", "spem", "surface", "threads", "voronoi",
+    "neighbors", "normals", "operators", "pde", "pointcloud", "results", "schemes", "spem", "surface", "threads", "voronoi",
     "scans", "reference", "viz",
 )
 

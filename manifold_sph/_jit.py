@@ -15,8 +15,6 @@ bound by memory traffic. Each function here does one step for the rows
   condition-number test; a particle that fails is only flagged, and the assembly
   recomputes it (with the fallback chain) through the numpy schemes;
 - :func:`voronoi_rows`: the tangent-plane Voronoi cells of :mod:`manifold_sph.voronoi`;
-- :func:`winding_rows`: the generalised winding numbers (near cells exact, far cells as
-  dipoles) of the normal orientation check in :mod:`manifold_sph.scans.normals`;
 - :func:`csr_matvec_dot`, :func:`csr_matvec_dots2`, :func:`bicgstab_direction`,
   :func:`bicgstab_half`, :func:`bicgstab_step`: the passes of
   :func:`manifold_sph._sparse.bicgstab_csr` (the area elements' solve and the implicit
@@ -83,7 +81,6 @@ __all__ = [
     "tmz_h_half",
     "tmz_h_update",
     "voronoi_rows",
-    "winding_rows",
 ]
 
 
@@ -1253,34 +1250,6 @@ def voronoi_rows(lo, hi, indptr, xy, radius, dup_tol, w, area, flags):
         if 4.0 * rmax2 > radius[i] * radius[i]:
             fl |= 1
         flags[i] = fl
-
-
-# ------------------------------------------------------------ winding numbers
-@(numba.njit(nogil=True, cache=True, fastmath=True, error_model="numpy") if numba is not None else (lambda f: f))
-def winding_rows(lo, hi, Q, P, An, eps2, label, order, cstart, ccen, crad2, aptr, alab, apos, adip, theta2, out):
-    """Winding number per label at queries ``lo:hi``: exact over near cells, one dipole per (cell, label) far."""
-    c4 = 1.0 / (4.0 * np.pi)
-    for i in range(lo, hi):
-        qx, qy, qz = Q[i, 0], Q[i, 1], Q[i, 2]
-        for c in range(ccen.shape[0]):
-            dx = ccen[c, 0] - qx
-            dy = ccen[c, 1] - qy
-            dz = ccen[c, 2] - qz
-            if (dx * dx + dy * dy + dz * dz) * theta2 > crad2[c]:
-                for a in range(aptr[c], aptr[c + 1]):
-                    rx = apos[a, 0] - qx
-                    ry = apos[a, 1] - qy
-                    rz = apos[a, 2] - qz
-                    r2 = rx * rx + ry * ry + rz * rz
-                    out[i, alab[a]] += c4 * (adip[a, 0] * rx + adip[a, 1] * ry + adip[a, 2] * rz) / (r2 * np.sqrt(r2))
-            else:
-                for s in range(cstart[c], cstart[c + 1]):
-                    j = order[s]
-                    rx = P[j, 0] - qx
-                    ry = P[j, 1] - qy
-                    rz = P[j, 2] - qz
-                    r2 = rx * rx + ry * ry + rz * rz + eps2[j]
-                    out[i, label[j]] += c4 * (An[j, 0] * rx + An[j, 1] * ry + An[j, 2] * rz) / (r2 * np.sqrt(r2))
 
 
 # ------------------------------------------------ TMz stencil runs (spem.stencil)

@@ -22,7 +22,7 @@ What is not local is refused or handled globally:
 - Estimated normals: each tile fits and orients its normals consistently; the tiles'
   signs are made to agree through the particles their halos share, and each
   connected group of tiles is then turned outward by the winding-number check of
-  :func:`manifold_sph.scans.normals.orient_normals` on a subsample.
+  :func:`manifold_sph.normals.orient_normals` on a subsample.
 
 Results are Dask arrays in *tile order* (one chunk per tile; :attr:`TiledSurface.order`
 maps them to the input order), written out with :meth:`TiledSurface.to_npy` (input
@@ -198,7 +198,7 @@ def _load_tile(path: str) -> _Tile:
 
 def _tile_surface(spts, snrm, opts, normal_options, estimate):
     """``(Surface, normals used)`` on tile + halo; normals estimated with a consistent orientation if asked."""
-    from .scans.normals import estimate_normals
+    from .normals import estimate_normals
     from .surface import Surface
 
     if estimate:
@@ -209,10 +209,10 @@ def _tile_surface(spts, snrm, opts, normal_options, estimate):
 
 def _dependency_k(k: int, normal_options: dict) -> int:
     """Nearest neighbours a normal depends on: the fit's ``k``, and with ``refine`` (the default) the
-    ``_ROW_K`` nearest of steps 2b and 7 (scans.normals; rows lying on a line search further, rarely)."""
-    from .scans.normals import _ROW_K
+    ``ROW_K`` nearest of steps 2b and 7 (normals.tuning; rows lying on a line search further, rarely)."""
+    from .normals import tuning
 
-    return max(int(k), _ROW_K) if normal_options.get("refine", True) else int(k)
+    return max(int(k), tuning.ROW_K) if normal_options.get("refine", True) else int(k)
 
 
 def _complete_rows(s, spts, n_own, margin, opts, normal_options, estimate, kq):
@@ -223,7 +223,7 @@ def _complete_rows(s, spts, n_own, margin, opts, normal_options, estimate, kq):
     normals (jet fit, two refits) -> smoothing length -> neighbourhood (the
     normal filter looks at every point in the support) -> area element -> row.
     """
-    from .scans.normals import DEFAULT_JET_K
+    from .normals import DEFAULT_JET_K
 
     ns = spts.shape[0]
     nb = s.neighborhood
@@ -836,7 +836,7 @@ class TiledSurface:
     # ------------------------------------------------------------------ build
     def _normal_k(self) -> int:
         """Nearest neighbours of the normal estimation (estimate_normals' default for the options)."""
-        from .scans.normals import DEFAULT_JET_K
+        from .normals import DEFAULT_JET_K
 
         k = self.normal_options.get("k")
         if k is None:
@@ -947,7 +947,7 @@ class TiledSurface:
                 p = pred[node]
                 sign[node] = sign[p] * (1.0 if A[node, p] > 0 else -1.0)
         # outward: the winding-number check on a subsample, per connected group of tiles
-        from .scans.normals import orient_normals
+        from .normals import orient_normals
 
         pts = np.load(self._points_file, mmap_mode="r")
         take = np.unique(np.linspace(0, self.n_points - 1, min(_ORIENT_SAMPLE, self.n_points)).round().astype(np.int64))

@@ -24,7 +24,7 @@ __all__ = ["Surface"]
 
 def _estimate_normals(points: np.ndarray, scheme: Scheme) -> np.ndarray:
     """Normals for a cloud without them: a jet fit of the scheme's Taylor degree (2 to 4)."""
-    from .scans.normals import estimate_normals
+    from .normals import estimate_normals
 
     degree = int(min(max(getattr(scheme, "degree", 2), 2), 4))
     return estimate_normals(points, degree=degree)
@@ -43,7 +43,7 @@ class Surface(OperatorSet):
     normals : array_like, shape (N, 3), optional
         Unit (or unnormalised, non-zero) normals. When neither ``normals`` nor the
         PointCloud has them, they are estimated with
-        :func:`manifold_sph.scans.normals.estimate_normals` (jet fits, oriented outward),
+        :func:`manifold_sph.normals.estimate_normals` (jet fits, oriented outward),
         of the scheme's Taylor degree: 2, and 3 / 4 / 4 for ``msph3`` / ``msph4`` /
         ``msph5`` (whose order needs normals that accurate; the high-degree fit is
         guarded, so thin parts keep the robust degree-2 normal).

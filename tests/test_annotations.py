@@ -49,7 +49,9 @@ MODULES = [
     "manifold_sph._validation",
     "manifold_sph._lazy",
     "manifold_sph.cli",
-    "manifold_sph.scans.normals",
+    "manifold_sph.normals.estimate",
+    "manifold_sph.normals.fitting",
+    "manifold_sph.normals.orientation",
     "manifold_sph.scans.cleaning",
     "manifold_sph.scans.boundary",
     "manifold_sph.scans.io",
@@ -71,7 +73,7 @@ MODULES = [
     "manifold_sph.spem.tez_scattering",
     "manifold_sph.spem.mimetic",
     "manifold_sph.spem.stencil",
-    "manifold_sph.scans.poles",
+    "manifold_sph.normals.poles",
 ]
 
 # module-level dunders that are part of a module's interface (PEP 562)

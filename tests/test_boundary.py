@@ -427,7 +427,7 @@ def _scores(p, rep, ref, free, open_):
 # neighbours all round (median gap 98 degrees: its panels lie 1-2 spacings apart, and its loops of
 # 2-10 vertices, 35 vertices in loops at most 3.5 spacings across, are smaller than a
 # neighbourhood). A finer mesh of the same beetle (19,885 vertices; not in the repository) gives
-# 0.94 recall with 4 % false positives. (Estimated normals come from scans/normals.py, which is
+# 0.94 recall with 4 % false positives. (Estimated normals come from manifold_sph.normals, which is
 # being reworked: looser floors.)
 BOUNDARY_FLOORS = {  # min recall (all, free, open), max false positives; with mesh / estimated normals
     "teapot": ((0.75, 0.75, 0.8, 0.14), (0.5, 0.6, 0.5, 0.22)),

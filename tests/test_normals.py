@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from manifold_sph.reference import shapes
-from manifold_sph.scans.normals import estimate_normals, orient_normals, pca_normals
+from manifold_sph.normals import estimate_normals, orient_normals, pca_normals, tuning
 
 
 def dots(a, b):
@@ -229,9 +229,9 @@ def _ring_sphere(seed=0):
 
 
 def _without_consensus(monkeypatch):
-    from manifold_sph.scans import normals as mod
+    from manifold_sph.normals import estimate
 
-    monkeypatch.setattr(mod, "_consensus", lambda pts, neighbors, normals, fixed=None: (normals, None))
+    monkeypatch.setattr(estimate, "consensus_normals", lambda pts, neighbors, normals, fixed=None: (normals, None))
 
 
 def _unsigned_angles(n, exact):
@@ -240,10 +240,8 @@ def _unsigned_angles(n, exact):
 
 def _unweighted_base(monkeypatch):
     """The base jet fit before the distance weights: uniform weights on the 12 nearest."""
-    from manifold_sph.scans import normals as mod
-
-    monkeypatch.setattr(mod, "_JET_WEIGHT", 0.0)
-    monkeypatch.setitem(mod.DEFAULT_JET_K, 2, 12)
+    monkeypatch.setattr(tuning, "JET_WEIGHT", 0.0)
+    monkeypatch.setitem(tuning.DEFAULT_JET_K, 2, 12)
 
 
 @pytest.mark.parametrize("seed", [0, 1])
@@ -299,13 +297,11 @@ def test_meridian_rows_are_not_taken_for_the_surface(seed, monkeypatch):
     # notes) sees points steeply above and below that plane (the neighbouring circles) and
     # takes the normal across the rows. Measured (seeds 0, 1): 37 / 2 normals > 30 deg off,
     # none inward; without step 2b 281 / 343 and 39 / 60 inward
-    from manifold_sph.scans import normals as mod
-
     p, exact = _meridian_torus(seed=seed)
     d = dots(estimate_normals(p), exact)
     ang = np.degrees(np.arccos(np.clip(np.abs(d), 0, 1)))
     assert (ang > 30).sum() <= 60 and (d < 0).sum() == 0, ((ang > 30).sum(), (d < 0).sum())
-    monkeypatch.setattr(mod, "_ROW_STEEP", 0)  # step 2b off
+    monkeypatch.setattr(tuning, "ROW_STEEP", 0)  # step 2b off
     d = dots(estimate_normals(p), exact)
     assert (np.degrees(np.arccos(np.clip(np.abs(d), 0, 1))) > 30).sum() >= 200 and (d < 0).sum() >= 30
 
@@ -316,11 +312,9 @@ def test_ring_sampled_sphere_with_polar_holes_points_outward(monkeypatch, seed):
     # estimate pi r_8^2 / 7.5 is too small there and too large on the wide rings; the winding
     # numbers inside overshoot 1 and flipping the small polar rings lowered the objective (160
     # of 960 inward). Rescaled by the measured jump w_in - w_out (module notes, step 4): none
-    from manifold_sph.scans import normals as mod
-
     p, exact = _ring_sphere(seed=seed)
     assert np.sum(dots(estimate_normals(p), exact) < 0) == 0
-    monkeypatch.setattr(mod, "_CALIBRATE", False)
+    monkeypatch.setattr(tuning, "CALIBRATE", False)
     assert np.sum(dots(estimate_normals(p), exact) < 0) >= 80  # the test can tell
 
 
@@ -329,20 +323,20 @@ def test_ring_sampled_band_is_oriented_as_one_surface(monkeypatch, seed):
     # latitude rings 6x denser along than across: the k-NN graph falls apart into bands of
     # rings, each oriented alone (80-160 of 800 normals inward); bridged to their nearest other
     # band, the whole band (the sphere without its polar caps) points outward (measured 0)
-    from manifold_sph.scans import normals as mod
-
     p, exact = _ring_sphere(seed=seed)
     p, exact = p[80:-80], exact[80:-80]
     assert np.sum(dots(estimate_normals(p), exact) < 0) == 0
-    knn_only = mod._orientation_graph
+    from manifold_sph.normals import graph, orientation
+
+    knn_only = graph.orientation_graph
 
     def unbridged(pts, nrm, neighbors):
         a, b, s, length, comps = knn_only(pts, nrm, neighbors)
-        ko = min(mod._ORIENT_K, neighbors.shape[1])
-        return (*mod._graph_edges(pts, nrm, neighbors[:, :ko]), comps)
+        ko = min(tuning.ORIENT_K, neighbors.shape[1])
+        return (*graph.graph_edges(pts, nrm, neighbors[:, :ko]), comps)
 
-    monkeypatch.setattr(mod, "_orientation_graph", unbridged)
-    monkeypatch.setattr(mod, "_CALIBRATE", False)  # the area rescaling of step 4 alone also repairs it
+    monkeypatch.setattr(orientation, "orientation_graph", unbridged)
+    monkeypatch.setattr(tuning, "CALIBRATE", False)  # the area rescaling of step 4 alone also repairs it
     assert np.sum(dots(estimate_normals(p), exact) < 0) >= 80  # the test can tell
 
 
@@ -372,13 +366,11 @@ def test_probes_stay_inside_a_thin_closed_slab(seed, monkeypatch):
     # cross a slab two spacings thick; at most half the height of the point straight across
     # (module notes, step 4) they stay inside. Measured (seeds 0, 1): 15 / 25 of 2000 inward,
     # with the usual offset 61 / 83
-    from manifold_sph.scans import normals as mod
-
     p, exact = _flat_ellipsoid(seed=seed)
     signs = np.where(np.random.default_rng(0).random(len(p)) < 0.5, -1.0, 1.0)[:, None]
     n, _ = orient_normals(p, signs * exact)
     assert np.mean(dots(n, exact) < 0) <= 0.015
-    monkeypatch.setattr(mod, "_THICK_PROBE", 0.0)
+    monkeypatch.setattr(tuning, "THICK_PROBE", 0.0)
     n, _ = orient_normals(p, signs * exact)
     assert np.mean(dots(n, exact) < 0) >= 0.025  # the test can tell
 
@@ -406,8 +398,6 @@ def test_sharper_refit_weights_where_the_residual_is_bias_not_noise(monkeypatch)
     # errors, sharpened / base weights: Poisson torus 1000 points 0.31 / 0.38 deg, random torus
     # 0.44 / 0.55, double torus 2000 points 0.89 / 1.16; random sphere of 2000 points with noise of
     # 0.1 / 0.3 spacings (as drawn here) 2.32 / 2.28 and 12.09 / 11.80 deg (+1.7 % and +2.4 %)
-    from manifold_sph.scans import normals as mod
-
     def mean_err(points, exact):  # direction only (signs are another test's business)
         d = np.abs(dots(estimate_normals(points), exact))
         return np.degrees(np.arccos(np.clip(d, 0, 1))).mean()
@@ -418,7 +408,7 @@ def test_sharper_refit_weights_where_the_residual_is_bias_not_noise(monkeypatch)
     cases = [(shapes.torus(1000).points, shapes.torus(1000).normals), (shapes.double_torus(2000).points, shapes.double_torus(2000).normals)]
     noisy = [(sph.points + a * h * rng.standard_normal(sph.points.shape), sph.normals) for a in (0.1, 0.3)]
     sharp = [mean_err(p, n) for p, n in cases + noisy]
-    monkeypatch.setattr(mod, "_SHARP_WEIGHT", mod._JET_WEIGHT)
+    monkeypatch.setattr(tuning, "SHARP_WEIGHT", tuning.JET_WEIGHT)
     base = [mean_err(p, n) for p, n in cases + noisy]
     assert all(a <= 0.85 * b for a, b in zip(sharp[:2], base[:2])), (sharp, base)
     assert all(a <= 1.06 * b for a, b in zip(sharp[2:], base[2:])), (sharp, base)
@@ -548,13 +538,11 @@ def test_confidence_thickness_term_ignores_noise(monkeypatch):
     # a Poisson sphere with noise of 0.3 spacings (every normal within 30 degrees): the
     # thickness term counts only points across by more than 4 times the cloud's noise level
     # (module notes); measured 1.4 % below 0.5 (0.9 % without the term, 11.5 % without the guard)
-    from manifold_sph.scans import normals as mod
-
     c = shapes.sphere(3000, sampling="poisson")
     p = c.points + 0.3 * np.sqrt(4 * np.pi / 3000) * np.random.default_rng(2).standard_normal(c.points.shape)
     _, conf = estimate_normals(p, return_confidence=True)
     assert np.mean(conf < 0.5) < 0.03
-    monkeypatch.setattr(mod, "_THIN_NOISE", 0.0)
+    monkeypatch.setattr(tuning, "THIN_NOISE", 0.0)
     _, conf = estimate_normals(p, return_confidence=True)
     assert np.mean(conf < 0.5) > 0.08  # the test can tell
 
@@ -592,15 +580,16 @@ def test_default_k_needs_enough_points():
 
 
 def test_winding_number_numpy_and_compiled_agree(monkeypatch):
-    from manifold_sph.scans import normals as mod
+    from manifold_sph import _jit
+    from manifold_sph.normals import winding
 
     c = shapes.sphere(400)
     area = np.full(400, 4 * np.pi / 400)
     q = np.vstack([0.5 * c.points[:50], 1.5 * c.points[:50]])
     lab = (np.arange(400) % 3).astype(np.int64)
-    fast = mod._winding_numbers(q, c.points, c.normals, area, 0.01 * np.ones(400), lab, 3, theta=0.3)
-    monkeypatch.setattr(mod._jitmod, "ENABLED", False)
-    slow = mod._winding_numbers(q, c.points, c.normals, area, 0.01 * np.ones(400), lab, 3)
+    fast = winding.winding_numbers(q, c.points, c.normals, area, 0.01 * np.ones(400), lab, 3, theta=0.3)
+    monkeypatch.setattr(_jit, "ENABLED", False)
+    slow = winding.winding_numbers(q, c.points, c.normals, area, 0.01 * np.ones(400), lab, 3)
     np.testing.assert_allclose(fast.sum(1)[:50], 1.0, atol=0.02)  # inside
     np.testing.assert_allclose(fast.sum(1)[50:], 0.0, atol=0.02)  # outside
     np.testing.assert_allclose(fast, slow, atol=0.02)
@@ -616,7 +605,7 @@ def _angles(a, b):
 def test_voronoi_poles_give_the_normal_line_on_a_torus(n, max_mean, max_max):
     # the pole vector converges to the normal line (Amenta & Bern); Poisson torus, measured mean /
     # max angle 1.97 / 7.6 deg at 2000 points, 0.85 / 3.8 at 8000; the two poles on opposite sides
-    from manifold_sph.scans.poles import voronoi_poles
+    from manifold_sph.normals.poles import voronoi_poles
 
     c = shapes.torus(n)
     pole, radius, second = voronoi_poles(c.points)
@@ -640,7 +629,7 @@ def test_voronoi_poles_give_the_normal_line_on_a_torus(n, max_mean, max_max):
 def test_voronoi_poles_with_duplicate_points():
     # an exact duplicate is a vertex of no tetrahedron: its pole is zero, and poles=True then
     # keeps its normal (same normals as the default on a torus with 50 duplicated points)
-    from manifold_sph.scans.poles import voronoi_poles
+    from manifold_sph.normals.poles import voronoi_poles
 
     c = shapes.torus(2000)
     p = np.vstack([c.points, c.points[:50]])
@@ -651,7 +640,7 @@ def test_voronoi_poles_with_duplicate_points():
 
 
 def test_voronoi_poles_bad_input():
-    from manifold_sph.scans.poles import voronoi_poles
+    from manifold_sph.normals.poles import voronoi_poles
 
     rng = np.random.default_rng(0)
     with pytest.raises(ValueError, match="at least 5 points"):
@@ -671,17 +660,17 @@ def test_pole_signs_repair_isolated_flips_and_leave_right_signs(make):
     # none flipped where the signs are right
     from scipy.spatial import cKDTree
 
-    from manifold_sph.scans import normals as mod
-    from manifold_sph.scans.poles import voronoi_poles
+    from manifold_sph.normals import poles
+    from manifold_sph.normals.poles import voronoi_poles
 
     c = make()
     vor = voronoi_poles(c.points)
     dist = cKDTree(c.points).query(c.points, 16)[0]
     s = np.where(np.random.default_rng(1).random(len(c.points)) < 0.05, -1.0, 1.0)
-    n, flip = mod._pole_signs(c.points, s[:, None] * c.normals, dist, vor)
+    n, flip = poles.pole_signs(c.points, s[:, None] * c.normals, dist, vor)
     assert flip.sum() == (s < 0).sum() > 20
     np.testing.assert_array_equal(n, c.normals)
-    n, flip = mod._pole_signs(c.points, c.normals, dist, vor)
+    n, flip = poles.pole_signs(c.points, c.normals, dist, vor)
     assert not flip.any()
 
 
@@ -753,12 +742,10 @@ def test_flipped_patch_in_a_narrow_gap_is_cut_and_flipped(monkeypatch):
     # inside (w_in + w_out about 2: the outer probe lies in the gap), which the D < 0 / S < 0.5
     # flags miss. Both-inside regions of at least 12 particles are cut as patches of their own
     # (module notes, step 4): measured 71 -> 8 normals inward
-    from manifold_sph.scans import normals as mod
-
     P, ref, closed = _random_sample("homer.obj", 1)
     assert closed
     assert (dots(estimate_normals(P), ref) < 0).sum() <= 20
-    monkeypatch.setattr(mod, "_FLAG_S_HIGH", None)
+    monkeypatch.setattr(tuning, "FLAG_S_HIGH", None)
     assert (dots(estimate_normals(P), ref) < 0).sum() >= 50  # the test can tell
 
 
@@ -767,17 +754,15 @@ def test_part_inside_another_shell_keeps_its_propagated_sign(monkeypatch):
     # either way; such a patch is flipped only where the flip removes at least half of its
     # excess w_in + w_out - 1 (a flipped patch in a gap: nearly all). Disagreeing with the
     # mesh, measured: 70 (as without the both-inside patches), 96 without that condition
-    from manifold_sph.scans import normals as mod
-
     P, ref, closed = _random_sample("teapot.obj", 0)
     assert not closed
     assert (dots(estimate_normals(P), ref) <= 0).sum() <= 78
-    monkeypatch.setattr(mod, "_FLAG_S_EXPLAIN", np.inf)
+    monkeypatch.setattr(tuning, "FLAG_S_EXPLAIN", np.inf)
     assert (dots(estimate_normals(P), ref) <= 0).sum() >= 86  # the test can tell
 
 
 def test_best_signs_margin_keeps_an_entry():
-    from manifold_sph.scans.normals import _best_signs
+    from manifold_sph.normals.orientation import _best_signs
 
     # two independent entries that both want to flip (g < 0); an infinite margin keeps the second
     H = np.zeros((2, 2))
@@ -798,11 +783,9 @@ def test_closed_surfaces_passing_through_each_other_face_out(monkeypatch, sampli
     # assembly): the part of each inside the other read both inside in the whole field, and the
     # patch check flipped it (1037-1098 of 6560 wrong, measured). The closed sheets of step 4 are
     # judged by their own field: measured 7-10 (random), 0-1 (Poisson) wrong, seeds 0-2
-    from manifold_sph.scans import normals as mod
-
     P, exact = _crossing_spheres([(4000, 1.0, (0, 0, 0)), (2560, 0.8, (1.2, 0, 0))], sampling, seed)
     assert (dots(estimate_normals(P), exact) < 0).sum() <= 0.005 * len(P)
-    monkeypatch.setattr(mod, "_SHEETS", False)
+    monkeypatch.setattr(tuning, "SHEETS", False)
     assert (dots(estimate_normals(P), exact) < 0).sum() >= 0.1 * len(P)  # the test can tell
 
 
@@ -817,14 +800,15 @@ def test_sphere_wholly_inside_another_keeps_the_whole_fields_answer():
 def test_closed_sheets_leave_one_coarse_surface_alone():
     # one closed surface is one sheet: nothing to judge apart (a smooth sphere; the coarse models'
     # vertex clouds, whose pieces are cut apart by high curvature, are checked in the model tests)
-    from manifold_sph.scans import normals as mod
     from scipy.spatial import cKDTree
+
+    from manifold_sph.normals import shells
 
     P = shapes.sphere(3000, sampling="random", seed=0).points
     d, idx = cKDTree(P).query(P, 16)
     n = P / np.linalg.norm(P, axis=1)[:, None]
     h = np.sqrt(np.pi * d[:, 7] ** 2 / 7.5)
-    assert mod._closed_sheets(P, n, idx, np.arange(len(P)), h, h**2, h) is None
+    assert shells.closed_sheets(P, n, idx, np.arange(len(P)), h, h**2, h) is None
 
 
 def test_eyes_half_out_of_a_head_face_out(monkeypatch):
@@ -832,13 +816,11 @@ def test_eyes_half_out_of_a_head_face_out(monkeypatch):
     # both inside on their inner parts and flipped them (480-521 of 800 wrong, measured). An eye's
     # outer cap joins the head's sheet; its inner part, open, is still judged by its own field:
     # 0-11 wrong (seeds 0-2)
-    from manifold_sph.scans import normals as mod
-
     parts = [(12000, 1.0, (0, 0, 0))] + [(400, 0.18, (x, 0.3, np.sqrt(1 - x * x - 0.09) - 0.08)) for x in (-0.35, 0.35)]
     P, exact = _crossing_spheres(parts, "random", 0)
     d = dots(estimate_normals(P), exact)
     assert (d[12000:] < 0).sum() <= 20 and (d[:12000] < 0).sum() <= 150
-    monkeypatch.setattr(mod, "_SHEETS", False)
+    monkeypatch.setattr(tuning, "SHEETS", False)
     assert (dots(estimate_normals(P), exact)[12000:] < 0).sum() >= 300  # the test can tell
 
 
@@ -851,11 +833,9 @@ def test_noise_is_not_a_thin_part(monkeypatch, name, seed, before, after):
     # wrong, measured) and the teapot's lid (652 -> 198)
     from scipy.spatial import cKDTree
 
-    from manifold_sph.scans import normals as mod
-
     P, ref = _mesh_reference(name)
     h = np.median(cKDTree(P).query(P, 2)[0][:, 1])
     Q = P + 0.3 * h * np.random.default_rng(seed).normal(size=P.shape)
     assert (dots(estimate_normals(Q), ref) < 0).sum() <= after
-    monkeypatch.setattr(mod, "_CUT_THIN", 0.0)
+    monkeypatch.setattr(tuning, "CUT_THIN", 0.0)
     assert (dots(estimate_normals(Q), ref) < 0).sum() >= 0.8 * before  # the test can tell

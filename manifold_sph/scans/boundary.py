@@ -532,7 +532,7 @@ def detect_boundary(
         if k > n:
             raise ValueError(f"k must be at most the number of points {n}, got {k}")
         if nrm is None:
-            from .normals import estimate_normals
+            from ..normals import estimate_normals
 
             nrm = estimate_normals(pts)
         elif nrm.shape != pts.shape:

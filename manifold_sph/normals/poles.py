@@ -8,16 +8,8 @@ side (negative projection on the first pole vector). For a surface sampled dense
 enough (Amenta & Bern's epsilon-sampling, epsilon well below 1) the vectors from the
 sample to its poles lie close to the normal line, one inside and one outside, whatever
 the k nearest neighbours are: they come from the empty balls touching the sample.
-
-Measured on the coarse test models (mesh vertices as the cloud, against the mesh's
-area-weighted normals): the pole lines are a poorer normal estimate than the jet fits of
-:mod:`manifold_sph.scans.normals` (median angle cow 12.3 deg against 5.2, cheburashka 5.7
-against 1.0, beetle 13.3 against 8.8), and where the two disagree by more than 30 degrees
-neither is right more often (cow: pole 50 %, fit 47 % of 183 within 20 degrees at a pole
-radius of 1-2 spacings); these models are sampled far more coarsely than the theory asks.
-:func:`~manifold_sph.scans.normals.estimate_normals` (``poles=True``) uses them as extra
-candidates and for a sign check (its module notes, step 9). Cost: one qhull Delaunay
-triangulation (about 4-5 s on 35,000 points, 28 s on 134,000 on a loaded 2-core machine).
+:func:`pole_signs` checks the signs with the winding number at both poles.
+Cost: one qhull Delaunay triangulation.
 """
 
 from __future__ import annotations
@@ -27,8 +19,11 @@ from numpy.typing import ArrayLike
 from scipy.spatial import Delaunay
 
 from .._validation import as_points
+from . import tuning
+from .fitting import unit
+from .winding import winding_numbers
 
-__all__ = ["voronoi_poles"]
+__all__ = ["pole_signs", "voronoi_poles"]
 
 
 def _circumcentres(pts, tets):
@@ -122,3 +117,30 @@ def voronoi_poles(points: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray
     second = np.zeros_like(pts)
     second[u[last]] = C[t[last]] - pts[u[last]]
     return pole, radius, second
+
+
+
+def pole_signs(pts: np.ndarray, nrm: np.ndarray, distances: np.ndarray, poles: tuple[np.ndarray, np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Signs from the winding number at the two Voronoi poles of every particle (``poles=True``, step 9).
+
+    ``poles``: ``(pole, radius, second)`` of :func:`voronoi_poles`. The
+    winding number ``w`` of the oriented cloud is evaluated at both poles (0 at a pole at infinity);
+    where the two differ by more than ``tuning.POLE_JUMP`` and the poles lie on opposite sides of the
+    particle (``-u_1 . u_2 > tuning.POLE_ANTI``), the pole with the smaller ``w`` is outside, and a normal
+    pointing away from it (``n . u_out < 0``) is flipped. Returns the normals and the flipped mask.
+    """
+    N = pts.shape[0]
+    pole, radius, second = poles
+    ka = min(8, distances.shape[1])
+    r = distances[:, ka - 1]
+    r = np.where(r > 0, r, np.median(r[r > 0]) if np.any(r > 0) else 1.0)
+    area = np.pi * r**2 / max(ka - 0.5, 1.0)
+    hull = ~np.isfinite(radius)
+    has2 = np.einsum("ij,ij->i", second, second) > 0
+    q = np.vstack([pts + np.where(hull[:, None], 0.0, pole), pts + second])
+    W = winding_numbers(q, pts, nrm, area, 0.2 * np.sqrt(area), np.zeros(N, dtype=np.int64), 1)[:, 0]
+    w1, w2 = np.where(hull, 0.0, W[:N]), W[N:]
+    out = np.where((w1 < w2)[:, None], pole, second)
+    anti = -np.einsum("ij,ij->i", unit(pole), unit(second))
+    flip = has2 & (np.abs(w1 - w2) > tuning.POLE_JUMP) & (anti > tuning.POLE_ANTI) & (np.einsum("ij,ij->i", out, nrm) < 0)
+    return np.where(flip[:, None], -nrm, nrm), flip

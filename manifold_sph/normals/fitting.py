@@ -1,0 +1,288 @@
+"""Local fits of the normal direction: PCA and jet (polynomial height-function) fits.
+
+- :func:`pca_normals`: the eigenvector of the smallest eigenvalue of each particle's
+  neighbourhood covariance (first order);
+- :func:`jet_normals` and :func:`jet_fit`: in the tangent frame of a first normal, the
+  neighbours are fitted by a height function ``z = sum c_ab x^a y^b`` of total degree ``d``
+  (weighted least squares, all small systems solved at once; Cazals & Pouget 2005); the normal
+  is that of the fitted surface at the particle, with error ``O(h^d)`` on a smooth surface;
+- :func:`refit`: the feature-aware refit (only neighbours whose oriented normal agrees), and
+  :func:`sharpened_weights`, sharper weights where the fit residual is bias rather than noise;
+- :func:`high_order`: degree-3/4 fits started from oriented degree-2 normals, guarded.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike
+from scipy.spatial import cKDTree
+
+from .._validation import as_points, check_int
+from ..threads import get_num_threads
+from . import tuning
+
+
+def unit(v: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return v / np.where(n > 0, n, 1.0)
+
+
+def tangents(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    a = np.where(np.abs(n[:, :1]) < 0.6, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
+    t1 = unit(np.cross(n, a))
+    return t1, np.cross(n, t1)
+
+
+def knn(points: np.ndarray, k: int, tree: cKDTree | None = None) -> tuple[np.ndarray, np.ndarray]:
+    tree = cKDTree(points) if tree is None else tree
+    dist, idx = tree.query(points, k=k, workers=get_num_threads())
+    return dist, idx
+
+
+def covariance(pts: np.ndarray, neighbors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    nbr = pts[neighbors]  # (N, k, 3)
+    # centre on the particle's own mean; subtract the particle first for conditioning
+    local = nbr - pts[:, None, :]
+    local -= local.mean(axis=1, keepdims=True)
+    cov = np.einsum("nki,nkj->nij", local, local) / neighbors.shape[1]
+    return np.linalg.eigh(cov)  # ascending eigenvalues
+
+
+def shape_confidence(w: np.ndarray) -> np.ndarray:
+    w = np.maximum(w, 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(w[:, 1] > 0, w[:, 0] / w[:, 1], 1.0)
+    return np.clip(1.0 - ratio, 0.0, 1.0)
+
+
+def pca_rows(pts: np.ndarray, neighbors: np.ndarray) -> np.ndarray:
+    """PCA normals of the rows of ``neighbors`` (their own first column is the particle)."""
+    local = pts[neighbors] - pts[neighbors[:, :1]]
+    local -= local.mean(axis=1, keepdims=True)
+    cov = np.einsum("nki,nkj->nij", local, local)
+    return np.linalg.eigh(cov)[1][:, :, 0]
+
+
+def _monomials(degree: int) -> list:
+    return [(a, d - a) for d in range(degree + 1) for a in range(d, -1, -1)]
+
+
+def n_coefficients(degree: int) -> int:
+    return (degree + 1) * (degree + 2) // 2
+
+
+def jet_fit(pts: np.ndarray, neighbors: np.ndarray, frame: np.ndarray, degree: int | np.ndarray, weights: np.ndarray | None = None, residual: np.ndarray | None = None,
+             centers: np.ndarray | None = None) -> np.ndarray:
+    """Normals of degree-``degree`` height-function fits in the tangent frames of ``frame``.
+
+    ``degree`` is an int or a per-particle int array (0 keeps the frame normal);
+    ``weights`` (N, k) zero out neighbours. Rows are batched by degree. Row ``r`` is
+    centred on ``pts[r]``, or on ``centers[r]`` when given (fits of a subset of rows).
+    """
+    centers = pts if centers is None else centers
+    N = frame.shape[0]
+    degs = np.broadcast_to(np.asarray(degree, dtype=np.int64), (N,))
+    out = frame.copy()
+    t1, t2 = tangents(frame)
+    for d in np.unique(degs):
+        if d <= 0:
+            continue
+        rows = np.flatnonzero(degs == d)
+        for lo in range(0, rows.size, 20000):  # bound the (rows, k, m) temporaries
+            r = rows[lo : lo + 20000]
+            local = pts[neighbors[r]] - centers[r, None, :]
+            x = np.einsum("nki,ni->nk", local, t1[r])
+            y = np.einsum("nki,ni->nk", local, t2[r])
+            z = np.einsum("nki,ni->nk", local, frame[r])
+            s = np.sqrt((x * x + y * y).max(axis=1, keepdims=True))
+            s = np.where(s > 0, s, 1.0)
+            u, v = x / s, y / s
+            mons = _monomials(int(d))
+            V = np.stack([u**a * v**b for a, b in mons], axis=2)
+            w = np.ones_like(u) if weights is None else weights[r]
+            A = np.einsum("nkp,nk,nkq->npq", V, w, V)
+            rhs = np.einsum("nkp,nk,nk->np", V, w, z)
+            tr = np.trace(A, axis1=1, axis2=2)
+            A += (1e-10 * tr + 1e-300)[:, None, None] * np.eye(len(mons))
+            c = np.linalg.solve(A, rhs[..., None])[..., 0]
+            gx = c[:, mons.index((1, 0))] / s[:, 0]
+            gy = c[:, mons.index((0, 1))] / s[:, 0]
+            n = frame[r] - gx[:, None] * t1[r] - gy[:, None] * t2[r]
+            ok = np.all(np.isfinite(n), axis=1)
+            out[r[ok]] = unit(n[ok])
+            if residual is not None:
+                res = z - np.einsum("nkp,np->nk", V, c)
+                residual[r] = np.sqrt((w * res * res).sum(axis=1) / np.maximum(w.sum(axis=1), 1e-300)) / s[:, 0]
+    return out
+
+
+def distance_weights(pts: np.ndarray, neighbors: np.ndarray, alpha: float | np.ndarray | None = None) -> np.ndarray:
+    """Gaussian weights ``exp(-alpha (r_j / r_max)^2)`` of the neighbours of every row (scale-free).
+
+    ``alpha``: a number, or one per row (shape (N,))."""
+    alpha = tuning.JET_WEIGHT if alpha is None else alpha
+    r2 = np.einsum("nki,nki->nk", pts[neighbors] - pts[neighbors[:, :1]], pts[neighbors] - pts[neighbors[:, :1]])
+    rmax = r2.max(axis=1, keepdims=True)
+    return np.exp(-np.reshape(alpha, (-1, 1)) * r2 / np.where(rmax > 0, rmax, 1.0))
+
+
+def sharpened_weights(pts: np.ndarray, neighbors: np.ndarray, frame: np.ndarray, weights: np.ndarray, residual2: np.ndarray) -> np.ndarray:
+    """Weights of the step-5 refit: sharper where the base fit's residual is bias, not noise.
+
+    ``residual2``: the relative residual of the degree-2 fit with ``weights`` in the frames of
+    ``frame``; the same neighbours are fitted at degree 3 in the same frames. Where the residual
+    ratio ``rho = res3 / res2`` (median over the row's neighbours) is small, the residual is
+    structure that a higher degree explains (a coarsely sampled, strongly curved part, where the
+    neighbourhood is too wide: bias), and the Gaussian exponent rises from ``tuning.JET_WEIGHT``
+    (``rho`` above ``tuning.SHARP_RHO[1]``) to ``tuning.SHARP_WEIGHT`` (below ``tuning.SHARP_RHO[0]``), linearly
+    between. Noise leaves ``rho`` near 0.8 (0.80-0.82 median, 0.68-0.76 at the 10th
+    percentile, on spheres with noise of 0.01-0.3 spacings), so noisy clouds keep the wide
+    weights. Where the sharply weighted neighbours spread like a line (``tuning.SHARP_LINE``: the
+    rows of a ring- or scan-line-sampled cloud) the base weights stay. Scale-free, so the
+    order on smooth surfaces is kept (docs/normals.md, step 5).
+    """
+    res3 = np.zeros(pts.shape[0])
+    jet_fit(pts, neighbors, frame, 3, weights=weights, residual=res3)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rho = np.where(residual2 > 0, res3 / residual2, 1.0)
+    rho = np.median(rho[neighbors], axis=1)
+    lo, hi = tuning.SHARP_RHO
+    alpha = tuning.JET_WEIGHT + (tuning.SHARP_WEIGHT - tuning.JET_WEIGHT) * np.clip((hi - rho) / (hi - lo), 0.0, 1.0)
+    sharp = distance_weights(pts, neighbors, alpha)
+    # rows (scan lines, meridian circles): the sharper weights fall on the particle's own row,
+    # whose plane the fit would return; keep the base weights where their spread is line-like
+    L = pts[neighbors] - pts[:, None, :]
+    L -= np.einsum("nk,nki->ni", sharp, L)[:, None, :] / sharp.sum(axis=1)[:, None, None]
+    ev = np.linalg.eigvalsh(np.einsum("nk,nki,nkj->nij", sharp, L, L))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        line = ~(ev[:, 1] >= tuning.SHARP_LINE * ev[:, 2])
+    return np.where(line[:, None], weights, sharp)
+
+
+def refit(pts: np.ndarray, neighbors: np.ndarray, normals: np.ndarray, degree: int | np.ndarray, iterations: int | None = None, threshold: float | None = None, residual: np.ndarray | None = None, weights: np.ndarray | None = None) -> np.ndarray:
+    """Refit with only the neighbours whose oriented normal agrees (``n_i . n_j > threshold``)."""
+    iterations = tuning.REFIT_ITERATIONS if iterations is None else iterations
+    threshold = tuning.REFIT_DOT if threshold is None else threshold
+    need = n_coefficients(degree) + 2
+    n = normals
+    for _ in range(iterations):
+        dots = np.einsum("nkj,nj->nk", n[neighbors], n)
+        w = (dots > threshold).astype(np.float64)
+        w[:, 0] = 1.0  # the particle itself (first neighbour)
+        count = w.sum(axis=1)
+        deg = np.where(count >= need, degree, np.where(count >= 5, 1, 0))
+        n = jet_fit(pts, neighbors, n, deg, w if weights is None else w * weights, residual=residual)
+    return n
+
+
+def high_order(pts: np.ndarray, neighbors: np.ndarray, base: np.ndarray, base_residual: np.ndarray, degree: int | np.ndarray, refine: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Degree-``degree`` fits started from the oriented ``base`` (degree-2) normals, guarded.
+
+    The high-degree normal replaces the base one where the two agree within
+    ``tuning.GUARD_DEGREES`` (smooth, well-resolved parts: the error drops from ``O(h^2)``
+    to ``O(h^degree)``) or where its fit residual is below ``tuning.GUARD_RESIDUAL`` times the
+    base fit's (one face of a crease found by the wider neighbourhood). Elsewhere, on
+    thin or coarsely sampled parts where the wider neighbourhood of a high-degree fit
+    reaches across, the base normal is kept (docs/normals.md, step 6).
+    """
+    res = np.zeros(pts.shape[0])
+    if refine:
+        hi = refit(pts, neighbors, base, degree, residual=res)
+    else:
+        hi = jet_fit(pts, neighbors, base, degree, residual=res)
+    dot = np.einsum("ij,ij->i", hi, base)
+    close = np.abs(dot) > np.cos(np.radians(tuning.GUARD_DEGREES))
+    one_sided = ~close & (res < tuning.GUARD_RESIDUAL * base_residual)
+    return np.where((close | one_sided)[:, None], hi, base), one_sided
+
+
+def check_degree(degree: int | np.ndarray) -> int:
+    if isinstance(degree, bool) or not isinstance(degree, (int, np.integer)):
+        raise TypeError(f"degree must be an integer from 1 to 4, got {type(degree).__name__} {degree!r}")
+    if not 1 <= int(degree) <= 4:
+        raise ValueError(f"degree must be an integer from 1 to 4, got {degree!r}")
+    return int(degree)
+
+
+def check_k(k: int, N: int, degree: int | np.ndarray | None = None) -> int:
+    k = check_int("k", k, minimum=3)
+    if degree is not None and k < n_coefficients(degree) + 2:
+        raise ValueError(f"k must be at least {n_coefficients(degree) + 2} for a degree-{degree} jet fit, got {k}")
+    if k > N:
+        raise ValueError(f"k must be at most the number of points {N}, got {k}")
+    return k
+
+
+def pca_normals(points: ArrayLike, k: int = tuning.DEFAULT_K, *, neighbors: ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Unoriented PCA normals and their confidence.
+
+    Parameters
+    ----------
+    points : array_like, shape (N, 3)
+    k : int
+        Neighbours per particle, itself included (at least 3, below N).
+    neighbors : ndarray of int, shape (N, k), optional
+        Precomputed neighbour indices (overrides ``k``).
+
+    Returns
+    -------
+    normals : ndarray, shape (N, 3)
+        Unit normals with the sign convention of ``numpy.linalg.eigh`` (arbitrary).
+    confidence : ndarray, shape (N,)
+        ``1 - lambda_0 / lambda_1`` in [0, 1].
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> rng = np.random.default_rng(0)
+    >>> p = np.c_[rng.uniform(size=(200, 2)), np.zeros(200)]     # the plane z = 0
+    >>> n, c = pca_normals(p, k=10)
+    >>> float(np.abs(n[:, 2]).min().round(6)), float(c.min().round(6))
+    (1.0, 1.0)
+    """
+    pts = as_points("points", points)
+    if neighbors is None:
+        k = check_int("k", k, minimum=3)
+        if k > pts.shape[0]:
+            raise ValueError(f"k must be at most the number of points {pts.shape[0]}, got {k}")
+        _, neighbors = knn(pts, k)
+    w, v = covariance(pts, neighbors)
+    return v[:, :, 0], shape_confidence(w)
+
+
+def jet_normals(points: ArrayLike, k: int | None = None, *, degree: int = 2, neighbors: ArrayLike | None = None) -> np.ndarray:
+    """Unoriented normals of local polynomial (jet) fits.
+
+    Parameters
+    ----------
+    points : array_like, shape (N, 3)
+    k : int, optional
+        Neighbours per particle, itself included (default :data:`tuning.DEFAULT_JET_K`
+        of the degree; at least the number of coefficients plus 2).
+    degree : int
+        Total degree of the height function, 1 to 4.
+    neighbors : ndarray of int, shape (N, k), optional
+        Precomputed neighbour indices, itself first (overrides ``k``).
+
+    Returns
+    -------
+    ndarray, shape (N, 3)
+        Unit normals (signs arbitrary); error ``O(h^degree)`` on smooth surfaces.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from manifold_sph.reference import shapes
+    >>> c = shapes.sphere(2000)
+    >>> n = jet_normals(c.points, degree=2)
+    >>> bool(np.abs(np.einsum("ij,ij->i", n, c.normals)).min() > np.cos(np.radians(0.05)))
+    True
+    """
+    pts = as_points("points", points)
+    degree = check_degree(degree)
+    if neighbors is None:
+        k = tuning.DEFAULT_JET_K[degree] if k is None else k
+        k = check_k(k, pts.shape[0], degree)
+        _, neighbors = knn(pts, k)
+    _, v = covariance(pts, neighbors[:, : min(tuning.PCA_K, neighbors.shape[1])])
+    return jet_fit(pts, neighbors, v[:, :, 0], degree)
