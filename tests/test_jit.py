@@ -277,7 +277,8 @@ def test_without_numba_the_numpy_code_runs():
     code = (
         "import sys; sys.modules['numba'] = None\n"
         "import numpy as np\n"
-        "from manifold_sph import Surface, _jit, shapes\n"
+        "from manifold_sph import Surface, _jit\n"
+        "from manifold_sph.reference import shapes\n"
         "assert not _jit.ENABLED\n"
         "c = shapes.sphere(800); x = c.points; f = x[:, 0] * x[:, 1] * x[:, 2]\n"
         "err = np.linalg.norm(Surface(c).laplacian(f) + 12 * f) / np.linalg.norm(12 * f)\n"
