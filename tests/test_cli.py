@@ -311,12 +311,12 @@ def test_json_error_object_for_every_subcommand(tmp_path, capsys, argv, match, m
 
 
 def test_json_error_on_failure_exit_1(capsys, monkeypatch):
-    import manifold_sph.cli as cli
+    from manifold_sph.cli import studies
 
     def boom(args):
         raise RuntimeError("solver diverged")
 
-    monkeypatch.setitem(cli._COMMANDS, "poisson", boom)
+    monkeypatch.setattr(studies, "_cmd_poisson", boom)
     assert main(["poisson", "--json"]) == 1
     out = json.loads(capsys.readouterr().out)
     assert out == {"error": "solver diverged", "type": "RuntimeError", "command": "poisson", "exit_code": 1}

@@ -1,6 +1,6 @@
 """``manifold-sph spem CASE``: run a SPEM validation case and print its errors.
 
-The main CLI (``manifold_sph/cli.py``) registers this subcommand with
+The main CLI (:mod:`manifold_sph.cli.spem`) registers this subcommand with
 :func:`add_parser` and dispatches to :func:`run`; :func:`main` runs it
 standalone (``python -m manifold_sph.spem.cli``).
 
