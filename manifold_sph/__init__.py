@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import importlib as _importlib
 
-from .pointcloud import PointCloud
+from .pointcloud import PointCloud, as_cloud
 from .surface import Surface
 from .domain import Domain2D
 from .scans.io import read, write
@@ -39,7 +39,7 @@ _SUBMODULES = (
 )
 
 
-__all__ = ["PointCloud", "Surface", "Domain2D", "read", "write", "estimate_normals", "get_num_threads",
+__all__ = ["PointCloud", "as_cloud", "Surface", "Domain2D", "read", "write", "estimate_normals", "get_num_threads",
            "set_num_threads", "ManifoldSPHWarning", "__version__"]
 
 

@@ -11,12 +11,13 @@ from numpy.typing import ArrayLike
 from ._validation import as_points, check_finite
 from .neighbors import build_tree, find_neighbors
 from .operators import OperatorSet
+from .pointcloud import as_cloud, is_point_array
 
 if TYPE_CHECKING:
     from .kernels import Kernel
     from .schemes import Scheme
 
-__all__ = ["Domain2D", "mirror_ghosts"]
+__all__ = ["Domain2D", "mirror_ghosts", "planar_points"]
 
 
 def _check_bounds(bounds) -> tuple[float, float, float, float]:
@@ -66,12 +67,35 @@ def mirror_ghosts(points: np.ndarray, bounds: Sequence[float], width: float) -> 
     return np.concatenate(ghosts), np.concatenate(owner)
 
 
+def planar_points(points) -> np.ndarray:
+    """(N, 2) coordinates of planar point-like input: an (N, 2) array as it is; anything else
+    :func:`~manifold_sph.as_cloud` takes (an (N, 3) array, a file, a mesh...) when one of
+    its coordinates is constant (the plane x, y or z = c), without that coordinate."""
+    if is_point_array(points) and np.ndim(points) == 2 and np.shape(points)[1] == 2:
+        return as_points("points", points, dim=2)
+    if is_point_array(points):
+        pts = as_points("points", points, dim=(2, 3))
+    else:
+        pts = as_cloud(points).points
+    ext = np.ptp(pts, axis=0)
+    flat = np.flatnonzero(ext <= 1e-9 * max(float(ext.max()), 1e-300))
+    if flat.size == 0:
+        raise ValueError(
+            f"points must be planar for a Domain2D: an (N, 2) array or points with one constant coordinate "
+            f"(x, y or z), got extents {ext.round(6).tolist()} in x, y, z"
+        )
+    keep = [a for a in range(3) if a != flat[-1]]
+    return np.ascontiguousarray(pts[:, keep])
+
+
 class Domain2D(OperatorSet):
     """Gradient, divergence and Laplacian on points of a planar domain.
 
     Parameters
     ----------
-    points : array_like, shape (N, 2)
+    points : array_like (N, 2), or planar point-like input
+        An (N, 2) array, or anything :func:`~manifold_sph.as_cloud` takes (an (N, 3) array,
+        a file, a mesh) whose points have one constant coordinate: the other two are used.
     scheme, kernel, neighbors, h, area, max_condition
         As for :class:`~manifold_sph.Surface`. ``area="geometric"`` uses the
         rectangle ``bounds``.
@@ -110,7 +134,7 @@ class Domain2D(OperatorSet):
         mirror: bool = False,
         max_condition: float = 1e8,
     ) -> None:
-        pts = as_points("points", points, dim=2)
+        pts = planar_points(points)
         if pts.shape[0] < 10:
             raise ValueError(f"points must hold at least 10 points, got {pts.shape[0]}")
         if np.unique(pts, axis=0).shape[0] != pts.shape[0]:

@@ -13,7 +13,7 @@ from . import geometry
 from .frames import FramePair, PairOffsets, check_frames, project_pairs, tangent_frames
 from .neighbors import GRID_MIN_POINTS, build_tree, find_neighbors
 from .operators import OperatorSet
-from .pointcloud import PointCloud
+from .pointcloud import PointCloud, PointViews, as_cloud
 
 if TYPE_CHECKING:
     from .kernels import Kernel
@@ -30,7 +30,7 @@ def _estimate_normals(points: np.ndarray, scheme: Scheme) -> np.ndarray:
     return estimate_normals(points, degree=degree)
 
 
-class Surface(OperatorSet):
+class Surface(OperatorSet, PointViews):
     """Gradient, divergence and Laplace-Beltrami on a point cloud sampling a surface.
 
     The neighbourhood (KD-tree radius search plus normal filter), tangent frames,
@@ -39,7 +39,9 @@ class Surface(OperatorSet):
 
     Parameters
     ----------
-    points : array_like, shape (N, 3), or PointCloud
+    points : array_like (N, 3), PointCloud, file path, or Open3D / PyVista / trimesh object
+        Anything :func:`~manifold_sph.as_cloud` takes (a file is read with its defaults:
+        duplicates merged, a mesh's faces giving the normals).
     normals : array_like, shape (N, 3), optional
         Unit (or unnormalised, non-zero) normals. When neither ``normals`` nor the
         PointCloud has them, they are estimated with
@@ -114,10 +116,7 @@ class Surface(OperatorSet):
         total_area: float | None = None,
         max_condition: float = 1e8,
     ) -> None:
-        if isinstance(points, PointCloud):
-            cloud = points if normals is None else PointCloud(points.points, normals, geometry=points.geometry)
-        else:
-            cloud = PointCloud(points, normals)
+        cloud = as_cloud(points, normals=normals)
         #: Whether the normals were estimated here from the points (none were given).
         self.normals_estimated = cloud.normals is None
         self._resolve(kernel, scheme, neighbors, max_condition)

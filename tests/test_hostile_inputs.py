@@ -185,9 +185,9 @@ def test_obj_duplicates_merge_with_report(tmp_path, cloud):
     pts = np.vstack([cloud.points, cloud.points[:2]])
     (tmp_path / "d.obj").write_text("".join(f"v {a!r} {b!r} {c!r}\n" for a, b, c in pts.tolist()))
     with pytest.raises(ReadError, match="duplicates='merge'"):
-        read(tmp_path / "d.obj")
+        read(tmp_path / "d.obj", duplicates="error")
     with pytest.warns(RuntimeWarning, match="merged 2 exact duplicate"):
-        back, fields = read(tmp_path / "d.obj", duplicates="merge", return_fields=True)
+        back, fields = read(tmp_path / "d.obj", return_fields=True)
     assert len(back) == 40 and fields["index"].tolist() == list(range(40))
 
 

@@ -116,7 +116,10 @@ def test_obj_faces_and_negative_indices(tmp_path):
     path.write_text("\n".join(lines) + "\n")
     cloud = read(path, normals="mesh")
     assert np.einsum("ij,ij->i", cloud.normals, c.normals).min() > 0.9
-    assert read(path).normals is None  # faces ignored unless asked
+    assert read(path, normals="file").normals is None  # the file stores none
+    with pytest.warns(RuntimeWarning, match="normals from its 20 faces, which are not kept"):
+        auto = read(path)  # the default: a mesh without stored normals gives its faces' (said once)
+    np.testing.assert_array_equal(auto.normals, cloud.normals)
 
 
 def test_pcd_ascii_written_by_hand(tmp_path):
@@ -141,10 +144,11 @@ def test_text_header_names_columns(tmp_path):
 def test_duplicates_error_and_merge(tmp_path, cloud):
     path = tmp_path / "d.npy"
     np.save(path, np.vstack([cloud.points, cloud.points[:3]]))
-    with pytest.raises(ReadError, match=r"d\.npy.*duplicate"):
-        read(path)
-    with pytest.warns(RuntimeWarning, match="merged 3 exact duplicate"):  # a ManifoldSPHWarning
-        back, fields = read(path, duplicates="merge", return_fields=True)
+    with pytest.raises(ReadError, match=r"d\.npy.*3 exact duplicate point\(s\); pass duplicates='merge'"):
+        read(path, duplicates="error")
+    with pytest.warns(RuntimeWarning, match="merged 3 exact duplicate") as said:  # a ManifoldSPHWarning, the default
+        back, fields = read(path, return_fields=True)
+    assert len(said) == 1
     assert len(back) == 200 and fields["index"].tolist() == list(range(200))
 
 
@@ -220,7 +224,8 @@ def test_conversions(cloud):
     import trimesh.creation
 
     ico = trimesh.creation.icosphere(subdivisions=2)
-    back = convert.from_trimesh(ico)
+    with pytest.warns(RuntimeWarning, match="normals from its 320 faces, which are not kept"):
+        back = convert.from_trimesh(ico)
     assert np.einsum("ij,ij->i", back.normals, back.points).min() > 0.95
 
     o3 = convert.to_open3d(cloud)

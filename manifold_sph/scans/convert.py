@@ -1,4 +1,4 @@
-"""Conversions between point clouds and PyVista, trimesh and Open3D objects, and mesh vertex normals.
+"""Conversions between point clouds and PyVista, trimesh and Open3D objects.
 
 :func:`to_pyvista` / :func:`from_pyvista`, :func:`to_trimesh` / :func:`from_trimesh`,
 :func:`to_open3d` / :func:`from_open3d`. The libraries are imported only inside these functions.
@@ -13,8 +13,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .._validation import as_points, check_real_array
-from ..pointcloud import PointCloud
-from .io_read import from_pv_mesh
+from ..pointcloud import PointCloud, PointViews, as_cloud, is_point_array
+from .sources import announce, mesh_vertex_normals, object_source, settle
 
 if TYPE_CHECKING:  # the interchange libraries load only inside the functions that use them
     import open3d as o3d
@@ -23,7 +23,6 @@ if TYPE_CHECKING:  # the interchange libraries load only inside the functions th
 
 __all__ = [
     "cloud_arrays",
-    "usable_normals",
     "mesh_vertex_normals",
     "to_pyvista",
     "from_pyvista",
@@ -34,52 +33,12 @@ __all__ = [
 ]
 
 
-def usable_normals(normals):
-    """Normals from a file, or None when they are absent or all zero (placeholders)."""
-    if normals is None:
-        return None
-    normals = np.asarray(normals, dtype=np.float64)
-    if not np.all(np.isfinite(normals)) or not np.any(normals):
-        return None
-    return normals
-
-
-def mesh_vertex_normals(vertices: ArrayLike, faces: ArrayLike) -> np.ndarray:
-    """Area-weighted vertex normals of a triangle mesh (zero for vertices in no face).
-
-    Parameters
-    ----------
-    vertices : array_like, shape (N, 3)
-    faces : array_like of int, shape (F, 3)
-
-    Returns
-    -------
-    ndarray, shape (N, 3)
-        Unit normals, or zero rows for unreferenced vertices.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> v = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [5, 5, 5]])
-    >>> mesh_vertex_normals(v, [[0, 1, 2]]).tolist()
-    [[0.0, 0.0, 1.0], [0.0, 0.0, 1.0], [0.0, 0.0, 1.0], [0.0, 0.0, 0.0]]
-    """
-    v = np.asarray(vertices, dtype=np.float64)
-    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
-    fn = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])  # |fn| = 2 * area
-    vn = np.zeros_like(v)
-    for a in range(3):
-        np.add.at(vn, f[:, a], fn)
-    norm = np.linalg.norm(vn, axis=1)
-    ok = norm > 0
-    vn[ok] /= norm[ok, None]
-    return vn
-
-
 def cloud_arrays(cloud):
-    """Points and normals (or None) of a PointCloud or an (N, 3) array: real, finite, non-empty."""
-    if isinstance(cloud, PointCloud):
-        return cloud.points, cloud.normals
+    """Points and normals (or None) of anything point-like (:func:`~manifold_sph.as_cloud`); an
+    array is taken as it is (any number of points, repeats allowed): real, finite, non-empty."""
+    if not is_point_array(cloud):
+        c = as_cloud(cloud)
+        return c.points, c.normals
     check_real_array("cloud", cloud)
     try:
         pts = np.asarray(cloud, dtype=np.float64)
@@ -93,7 +52,8 @@ def cloud_arrays(cloud):
 
 
 def to_pyvista(cloud: PointCloud | ArrayLike, fields: Mapping[str, ArrayLike] | None = None) -> pv.PolyData:
-    """A ``pyvista.PolyData`` of the points (vertex cells), normals as point data ``Normals``.
+    """A ``pyvista.PolyData`` of the points (vertex cells), normals as point data ``Normals``
+    (:meth:`PointCloud.to_pyvista <manifold_sph.pointcloud.PointViews.to_pyvista>` for anything point-like).
 
     Examples
     --------
@@ -102,27 +62,30 @@ def to_pyvista(cloud: PointCloud | ArrayLike, fields: Mapping[str, ArrayLike] | 
     >>> mesh.n_points, sorted(mesh.point_data.keys())
     (30, ['Normals', 'u'])
     """
-    import pyvista as pv
-
     pts, nrm = cloud_arrays(cloud)
-    mesh = pv.PolyData(pts.copy())
-    if nrm is not None:
-        mesh.point_data["Normals"] = nrm
-    for name, arr in (fields or {}).items():
-        a = np.asarray(arr)
-        if a.shape[:1] != (pts.shape[0],):
-            raise ValueError(f"field {name!r} must have {pts.shape[0]} rows, got shape {a.shape}")
-        mesh.point_data[name] = a
-    return mesh
+    return _Arrays(pts, nrm).to_pyvista(fields)
+
+
+class _Arrays(PointViews):
+    """Bare arrays (any number of points, repeats allowed) with the conversions of a PointCloud."""
+
+    def __init__(self, points, normals):
+        self.points, self.normals = points, normals
+
+
+def _from(obj, return_fields: bool, normals: bool = True):
+    src, note = settle(object_source(obj), normals="auto" if normals else "none")
+    cloud = PointCloud(src.points, src.normals)
+    announce(note)
+    return (cloud, src.fields) if return_fields else cloud
 
 
 def from_pyvista(mesh: pv.DataSet, *, return_fields: bool = False) -> PointCloud | tuple[PointCloud, dict[str, np.ndarray]]:
-    """A PointCloud from any ``pyvista.DataSet`` (points; point data ``Normals`` if present)."""
-    if not hasattr(mesh, "points") or not hasattr(mesh, "point_data"):
+    """A PointCloud from any ``pyvista.DataSet`` (points; point data ``Normals``, else a PolyData's
+    faces for normals, as :func:`~manifold_sph.as_cloud`), and with ``return_fields`` the other point data."""
+    if type(mesh).__module__.split(".")[0] not in ("pyvista", "vtk", "vtkmodules"):
         raise TypeError(f"mesh must be a pyvista DataSet, got {type(mesh).__name__}")
-    pts, nrm, fields = from_pv_mesh(mesh)
-    cloud = PointCloud(pts, usable_normals(nrm))
-    return (cloud, fields) if return_fields else cloud
+    return _from(mesh, return_fields)
 
 
 def to_trimesh(cloud: PointCloud | ArrayLike) -> trimesh.PointCloud:
@@ -136,43 +99,26 @@ def to_trimesh(cloud: PointCloud | ArrayLike) -> trimesh.PointCloud:
     return pc
 
 
-def from_trimesh(obj: trimesh.Trimesh | trimesh.PointCloud, *, normals: bool = True) -> PointCloud:
-    """A PointCloud from a ``trimesh.Trimesh`` (vertices, vertex normals) or ``trimesh.PointCloud``.
-
-    ``normals=False`` drops them; a Trimesh's vertices in no face are dropped when
-    ``normals=True`` (they have no normal).
-    """
-    import trimesh
-
-    if isinstance(obj, trimesh.Trimesh):
-        pts = np.asarray(obj.vertices, dtype=np.float64)
-        if not normals:
-            return PointCloud(pts)
-        vn = mesh_vertex_normals(pts, np.asarray(obj.faces))
-        keep = np.linalg.norm(vn, axis=1) > 0
-        return PointCloud(pts[keep], vn[keep])
-    if isinstance(obj, trimesh.PointCloud):
-        pts = np.asarray(obj.vertices, dtype=np.float64)
-        nrm = obj.metadata.get("normals") if normals else None
-        return PointCloud(pts, usable_normals(nrm))
-    raise TypeError(f"obj must be a trimesh.Trimesh or trimesh.PointCloud, got {type(obj).__name__}")
+def from_trimesh(obj: trimesh.Trimesh | trimesh.PointCloud, *, normals: bool = True,
+                 return_fields: bool = False) -> PointCloud | tuple[PointCloud, dict[str, np.ndarray]]:
+    """A PointCloud from a ``trimesh.Trimesh`` (vertices; normals from its faces, as
+    :func:`~manifold_sph.as_cloud`), ``trimesh.PointCloud`` (normals in ``metadata["normals"]``)
+    or ``trimesh.Scene``. ``normals=False`` leaves the normals out."""
+    if type(obj).__module__.split(".")[0] != "trimesh":
+        raise TypeError(f"obj must be a trimesh.Trimesh, PointCloud or Scene, got {type(obj).__name__}")
+    return _from(obj, return_fields, normals)
 
 
 def to_open3d(cloud: PointCloud | ArrayLike) -> o3d.geometry.PointCloud:
     """An ``open3d.geometry.PointCloud`` with normals if the cloud has them."""
-    import open3d as o3d
-
     pts, nrm = cloud_arrays(cloud)
-    pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.array(pts, dtype=np.float64)))
-    if nrm is not None:
-        pc.normals = o3d.utility.Vector3dVector(np.array(nrm, dtype=np.float64))
-    return pc
+    return _Arrays(pts, nrm).to_open3d()
 
 
 def from_open3d(pc: o3d.geometry.PointCloud | o3d.t.geometry.PointCloud | o3d.geometry.TriangleMesh, *,
                 return_fields: bool = False) -> PointCloud | tuple[PointCloud, dict[str, np.ndarray]]:
     """A PointCloud from an open3d point cloud (legacy ``open3d.geometry.PointCloud`` or tensor
-    ``open3d.t.geometry.PointCloud``) or the vertices of a ``TriangleMesh``.
+    ``open3d.t.geometry.PointCloud``) or a ``TriangleMesh`` (its vertex normals, else its faces').
 
     With ``return_fields`` also a dict of the per-point data: colours as ``red, green,
     blue`` and, for tensor clouds, every custom attribute (intensity, labels...).
@@ -187,36 +133,6 @@ def from_open3d(pc: o3d.geometry.PointCloud | o3d.t.geometry.PointCloud | o3d.ge
     >>> len(cloud), fields["intensity"][:3].tolist()
     (30, [0.0, 1.0, 2.0])
     """
-    import open3d as o3d
-
-    fields = {}
-    if isinstance(pc, o3d.geometry.TriangleMesh):
-        pts = np.asarray(pc.vertices, dtype=np.float64)
-        nrm = np.asarray(pc.vertex_normals, dtype=np.float64) if pc.has_vertex_normals() else None
-        if pc.has_vertex_colors():
-            fields = dict(zip(("red", "green", "blue"), np.asarray(pc.vertex_colors).T))
-    elif isinstance(pc, o3d.geometry.PointCloud):
-        pts = np.asarray(pc.points, dtype=np.float64)
-        nrm = np.asarray(pc.normals, dtype=np.float64) if pc.has_normals() else None
-        if pc.has_colors():
-            fields = dict(zip(("red", "green", "blue"), np.asarray(pc.colors).T))
-    elif isinstance(pc, o3d.t.geometry.PointCloud):
-        if "positions" not in pc.point:
-            raise ValueError("pc holds no points (no 'positions' attribute)")
-        pts = pc.point.positions.numpy().astype(np.float64)
-        nrm = pc.point.normals.numpy().astype(np.float64) if "normals" in pc.point else None
-        for key in pc.point:
-            if key in ("positions", "normals"):
-                continue
-            a = pc.point[key].numpy()
-            a = a.reshape(len(a), -1)
-            if key == "colors" and a.shape[1] in (3, 4):
-                fields.update(zip(("red", "green", "blue", "alpha"), a.T))
-            elif a.shape[1] == 1:
-                fields[key] = a[:, 0]
-            else:
-                fields[key] = a
-    else:
+    if type(pc).__module__.split(".")[0] != "open3d":
         raise TypeError(f"pc must be an open3d PointCloud (legacy or tensor) or TriangleMesh, got {type(pc).__name__}")
-    cloud = PointCloud(pts, usable_normals(nrm))
-    return (cloud, fields) if return_fields else cloud
+    return _from(pc, return_fields)

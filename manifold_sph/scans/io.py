@@ -49,18 +49,17 @@ from __future__ import annotations
 
 import os
 import re
-import warnings
 from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..exceptions import ManifoldSPHWarning
 from .._validation import check_in, check_output_path, check_real_array
-from .convert import cloud_arrays, mesh_vertex_normals, usable_normals
-from .io_read import ReadError, read_format, read_las_chunks
+from .convert import cloud_arrays
+from .io_read import ReadError, read_las_chunks
 from .io_write import atomic_target, write_format
+from .sources import FORMATS, file_source, format_of, settle, announce
 from ..pointcloud import PointCloud
 
 __all__ = [
@@ -71,74 +70,6 @@ __all__ = [
     "read_mesh",
     "read_las_chunks",
 ]
-
-#: Extension -> format name.
-FORMATS = {
-    ".ply": "ply",
-    ".pcd": "pcd",
-    ".xyz": "xyz",
-    ".txt": "xyz",
-    ".csv": "csv",
-    ".pts": "pts",
-    ".obj": "obj",
-    ".npy": "npy",
-    ".npz": "npz",
-    ".las": "las",
-    ".laz": "laz",
-    ".e57": "e57",
-    ".vtk": "vtk",
-    ".vtp": "vtk",
-}
-
-#: Archive and compression extensions: reading them needs unpacking first.
-_ARCHIVES = {".zip", ".gz", ".tgz", ".bz2", ".xz", ".7z", ".rar", ".tar", ".zst", ".lzma"}
-
-
-#: Magic bytes at the start of a file -> its format (binary formats and headed text formats).
-_MAGIC = ((b"ply\n", "ply"), (b"ply\r\n", "ply"), (b"\x93NUMPY", "npy"), (b"PK\x03\x04", "npz"), (b"LASF", "las"),
-          (b"ASTM-E57", "e57"), (b"# vtk DataFile", "vtk"))
-
-
-def _sniff(path: Path) -> str | None:
-    """The format a file's first bytes announce, or None (plain text, unknown)."""
-    with open(path, "rb") as fh:
-        head = fh.read(64)
-    for magic, fmt in _MAGIC:
-        if head.startswith(magic):
-            return fmt
-    if head.lstrip().startswith(b"<?xml") and b"VTKFile" in head or head.lstrip().startswith(b"<VTKFile"):
-        return "vtk"
-    return None
-
-
-def _check_content(path: Path, fmt: str) -> None:
-    """Refuse a file whose first bytes announce another format than ``fmt`` (a misnamed file),
-    naming the format it looks like, instead of a confusing parse error."""
-    seen = _sniff(path)
-    same = {"las": {"las", "laz"}, "npz": {"npz"}, "npy": {"npy"}}.get(seen, {seen})
-    if seen is not None and fmt not in same:
-        raise ReadError(path, f"its first bytes are those of a {seen.upper()} file, not {fmt.upper()}; "
-                              f"rename it or pass format={seen!r}")
-
-
-def _format_of(path: Path, format: str | None) -> str:
-    if format is not None:
-        check_in("format", format, set(FORMATS.values()))
-        return format
-    ext = path.suffix.lower()
-    if ext in _ARCHIVES:
-        raise ValueError(
-            f"{str(path)!r} is a compressed file or archive ({ext}); unpack it and read the point-cloud file "
-            f"inside (formats: {sorted(set(FORMATS.values()))})"
-        )
-    if ext not in FORMATS:
-        raise ValueError(
-            f"cannot tell the format of {str(path)!r} from its extension {ext!r}; "
-            f"pass format= one of {sorted(set(FORMATS.values()))}"
-        )
-    return FORMATS[ext]
-
-
 
 
 # ----------------------------------------------------------------------------
@@ -163,31 +94,16 @@ def read_mesh(path: str | os.PathLike[str], *, format: str | None = None) -> tup
     >>> v.shape, f.tolist()
     ((4, 3), [[0, 1, 3], [0, 3, 2]])
     """
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"no such file: {str(path)!r}")
-    fmt = _format_of(path, format)
-    if fmt in ("ply", "obj"):
-        try:
-            pts, _, _, faces = read_format(path, fmt, True)
-        except (UnicodeDecodeError, IndexError, KeyError, EOFError) as exc:
-            raise ReadError(path, f"malformed {fmt.upper()} file ({type(exc).__name__}: {exc})") from None
-    elif fmt == "vtk":
-        import pyvista as pv
-
-        try:
-            mesh = pv.read(str(path)).extract_surface().triangulate()
-        except Exception as exc:  # pyvista/vtk raise many types
-            raise ReadError(path, f"pyvista could not read it ({type(exc).__name__}: {exc})") from None
-        pts, faces = np.asarray(mesh.points, np.float64), np.asarray(mesh.faces).reshape(-1, 4)[:, 1:]
-    else:
+    fmt = format_of(path, format)
+    if fmt not in ("ply", "obj", "vtk"):
         raise ValueError(f"read_mesh supports ply, obj and vtk files, got format {fmt!r}")
-    faces = np.zeros((0, 3), dtype=np.int64) if faces is None else np.asarray(faces, dtype=np.int64).reshape(-1, 3)
-    return pts, faces
+    src = file_source(path, format=fmt, faces=True)
+    faces = np.zeros((0, 3), dtype=np.int64) if src.faces is None else src.faces
+    return src.points, faces
 
 
-def read(path: str | os.PathLike[str], *, format: str | None = None, normals: str = "file", duplicates: str = "error",
-         return_fields: bool = False) -> PointCloud | tuple[PointCloud, dict[str, np.ndarray]]:
+def read(path: str | os.PathLike[str], *, format: str | None = None, normals: str = "auto",
+         duplicates: str = "merge", return_fields: bool = False) -> PointCloud | tuple[PointCloud, dict[str, np.ndarray]]:
     """Read a point cloud file.
 
     Parameters
@@ -196,22 +112,28 @@ def read(path: str | os.PathLike[str], *, format: str | None = None, normals: st
     format : str, optional
         One of ``ply, pcd, xyz, csv, pts, obj, npy, npz, las, laz, e57, vtk`` (default:
         from the extension).
-    normals : {"file", "mesh", "none"}
-        "file": the normals stored in the file, if any (all-zero placeholders
-        count as none); "mesh": area-weighted vertex normals of the file's faces
-        (PLY, OBJ, VTK), vertices in no face are dropped and ``fields["index"]``
-        keeps the original indices; "none": ignore stored normals.
-    duplicates : {"error", "merge"}
-        Repeated points are rejected by :class:`~manifold_sph.PointCloud`;
-        "merge" merges exact repeats first (:func:`manifold_sph.scans.cleaning.merge_duplicates`,
-        the normals averaged), records the original indices in ``fields["index"]``
-        and reports how many were merged in a :class:`~manifold_sph.ManifoldSPHWarning`.
+    normals : {"auto", "file", "mesh", "none"}
+        "auto" (default): the normals stored in the file (all-zero placeholders count as
+        none), else, for a mesh (PLY, OBJ, VTK faces), area-weighted vertex normals of its
+        faces when every point is in a face and the faces are wound consistently (turned
+        outward), else none (a Surface estimates them). "file": the stored normals only;
+        "mesh": from the faces (required), vertices in no face dropped, ``fields["index"]``
+        keeping the original indices; "none": no normals.
+    duplicates : {"merge", "error"}
+        "merge" (default): exact repeats of a point are merged into the first of each group
+        (normals averaged), ``fields["index"]`` holds the original indices; "error": refuse
+        a file with repeats (:class:`ReadError` giving the count).
     return_fields : bool
         Also return a dict of the other per-point arrays (colours, intensities...).
 
     Returns
     -------
     PointCloud, or (PointCloud, dict) if ``return_fields``
+
+    Warns
+    -----
+    ManifoldSPHWarning
+        One, when duplicates were merged or a mesh's faces were dropped (with the counts).
 
     Raises
     ------
@@ -231,73 +153,19 @@ def read(path: str | os.PathLike[str], *, format: str | None = None, normals: st
     >>> bool(np.array_equal(back.points, cloud.points)), back.normals is not None
     (True, True)
     """
-    path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"no such file: {str(path)!r}")
-    if path.is_dir():
-        raise ReadError(path, "it is a folder, not a file")
-    if not path.is_file():
-        raise ReadError(path, "it is not a regular file")
-    fmt = _format_of(path, format)
-    check_in("normals", normals, {"file", "mesh", "none"})
+    check_in("normals", normals, {"auto", "file", "mesh", "none"})
     check_in("duplicates", duplicates, {"error", "merge"})
-    want_faces = normals == "mesh"
-    if want_faces and fmt not in ("ply", "obj", "vtk"):
+    fmt = format_of(path, format)
+    if normals == "mesh" and fmt not in ("ply", "obj", "vtk"):
         raise ValueError(f"normals='mesh' needs a mesh file (ply, obj, vtk), got format {fmt!r}")
-    _check_content(path, fmt)
+    src = file_source(path, format=fmt, faces=normals in ("auto", "mesh"))
     try:
-        pts, nrm, fields, faces = read_format(path, fmt, want_faces)
-        if want_faces and fmt == "vtk":
-            faces = read_mesh(path, format="vtk")[1]
-    except ReadError:
-        raise
-    except (UnicodeDecodeError, IndexError, KeyError, ValueError, TypeError, EOFError, OSError) as exc:
-        raise ReadError(path, f"malformed {fmt.upper()} file ({type(exc).__name__}: {exc})") from None
-    pts = np.asarray(pts, dtype=np.float64)
-    if pts.ndim != 2 or pts.shape[1] != 3 or pts.shape[0] == 0:
-        raise ReadError(path, f"no points found (shape {pts.shape})")
-    if not np.all(np.isfinite(pts)):
-        bad = int((~np.isfinite(pts).all(axis=1)).sum())
-        raise ReadError(path, f"{bad} point(s) have NaN or inf coordinates")
-    fields = {k: np.asarray(v) for k, v in fields.items()}
-    if normals == "none":
-        nrm = None
-    elif normals == "mesh":
-        if faces is None or len(faces) == 0:
-            raise ReadError(path, "normals='mesh' was asked but the file holds no faces")
-        faces = np.asarray(faces, dtype=np.int64)
-        if faces.size and (faces.min() < 0 or faces.max() >= len(pts)):
-            raise ReadError(path, f"a face refers to a vertex outside 0..{len(pts) - 1}")
-        vn = mesh_vertex_normals(pts, faces)
-        keep = np.linalg.norm(vn, axis=1) > 0
-        idx = np.flatnonzero(keep)
-        pts, nrm = pts[keep], vn[keep]
-        fields = {k: v[keep] for k, v in fields.items() if len(v) == len(keep)}
-        fields["index"] = idx
-    else:
-        nrm = usable_normals(nrm)
-    if duplicates == "merge":
-        from .cleaning import merge_duplicates
-
-        res = merge_duplicates(pts, nrm, tolerance=0.0)
-        base = fields.get("index", np.arange(len(res.keep_mask)))
-        fields = {k: (v[res.keep_mask] if len(v) == len(res.keep_mask) else v) for k, v in fields.items()}
-        fields["index"] = base[res.keep_mask]
-        merged = int((~res.keep_mask).sum())
-        if merged:
-            warnings.warn(
-                f"read {str(path)!r}: merged {merged} exact duplicate point(s) into the first of each group "
-                f"({len(res.points)} points kept; fields['index'] holds their original indices)",
-                ManifoldSPHWarning,
-                stacklevel=2,
-            )
-        pts, nrm = res.points, res.normals
-    try:
-        cloud = PointCloud(pts, nrm)
+        src, note = settle(src, normals=normals, duplicates=duplicates)
+        cloud = PointCloud(src.points, src.normals)
     except ValueError as exc:
-        msg = str(exc).replace("merge duplicates first", "pass duplicates='merge' to merge exact repeats")
-        raise ReadError(path, msg) from None
-    return (cloud, fields) if return_fields else cloud
+        raise ReadError(Path(path), str(exc).replace(f"{src.label} ", "it ")) from None
+    announce(note)
+    return (cloud, src.fields) if return_fields else cloud
 
 
 def _check_fields(fields, n: int, flatten: bool) -> dict:
@@ -372,7 +240,7 @@ def write(path: str | os.PathLike[str], cloud: PointCloud | ArrayLike, fields: M
     """
     path = Path(path)
     check_output_path("path", path, overwrite)
-    fmt = _format_of(path, format)
+    fmt = format_of(path, format)
     if fmt == "e57":
         raise ValueError("E57 files are read, not written; write las, laz, ply or pcd instead")
     pts, nrm = cloud_arrays(cloud)

@@ -4,18 +4,24 @@ Every function renders off-screen (VTK picks an EGL or OSMesa window when
 there is no X server), returns the image as a ``(height, width, 3)`` uint8
 array (``(height, width, 4)`` with ``transparent=True``) and writes a PNG when
 given ``filename``; an existing file is never overwritten unless
-``overwrite=True``.
+``overwrite=True``. The points may be anything point-like
+(:func:`manifold_sph.as_cloud`: arrays, clouds, Surfaces, files, Open3D / PyVista /
+trimesh objects); planar (N, 2) points lie in z = 0.
 
-- :func:`render_field`: a scalar field on the points (drawn as spheres),
-  optionally with tangent vectors as arrow glyphs.
+The defaults show the field (:mod:`.style`): a robust colour range, a diverging map
+centred at 0 for signed fields, the object standing on its up axis, each point drawn as
+a disc in its tangent plane sized from its own spacing (so that the surface is closed
+and its back side hidden; spheres where there are no normals), NaN and inf values in
+a neutral dark grey with a count in the corner, titles that fit.
+
+- :func:`render_field`: a scalar field on the points, optionally with tangent vectors
+  as arrow glyphs; :func:`show` the same as a :class:`Picture` (shown in a notebook).
 - :func:`render_panels`: side-by-side panels, e.g. function | exact |
   approximation | error (:func:`render_comparison`).
-- :func:`animate`: a time series (snapshots of a PDE solver) to GIF (Pillow)
-  or MP4 (``imageio`` with ``imageio-ffmpeg``), with an optional progress bar.
+- :func:`animate`: a time series (snapshots of a PDE solver) to GIF or MP4 (the
+  ``video`` extra: ``pip install "manifold-sph[video]"``), with an optional progress bar.
 - :data:`CAMERAS`: the fixed views ``"iso"``, ``"equator"`` and
   ``"north_pole"`` (the views of the sphere in the thesis [1], docs/method.md).
-- :func:`detect_up_axis`: the up axis guessed from a cloud (``up="auto"``).
-- :func:`color_limits`: explicit or robust (percentile-clipped) colour limits.
 - :func:`rendering_available`: whether off-screen rendering works here.
 
 Examples
@@ -33,8 +39,9 @@ Examples
 
 from __future__ import annotations
 
+import base64
 import contextlib
-import numbers
+import io
 import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -43,7 +50,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .._validation import as_field, as_points, check_bool, check_in, check_int, check_output_path, check_positive
+from .._validation import (
+    as_field, as_points, check_bool, check_in, check_int, check_output_path, check_positive, check_real_array,
+)
+from .style import NAN_COLOR, color_limits, detect_up_axis, field_colormap, fit_title, splat_radii, up_vector
 
 if TYPE_CHECKING:  # no run-time imports: pyvista and the operator stack load only when used
     from ..operators import OperatorSet
@@ -52,14 +62,16 @@ if TYPE_CHECKING:  # no run-time imports: pyvista and the operator stack load on
 
 __all__ = [
     "CAMERAS",
+    "Picture",
     "animate",
     "color_limits",
+    "detect_up_axis",
     "render_comparison",
     "render_field",
     "render_panels",
-    "detect_up_axis",
     "rendering_available",
     "save_png",
+    "show",
 ]
 
 #: Camera presets: name -> (direction from the centre to the camera, view-up).
@@ -81,16 +93,34 @@ _AVAILABLE: tuple[bool, str] | None = None
 # --- small helpers -------------------------------------------------------------------
 
 
-def _as_points3(points) -> np.ndarray:
-    """(N, 3) coordinates from an array (N, 2 or 3), a PointCloud, a Surface or a Domain2D."""
-    if hasattr(points, "points") and not isinstance(points, np.ndarray):
-        points = points.points
-    p = as_points("points", points, dim=(2, 3))
+def _geometry(points) -> tuple[np.ndarray, np.ndarray | None]:
+    """(N, 3) coordinates and unit normals (or None) of anything point-like.
+
+    Arrays are taken as they are ((N, 2) planar points in z = 0; any number of points,
+    repeats allowed); everything else goes through :func:`manifold_sph.as_cloud` (clouds,
+    Surfaces, files, other libraries' objects); a Domain2D gives its planar points.
+    """
+    from ..pointcloud import as_cloud, is_point_array
+
+    normals = None
+    if is_point_array(points):
+        p = as_points("points", points, dim=(2, 3))
+    elif hasattr(points, "cloud") or not hasattr(points, "points"):
+        cloud = as_cloud(points)
+        p, normals = cloud.points, cloud.normals
+    else:  # an operator set on planar points (Domain2D)
+        p = as_points("points", points.points, dim=(2, 3))
+        normals = getattr(points, "normals", None)
     if p.shape[0] == 0:
         raise ValueError("points must hold at least one point, got shape (0, 3)")
     if p.shape[1] == 2:
         p = np.column_stack([p, np.zeros(len(p))])
-    return p
+        normals = np.tile([0.0, 0.0, 1.0], (len(p), 1))
+    if normals is not None:
+        normals = np.asarray(normals, dtype=np.float64)
+        length = np.linalg.norm(normals, axis=1, keepdims=True)
+        normals = normals / np.where(length > 0, length, 1.0) if normals.shape == p.shape else None
+    return p, normals
 
 
 def _check_window(window_size) -> tuple[int, int]:
@@ -149,75 +179,6 @@ def save_png(image: ArrayLike, filename: str | os.PathLike[str], *, overwrite: b
     path = _check_target(filename, overwrite, (".png",))
     Image.fromarray(img).save(path)
     return path
-
-
-def color_limits(
-    values: ArrayLike, clim: tuple[float, float] | None = None, robust: float | bool | None = None
-) -> tuple[float, float]:
-    """Colour limits of a field: explicit, full range, or robust (percentile clipping).
-
-    Parameters
-    ----------
-    values : array_like
-        Finite values (a scalar field, or several stacked).
-    clim : (float, float), optional
-        Explicit limits ``(low, high)``, returned as given (``low < high``).
-    robust : float or bool, optional
-        Clip ``robust`` percent at each end (``True`` means 2 %): the range of
-        the bulk of the values, so that a few outliers (e.g. the sausage's tips)
-        do not wash out the picture. Default: the full range.
-
-    Returns
-    -------
-    (float, float)
-        Rounded outwards to 3 significant digits of the range; a constant field
-        gets a small range around its value.
-
-    Examples
-    --------
-    >>> v = np.r_[np.linspace(0.0, 1.0, 99), 50.0]
-    >>> color_limits(v)
-    (0.0, 50.0)
-    >>> color_limits(v, robust=2)
-    (0.02, 0.99)
-    >>> color_limits(v, clim=(0, 2))
-    (0.0, 2.0)
-    >>> color_limits([3.0, 3.0])
-    (2.97, 3.03)
-    """
-    if clim is not None:
-        if isinstance(clim, (str, bytes)) or not isinstance(clim, Sequence) or len(clim) != 2:
-            raise TypeError(f"clim must be a pair (low, high) of numbers, got {clim!r}")
-        if not all(isinstance(c, numbers.Real) and not isinstance(c, bool) for c in clim):
-            raise TypeError(f"clim must be a pair (low, high) of numbers, got {clim!r}")
-        if not all(np.isfinite(c) for c in clim):
-            raise ValueError(f"clim must be finite, got {clim!r}")
-        lo, hi = float(clim[0]), float(clim[1])
-        if not lo < hi:
-            raise ValueError(f"clim must satisfy low < high, got {clim!r}")
-        return lo, hi
-    v = np.asarray(values, dtype=np.float64).ravel()
-    if v.size == 0:
-        raise ValueError("values must hold at least one value to choose colour limits")
-    if not np.all(np.isfinite(v)):
-        raise ValueError(f"values must be finite to choose colour limits, got {int((~np.isfinite(v)).sum())} NaN or inf value(s)")
-    if robust is None or robust is False:
-        lo, hi = float(v.min()), float(v.max())
-    else:
-        p = 2.0 if robust is True else check_positive("robust", robust)
-        if p >= 50:
-            raise ValueError(f"robust must be a percentage below 50, got {robust!r}")
-        lo, hi = (float(x) for x in np.percentile(v, [p, 100.0 - p]))
-    if hi - lo <= 1e-12 * max(1.0, abs(hi), abs(lo)):
-        d = 0.01 * max(abs(lo), 1e-12) if lo != 0 else 1e-3
-        lo, hi = lo - d, hi + d
-    # round outwards to 3 significant digits of the range: tidy colour-bar labels, nothing clipped
-    e = int(np.floor(np.log10(hi - lo))) - 2
-    m = 10.0**e
-    digits = max(-e, 0)
-    lo_r = round(np.floor(lo / m) * m, digits)
-    hi_r = round(np.ceil(hi / m) * m, digits)
-    return float(lo_r), float(hi_r)
 
 
 @contextlib.contextmanager
@@ -309,80 +270,45 @@ def _point_size(points: np.ndarray, spacing: float, window_size) -> float:
     return float(np.clip(1.1 * spacing * pix_per_unit, 2.0, 40.0))
 
 
-_AXES = {"x": 0, "y": 1, "z": 2}
-
-
-def detect_up_axis(points: ArrayLike | PointCloud | OperatorSet) -> str:
-    """The up axis of a cloud, guessed from its extents: ``"y"`` or ``"z"``.
-
-    The rule (chosen by looking at public test meshes, the Stanford bunny and the
-    package's shapes): ``"z"`` when z is the longest extent (within 5 %, e.g.
-    the sphere and many CAD parts) or the cloud is flat in z (z extent below
-    a quarter of the longest: tori, planar domains); otherwise ``"y"``, the
-    convention of most graphics and scan files (OBJ/PLY: the bunny, the
-    teapot, the cow, homer, cheburashka). Models it gets wrong (measured: the
-    beetle and Igea, whose longest extents include z) need ``up=`` explicitly.
-
-    Parameters
-    ----------
-    points : array_like (N, 3) or (N, 2), PointCloud, Surface or Domain2D
-
-    Returns
-    -------
-    str
-        ``"y"`` or ``"z"``.
-
-    Examples
-    --------
-    >>> from manifold_sph.reference import shapes
-    >>> detect_up_axis(shapes.torus(200)), detect_up_axis(shapes.sphere(200))
-    ('z', 'z')
-    >>> import numpy as np
-    >>> teapot_like = np.random.default_rng(0).random((100, 3)) * [6.4, 3.2, 4.0]
-    >>> detect_up_axis(teapot_like)
-    'y'
-    """
-    ext = np.ptp(_as_points3(points), axis=0)
-    top = ext.max()
-    if top <= 0 or ext[2] >= 0.95 * top or ext[2] < 0.25 * top:
-        return "z"
-    return "y"
-
-
-def _resolve_up(points, up) -> int:
-    """Index of the up axis from ``up`` ("auto", "x", "y" or "z")."""
-    if not isinstance(up, str):
-        raise TypeError(f"up must be one of 'auto', 'x', 'y', 'z' (a string), got {type(up).__name__} {up!r}")
-    if up not in ("auto", "x", "y", "z"):
-        raise ValueError(f"up must be one of 'auto', 'x', 'y', 'z', got {up!r}")
-    return _AXES[detect_up_axis(points) if up == "auto" else up]
-
-
-def _set_camera(plotter, points: np.ndarray, camera, zoom: float = 1.0, up: str = "z") -> None:
+def _set_camera(plotter, points: np.ndarray, camera, zoom: float = 1.0, up: Any = "auto") -> None:
+    """Place the camera: a preset of :data:`CAMERAS` turned so that its z is ``up``, or an
+    explicit ``(direction, view_up)`` pair (``up`` then validated and unused)."""
+    u = up_vector(points, up)
     if isinstance(camera, str):
         check_in("camera", camera, CAMERAS)
-        direction, view_up = CAMERAS[camera]
-        # the presets are written for z up: swap the z component with the up axis
-        a = _resolve_up(points, up)
-        perm = [0, 1, 2]
-        perm[a], perm[2] = 2, a
-        direction = tuple(direction[i] for i in perm)
-        up = tuple(view_up[i] for i in perm)
+        direction, view_up = (np.asarray(v, dtype=np.float64) for v in CAMERAS[camera])
+        a = int(np.argmax(np.abs(u)))
+        if abs(u[a]) > 1 - 1e-12:  # a coordinate axis: the presets' z swapped with it (and turned over for -a)
+            perm = [0, 1, 2]
+            perm[a], perm[2] = 2, a
+            direction, view_up = direction[perm] * np.sign(u[a]), view_up[perm] * np.sign(u[a])
+        else:  # any other direction: the rotation taking z to it
+            direction, view_up = _rotate_z_to(u) @ direction, _rotate_z_to(u) @ view_up
     else:
-        _resolve_up(points, up)  # validated; an explicit (direction, view_up) pair is used as given
         try:
-            direction, up = (np.asarray(camera[0], float), np.asarray(camera[1], float))
+            direction, view_up = (np.asarray(camera[0], float), np.asarray(camera[1], float))
         except (TypeError, ValueError, IndexError):
             raise TypeError(f"camera must be one of {sorted(CAMERAS)} or a pair (direction, view_up) of 3-vectors, got {camera!r}") from None
-        if direction.shape != (3,) or up.shape != (3,) or not np.linalg.norm(direction) > 0:
+        if direction.shape != (3,) or view_up.shape != (3,) or not np.linalg.norm(direction) > 0:
             raise ValueError(f"camera must be a pair (direction, view_up) of non-zero 3-vectors, got {camera!r}")
     centre = 0.5 * (points.min(axis=0) + points.max(axis=0))
-    d = np.asarray(direction, float)
-    d = d / np.linalg.norm(d)
-    plotter.camera_position = [tuple(centre + 5.0 * max(np.ptp(points, axis=0).max(), 1e-9) * d), tuple(centre), tuple(up)]
+    d = direction / np.linalg.norm(direction)
+    plotter.camera_position = [tuple(centre + 5.0 * max(np.ptp(points, axis=0).max(), 1e-9) * d), tuple(centre), tuple(view_up)]
     plotter.reset_camera()
     if zoom != 1.0:
         plotter.camera.zoom(zoom)
+
+
+def _rotate_z_to(u: np.ndarray) -> np.ndarray:
+    """The rotation matrix taking (0, 0, 1) to the unit vector ``u`` (Rodrigues)."""
+    z = np.array([0.0, 0.0, 1.0])
+    axis = np.cross(z, u)
+    s, c = np.linalg.norm(axis), float(z @ u)
+    if s < 1e-12:
+        return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
+    k = axis / s
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + s * K + (1 - c) * K @ K
 
 
 def _set_text(actor, text: str) -> None:
@@ -398,69 +324,127 @@ def _font(window_size, largest: int) -> int:
     return int(max(6, min(largest, round(largest * window_size[0] / 640))))
 
 
-def _title_text(plotter, text, font_size):
+def _title_text(plotter, text, window_size, largest: int = 12):
+    """The title at the top, in the largest font (up to ``largest``) that fits the width (two lines if needed)."""
     if text:
-        plotter.add_text(str(text), position="upper_edge", font_size=font_size, color="black")
+        fitted, size = fit_title(str(text), window_size[0], _font(window_size, largest))
+        plotter.add_text(fitted, position="upper_edge", font_size=size, color="black")
 
 
-def _add_cloud(
-    plotter,
-    points,
-    field,
-    vectors,
-    *,
-    spacing,
-    point_size,
-    cmap,
-    clim,
-    robust,
-    bar_title,
-    show_scalar_bar,
-    vector_scale,
-    vector_color,
-    n_labels=5,
-    max_arrows=400,
-    normals=None,
-):
-    """Add points (as spheres, coloured by ``field``) and optional arrow glyphs; return the points' actor."""
+#: Splats (one disc per point) up to this many points; spheres (point sprites) above.
+MAX_SPLATS = 1_500_000
+_SPLAT_SIDES = 8
+_STYLES = ("auto", "splats", "spheres")
+
+
+class _Scene:
+    """The points of a picture, prepared once: discs in the tangent planes (splats) where the
+    normals are known, else spheres of one size from the median spacing."""
+
+    def __init__(self, points, style, point_size, window_size, zoom):
+        self.points, self.normals = _geometry(points)
+        check_in("style", style, _STYLES)
+        n = len(self.points)
+        if style == "auto":
+            style = "splats" if self.normals is not None and point_size is None and n <= MAX_SPLATS else "spheres"
+        if style == "splats" and self.normals is None:
+            raise ValueError("style='splats' needs normals: give a PointCloud or Surface with normals, or style='spheres'")
+        self.style = style
+        self.spacing = _spacing(self.points)
+        if point_size is not None:
+            self.point_size = check_positive("point_size", point_size)
+        else:
+            self.point_size = _point_size(self.points, self.spacing, window_size) * zoom
+        self.repeat = 1
+        if style == "splats":
+            self.repeat = _SPLAT_SIDES + 1
+            self.radii = splat_radii(self.points)
+
+    def mesh(self):
+        """The PolyData drawn: the discs (each point repeated ``self.repeat`` times) or the points."""
+        import pyvista as pv
+
+        if self.style != "splats":
+            return pv.PolyData(self.points)
+        nrm, r = self.normals, self.radii
+        helper = np.where(np.abs(nrm[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+        t1 = np.cross(nrm, helper)
+        t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+        t2 = np.cross(nrm, t1)
+        ang = 2 * np.pi * np.arange(_SPLAT_SIDES) / _SPLAT_SIDES
+        rim = (np.cos(ang)[None, :, None] * t1[:, None, :] + np.sin(ang)[None, :, None] * t2[:, None, :]) * r[:, None, None]
+        pts = np.concatenate([self.points[:, None, :], self.points[:, None, :] + rim], axis=1).reshape(-1, 3)
+        base = (np.arange(len(self.points)) * self.repeat)[:, None]
+        k = np.arange(_SPLAT_SIDES)
+        tri = np.stack([np.broadcast_to(base, (len(base), _SPLAT_SIDES)), base + 1 + k, base + 1 + (k + 1) % _SPLAT_SIDES], axis=2)
+        faces = np.concatenate([np.full(tri.shape[:2] + (1,), 3), tri], axis=2).reshape(-1)
+        mesh = pv.PolyData(pts, faces)
+        mesh.point_data["Normals"] = np.repeat(nrm, self.repeat, axis=0)
+        mesh.point_data.active_normals_name = "Normals"
+        return mesh
+
+    def values(self, field):
+        return np.repeat(field, self.repeat) if self.repeat > 1 else field
+
+
+def _field_and_name(field, n: int, bar_title):
+    """``field`` as (N,) float64 (NaN and inf allowed: drawn grey), and the colour-bar title: the
+    given one, else the name of a one-entry mapping ``{name: values}``, else "value"."""
+    if field is None:
+        return None, bar_title
+    if isinstance(field, Mapping):
+        if len(field) != 1:
+            raise ValueError(f"field must be an array or a mapping with one entry {{name: values}}, got {len(field)} entries")
+        (name, field), = field.items()
+        bar_title = bar_title or str(name)
+    check_real_array("field", field)
+    try:
+        f = np.asarray(field, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise TypeError(f"field must be a numeric array, got {type(field).__name__}") from exc
+    if f.shape != (n,):
+        raise ValueError(f"field must have shape ({n},), got shape {f.shape}")
+    if not np.isfinite(f).any():
+        raise ValueError(f"field must hold at least one finite value, got {n} NaN or inf")
+    f = np.where(np.isfinite(f), f, np.nan)
+    return f, (bar_title or "value")
+
+
+def _add_cloud(plotter, scene, field, vectors, *, cmap, lim, bar_title, show_scalar_bar, vector_scale,
+               vector_color, window_size, n_labels=5, max_arrows=400):
+    """Add the points (coloured by ``field`` between ``lim``) and optional arrows; return the points' actor."""
     import pyvista as pv
 
-    n = len(points)
-    mesh = pv.PolyData(points)
+    pts, n = scene.points, len(scene.points)
+    mesh = scene.mesh()
+    common = dict(ambient=0.25, diffuse=0.75, specular=0.1)
+    if scene.style != "splats":
+        common.update(render_points_as_spheres=True, point_size=scene.point_size)
     if field is None and vectors is not None:
         field = np.linalg.norm(vectors, axis=1)
         bar_title = bar_title or "|v|"
     if field is not None:
-        lo, hi = color_limits(field, clim, robust)
-        mesh.point_data["field"] = np.clip(field, lo, hi)
+        lo, hi = lim
+        mesh.point_data["field"] = scene.values(np.clip(field, lo, hi))
         actor = plotter.add_mesh(
-            mesh,
-            scalars="field",
-            cmap=cmap,
-            clim=(lo, hi),
-            render_points_as_spheres=True,
-            point_size=point_size,
-            show_scalar_bar=show_scalar_bar,
+            mesh, scalars="field", cmap=field_colormap(lo, hi, cmap), clim=(lo, hi), nan_color=NAN_COLOR,
+            show_scalar_bar=show_scalar_bar, **common,
             scalar_bar_args={
-                "title": bar_title or "",
-                "color": "black",
-                "n_labels": n_labels,
-                "fmt": "%.3g",
-                "vertical": False,
-                "position_x": 0.2,
-                "position_y": 0.03,
-                "width": 0.6,
-                "height": 0.1,
-                "title_font_size": 14,
-                "label_font_size": 12,
+                "title": bar_title or "", "color": "black", "n_labels": n_labels, "fmt": "%.3g", "vertical": False,
+                "position_x": 0.2, "position_y": 0.03, "width": 0.6, "height": 0.1,
+                "title_font_size": _font(window_size, 14), "label_font_size": _font(window_size, 12),
             },
         )
+        missing = int(np.isnan(field).sum())
+        if missing:
+            plotter.add_text(f"{missing} without a value (NaN/inf): dark grey", position="lower_left",
+                             font_size=_font(window_size, 9), color="black")
+        if show_scalar_bar:
+            bar = plotter.scalar_bars[bar_title or ""] if (bar_title or "") in plotter.scalar_bars else None
+            if bar is not None:
+                bar.SetTextPositionToPrecedeScalarBar()  # labels below the bar, title above
     else:
-        actor = plotter.add_mesh(mesh, color="lightgray", render_points_as_spheres=True, point_size=point_size)
-    if field is not None and show_scalar_bar:
-        bar = plotter.scalar_bars[bar_title or ""] if (bar_title or "") in plotter.scalar_bars else None
-        if bar is not None:
-            bar.SetTextPositionToPrecedeScalarBar()  # labels below the bar, title above
+        actor = plotter.add_mesh(mesh, color="lightgray", **common)
     if vectors is not None:
         mag = np.linalg.norm(vectors, axis=1)
         vmax = float(mag.max())
@@ -470,9 +454,10 @@ def _add_cloud(
                 idx = np.flatnonzero(keep)
                 keep = np.zeros(n, dtype=bool)
                 keep[np.random.default_rng(0).choice(idx, max_arrows, replace=False)] = True
-            arrow_spacing = spacing * np.sqrt(n / max(int(keep.sum()), 1))
+            arrow_spacing = scene.spacing * np.sqrt(n / max(int(keep.sum()), 1))
             factor = (vector_scale if vector_scale is not None else 0.9 * arrow_spacing) / vmax
-            base = points[keep] + (0.0 if normals is None else 0.6 * spacing * normals[keep])
+            lift = 0.6 * scene.spacing if scene.style != "splats" else 0.15 * scene.spacing
+            base = pts[keep] + (0.0 if scene.normals is None else lift * scene.normals[keep])
             arrows = pv.PolyData(base)
             arrows.point_data["vec"] = vectors[keep]
             geom = pv.Arrow(tip_length=0.35, tip_radius=0.12, shaft_radius=0.04)
@@ -489,51 +474,33 @@ def _finish(plotter, transparent, filename, overwrite):
     return img
 
 
-def _normals_of(points, n):
-    """Unit normals of a PointCloud or Surface (to lift arrows off the spheres), or None."""
-    nrm = getattr(points, "normals", None) if not isinstance(points, np.ndarray) else None
-    if nrm is None:
+def _vectors(vectors, n):
+    if vectors is None:
         return None
-    nrm = np.asarray(nrm, dtype=np.float64)
-    if nrm.shape != (n, 3):
-        return None
-    length = np.linalg.norm(nrm, axis=1, keepdims=True)
-    return nrm / np.where(length > 0, length, 1.0)
-
-
-def _prepare(points, field, vectors, window_size, filename, overwrite):
-    pts = _as_points3(points)
-    n = len(pts)
-    fld = None if field is None else as_field("field", field, n)
-    vec = None
-    if vectors is not None:
-        v = np.asarray(vectors, dtype=np.float64)
-        if v.ndim == 2 and v.shape == (n, 2):
-            v = np.column_stack([v, np.zeros(n)])
-        vec = as_field("vectors", v, n, 3)
-    ws = _check_window(window_size)
-    if filename is not None:
-        _check_target(filename, overwrite, (".png",))
-    return pts, fld, vec, ws
+    v = np.asarray(vectors, dtype=np.float64)
+    if v.ndim == 2 and v.shape == (n, 2):
+        v = np.column_stack([v, np.zeros(n)])
+    return as_field("vectors", v, n, 3)
 
 
 # --- public renderers -----------------------------------------------------------------
 
 
 def render_field(
-    points: ArrayLike | PointCloud | OperatorSet,
-    field: ArrayLike | None = None,
+    points: Any,
+    field: ArrayLike | Mapping[str, ArrayLike] | None = None,
     *,
     vectors: ArrayLike | None = None,
     title: str | None = None,
     bar_title: str | None = None,
-    cmap: str = "viridis",
+    cmap: Any = "auto",
     clim: tuple[float, float] | None = None,
-    robust: float | bool | None = None,
+    robust: float | bool | None = True,
     camera: str | tuple[ArrayLike, ArrayLike] = "iso",
-    up: str = "auto",
+    up: Any = "auto",
     zoom: float = 1.0,
     window_size: tuple[int, int] = (800, 600),
+    style: str = "auto",
     point_size: float | None = None,
     vector_scale: float | None = None,
     vector_color: str = "black",
@@ -543,44 +510,54 @@ def render_field(
     filename: str | os.PathLike[str] | None = None,
     overwrite: bool = False,
 ) -> np.ndarray:
-    """Render a scalar field on a point cloud, points drawn as spheres, off-screen.
+    """Render a scalar field on a point cloud, off-screen.
 
     Parameters
     ----------
-    points : array_like (N, 3) or (N, 2), PointCloud, Surface or Domain2D
-        Planar points are drawn in the plane z = 0.
-    field : array_like, shape (N,), optional
-        Colours of the points; without it the points are grey, or coloured by
-        the length of ``vectors`` when those are given.
+    points : point-like
+        An array (N, 3) or (N, 2) (planar, drawn in z = 0), a PointCloud, Surface,
+        Domain2D, a file, or an Open3D / PyVista / trimesh object
+        (:func:`manifold_sph.as_cloud`).
+    field : array_like, shape (N,), or {name: array}, optional
+        Colours of the points (a one-entry mapping also names the colour bar). NaN and
+        inf (e.g. particles a geodesic did not reach) are drawn in dark grey, counted
+        in the lower-left corner. Without a field the points are grey, or coloured by
+        the length of ``vectors``.
     vectors : array_like, shape (N, 3) or (N, 2), optional
         Drawn as arrows (e.g. a tangential gradient), longest arrow
         ``vector_scale`` long (default 2.5 particle spacings).
     title : str, optional
-        Text at the top of the picture.
+        Text at the top, in the largest font that fits (two lines if needed).
     bar_title : str, optional
-        Title of the colour bar.
-    cmap : str
-        Matplotlib colour map name.
+        Title of the colour bar (default: the name of a mapping ``field``, else "value").
+    cmap : "auto", str or matplotlib colour map
+        "auto": a diverging map (coolwarm) centred at 0, each sign on its own scale, for a
+        signed range (``low < 0 < high``), viridis otherwise.
     clim : (float, float), optional
         Explicit colour limits; values outside are clipped to the end colours.
-    robust : float or bool, optional
-        Percentile clipping of the colour range (see :func:`color_limits`).
+    robust : bool or float
+        ``True`` (default): the 2-98 % range, narrowed to 4 robust standard deviations
+        around the median for heavy tails; a number: that percentage clipped at each
+        end; ``False``: the full range (:func:`~manifold_sph.viz.style.color_limits`).
     camera : str or (direction, view_up)
         A key of :data:`CAMERAS` (``"iso"``, ``"equator"``, ``"north_pole"``, ...)
         or a pair of 3-vectors (direction from the centre to the camera, up).
         The presets are written for z up and turned to the ``up`` axis.
-    up : {"auto", "x", "y", "z"}
-        The axis that points up in the named camera presets. ``"auto"``
-        (default) guesses it from the cloud's extents (:func:`detect_up_axis`:
-        y for most graphics/scan models, z for the package's shapes, flat
-        clouds and clouds longest in z). Ignored (but validated) for an
-        explicit ``(direction, view_up)`` pair.
+    up : "auto", "x", "y", "z", "-x", "-y", "-z" or a 3-vector
+        The axis that points up in the camera presets. ``"auto"`` (default): the
+        axis the object stands on (:func:`~manifold_sph.viz.style.detect_up_axis`).
+        Ignored (but validated) for an explicit ``(direction, view_up)`` pair.
     zoom : float
         Camera zoom after fitting the cloud in the view.
     window_size : (int, int)
         ``(width, height)`` in pixels of the image.
+    style : {"auto", "splats", "spheres"}
+        "splats": each point a disc in its tangent plane, its radius from its own
+        spacing (the surface looks closed, its back side hidden; needs normals);
+        "spheres": round points of one size. "auto": splats where the normals are
+        known (a PointCloud with normals, a Surface) and ``point_size`` is not given.
     point_size : float, optional
-        Sphere diameter in pixels (default: from the particle spacing).
+        Sphere diameter in pixels (default: from the particle spacing); implies spheres.
     show_scalar_bar : bool
     background : str
     transparent : bool
@@ -598,45 +575,105 @@ def render_field(
     --------
     >>> from manifold_sph.reference import shapes
     >>> cloud = shapes.sphere(400)
-    >>> img = render_field(cloud, cloud.points[:, 2], window_size=(120, 100))  # doctest: +SKIP
+    >>> img = render_field(cloud, {"z": cloud.points[:, 2]}, window_size=(120, 100))  # doctest: +SKIP
     >>> img.shape  # doctest: +SKIP
     (100, 120, 3)
     """
-    pts, fld, vec, ws = _prepare(points, field, vectors, window_size, filename, overwrite)
+    ws = _check_window(window_size)
+    if filename is not None:
+        _check_target(filename, overwrite, (".png",))
     zoom = check_positive("zoom", zoom)
-    transparent = check_bool("transparent", transparent)
-    spacing = _spacing(pts)
-    ps = _point_size(pts, spacing, ws) * zoom if point_size is None else check_positive("point_size", point_size)
+    scene = _Scene(points, style, point_size, ws, zoom)
+    n = len(scene.points)
+    fld, bar_title = _field_and_name(field, n, bar_title)
+    vec = _vectors(vectors, n)
     if vec is not None and point_size is None:
-        ps *= 0.8  # smaller spheres, so that the arrows lying on the surface show
+        scene.point_size *= 0.8  # smaller spheres, so that the arrows lying on the surface show
+    transparent = check_bool("transparent", transparent)
+    show_bar = check_bool("show_scalar_bar", show_scalar_bar)
+    shown = fld if fld is not None else (None if vec is None else np.linalg.norm(vec, axis=1))
+    lim = color_limits(shown, clim, robust) if shown is not None else None
+    up_vector(scene.points, up)  # validated before any rendering
     with _quiet_vtk():
         p = _plotter(ws, background=background)
         try:
-            _add_cloud(
-                p, pts, fld, vec, spacing=spacing, point_size=ps, cmap=cmap, clim=clim, robust=robust,
-                bar_title=bar_title, show_scalar_bar=check_bool("show_scalar_bar", show_scalar_bar),
-                vector_scale=vector_scale, vector_color=vector_color, normals=_normals_of(points, len(pts)),
-            )
-            _title_text(p, title, _font(ws, 12))
-            _set_camera(p, pts, camera, zoom, up)
+            _add_cloud(p, scene, fld, vec, cmap=cmap, lim=lim, bar_title=bar_title, show_scalar_bar=show_bar,
+                       vector_scale=vector_scale, vector_color=vector_color, window_size=ws)
+            _title_text(p, title, ws)
+            _set_camera(p, scene.points, camera, zoom, up)
             return _finish(p, transparent, filename, overwrite)
         finally:
             p.close()
 
 
+class Picture:
+    """A rendered image that shows itself in a notebook (``_repr_png_``).
+
+    Attributes
+    ----------
+    image : numpy.ndarray, shape (H, W, 3) or (H, W, 4), uint8
+    """
+
+    def __init__(self, image: np.ndarray) -> None:
+        self.image = np.asarray(image, dtype=np.uint8)
+
+    def _repr_png_(self) -> bytes:
+        from PIL import Image
+
+        buf = io.BytesIO()
+        Image.fromarray(self.image).save(buf, format="PNG")
+        return buf.getvalue()
+
+    def _repr_html_(self) -> str:
+        data = base64.b64encode(self._repr_png_()).decode("ascii")
+        return f'<img src="data:image/png;base64,{data}" width="{self.image.shape[1]}"/>'
+
+    def save(self, filename: str | os.PathLike[str], *, overwrite: bool = False) -> Path:
+        """Write the PNG file (never over an existing file unless ``overwrite``)."""
+        return save_png(self.image, filename, overwrite=overwrite)
+
+    def __array__(self, dtype=None, copy=None):
+        return self.image if dtype is None else self.image.astype(dtype)
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return self.image.shape
+
+    def __repr__(self) -> str:
+        return f"Picture({self.image.shape[1]}x{self.image.shape[0]})"
+
+
+def show(points: Any, field: ArrayLike | Mapping[str, ArrayLike] | None = None, **options: Any) -> Picture:
+    """:func:`render_field` as a :class:`Picture`: shown when it is the value of a notebook cell.
+
+    ``window_size`` defaults to (640, 480) here. Also ``PointCloud.show(field)`` and
+    ``Surface.show(field)``.
+
+    Examples
+    --------
+    >>> from manifold_sph.reference import shapes
+    >>> cloud = shapes.sphere(400)
+    >>> show(cloud, {"z": cloud.points[:, 2]})  # doctest: +SKIP
+    Picture(640x480)
+    """
+    options.setdefault("window_size", (640, 480))
+    return Picture(render_field(points, field, **options))
+
+
 def render_panels(
-    points: ArrayLike | PointCloud | OperatorSet,
+    points: Any,
     fields: Mapping[str, ArrayLike],
     *,
     vectors: Mapping[str, ArrayLike] | None = None,
     shared_clim: bool | Sequence[str] = False,
-    cmap: str | Mapping[str, str] = "viridis",
+    cmap: Any = "auto",
     clim: tuple[float, float] | None = None,
-    robust: float | bool | None = None,
+    robust: float | bool | None = True,
     camera: str | tuple[ArrayLike, ArrayLike] = "iso",
-    up: str = "auto",
+    up: Any = "auto",
     zoom: float = 1.0,
     panel_size: tuple[int, int] = (400, 400),
+    style: str = "auto",
     point_size: float | None = None,
     background: str = "white",
     transparent: bool = False,
@@ -647,7 +684,8 @@ def render_panels(
 
     Parameters
     ----------
-    points : array_like (N, 3) or (N, 2), PointCloud, Surface or Domain2D
+    points : point-like
+        As in :func:`render_field`.
     fields : mapping of str -> array_like (N,)
         Panel title -> field, left to right.
     vectors : mapping of str -> array_like (N, 3), optional
@@ -656,11 +694,11 @@ def render_panels(
         ``True``: one colour range for all panels; a sequence of titles: one
         range shared by those panels (e.g. exact and approximation), the others
         their own.
-    cmap : str or mapping of str -> str
-        One colour map, or one per panel title.
+    cmap : "auto", str, colour map, or mapping of str -> str
+        One colour map, or one per panel title ("auto" for the others).
     clim, robust
         As in :func:`render_field` (applied to every panel or to the shared group).
-    camera, up, zoom, point_size, background, transparent, filename, overwrite
+    camera, up, zoom, style, point_size, background, transparent, filename, overwrite
         As in :func:`render_field`.
     panel_size : (int, int)
         ``(width, height)`` of one panel; the image is ``len(fields)`` panels wide.
@@ -672,18 +710,19 @@ def render_panels(
     if not isinstance(fields, Mapping) or len(fields) == 0:
         raise TypeError(f"fields must be a non-empty mapping of panel title -> field, got {type(fields).__name__}")
     w, h = _check_window(panel_size)
-    pts, _, _, ws = _prepare(points, None, None, (w * len(fields), h), filename, overwrite)
-    n = len(pts)
+    ws = _check_window((w * len(fields), h))
+    if filename is not None:
+        _check_target(filename, overwrite, (".png",))
+    zoom = check_positive("zoom", zoom)
+    scene = _Scene(points, style, point_size, (w, h), zoom)
+    n = len(scene.points)
     titles = [str(t) for t in fields]
-    flds = {t: as_field(f"fields[{t!r}]", fields[k], n) for t, k in zip(titles, fields)}
+    flds = {t: _field_and_name(fields[k], n, "")[0] for t, k in zip(titles, fields)}
     vecs = {}
     for t, v in (vectors or {}).items():
         if str(t) not in flds:
             raise ValueError(f"vectors has key {t!r} which is not a panel title; titles are {titles!r}")
-        v = np.asarray(v, dtype=np.float64)
-        if v.ndim == 2 and v.shape == (n, 2):
-            v = np.column_stack([v, np.zeros(n)])
-        vecs[str(t)] = as_field(f"vectors[{t!r}]", v, n, 3)
+        vecs[str(t)] = _vectors(v, n)
     if isinstance(shared_clim, (bool, np.bool_)):
         group = titles if shared_clim else []
     else:
@@ -693,31 +732,26 @@ def render_panels(
                 raise ValueError(f"shared_clim names {t!r}, which is not a panel title; titles are {titles!r}")
     group_lim = color_limits(np.concatenate([flds[t] for t in group]), clim, robust) if group else None
     transparent = check_bool("transparent", transparent)
-    zoom = check_positive("zoom", zoom)
-    spacing = _spacing(pts)
-    ps = _point_size(pts, spacing, (w, h)) * zoom if point_size is None else check_positive("point_size", point_size)
+    up_vector(scene.points, up)
     with _quiet_vtk():
         p = _plotter(ws, shape=(1, len(titles)), background=background)
         try:
             for i, t in enumerate(titles):
                 p.subplot(0, i)
                 lim = group_lim if t in group else color_limits(flds[t], clim, robust)
-                cm = cmap.get(t, "viridis") if isinstance(cmap, Mapping) else cmap
+                cm = cmap.get(t, "auto") if isinstance(cmap, Mapping) else cmap
                 # VTK shares a colour bar between meshes with the same bar title: keep them unique.
-                _add_cloud(
-                    p, pts, flds[t], vecs.get(t), spacing=spacing, point_size=ps, cmap=cm, clim=lim, robust=None,
-                    bar_title=" " * (i + 1), show_scalar_bar=True, vector_scale=None, vector_color="black", n_labels=3,
-                    normals=_normals_of(points, n),
-                )
-                _title_text(p, t, _font((w, h), 11))
-                _set_camera(p, pts, camera, zoom, up)
+                _add_cloud(p, scene, flds[t], vecs.get(t), cmap=cm, lim=lim, bar_title=" " * (i + 1),
+                           show_scalar_bar=True, vector_scale=None, vector_color="black", window_size=(w, h), n_labels=3)
+                _title_text(p, t, (w, h), 11)
+                _set_camera(p, scene.points, camera, zoom, up)
             return _finish(p, transparent, filename, overwrite)
         finally:
             p.close()
 
 
 def render_comparison(
-    points: ArrayLike | PointCloud | OperatorSet,
+    points: Any,
     f: ArrayLike,
     exact: ArrayLike,
     approx: ArrayLike,
@@ -732,7 +766,7 @@ def render_comparison(
 
     Parameters
     ----------
-    points : array_like or PointCloud or Surface
+    points : point-like
     f, exact, approx : array_like, shape (N,)
         The function, the exact operator applied to it, the SPH approximation.
     names : 4 str
@@ -745,17 +779,17 @@ def render_comparison(
     """
     if len(names) != 4:
         raise ValueError(f"names must hold 4 panel titles, got {len(names)}")
-    n = len(_as_points3(points))
+    n = len(_geometry(points)[0])
     exact = as_field("exact", exact, n)
     approx = as_field("approx", approx, n)
     fields = {names[0]: as_field("f", f, n), names[1]: exact, names[2]: approx, names[3]: np.abs(approx - exact)}
     kwargs.setdefault("shared_clim", [names[1], names[2]])
-    kwargs.setdefault("cmap", {names[0]: "viridis", names[1]: "coolwarm", names[2]: "coolwarm", names[3]: "magma"})
+    kwargs.setdefault("cmap", {names[3]: "magma"})
     return render_panels(points, fields, **kwargs)
 
 
 def animate(
-    points: ArrayLike | PointCloud | OperatorSet,
+    points: Any,
     snapshots: ArrayLike | Solution,
     filename: str | os.PathLike[str],
     *,
@@ -763,13 +797,14 @@ def animate(
     fps: float = 10.0,
     title: str | None = None,
     bar_title: str | None = None,
-    cmap: str = "viridis",
+    cmap: Any = "auto",
     clim: tuple[float, float] | None = None,
-    robust: float | bool | None = None,
+    robust: float | bool | None = True,
     camera: str | tuple[ArrayLike, ArrayLike] = "iso",
-    up: str = "auto",
+    up: Any = "auto",
     zoom: float = 1.0,
     window_size: tuple[int, int] = (480, 400),
+    style: str = "auto",
     point_size: float | None = None,
     background: str = "white",
     progress: bool = False,
@@ -777,25 +812,26 @@ def animate(
 ) -> Path:
     """Write a time series of scalar fields to an animated GIF or an MP4 video.
 
-    One colour range for all frames (``clim``, or the range of all the
-    snapshots, robust if asked), so that decay and propagation are visible.
+    One colour range for all frames (``clim``, or the robust range of all the
+    snapshots), so that decay and propagation are visible. Needs ``imageio`` (and
+    ``imageio-ffmpeg`` for MP4): the ``video`` extra, ``pip install "manifold-sph[video]"``.
 
     Parameters
     ----------
-    points : array_like (N, 3) or (N, 2), PointCloud, Surface or Domain2D
+    points : point-like
+        As in :func:`render_field`.
     snapshots : array_like, shape (S, N), or an object with ``.snapshots`` (and ``.times``)
         E.g. the :class:`~manifold_sph.pde.Solution` of :func:`manifold_sph.pde.heat` or :func:`~manifold_sph.pde.wave`.
     filename : str or path
         ``.gif`` or ``.mp4``, written frame by frame by pyvista's ``open_gif`` /
-        ``open_movie`` (imageio); MP4 needs ``imageio-ffmpeg`` (the ``video`` extra:
-        the ffmpeg binary ships inside its wheel).
+        ``open_movie`` (imageio).
     times : array_like, shape (S,), optional
         Shown in a corner as ``t = ...`` (default: ``snapshots.times`` if present).
     fps : float
         Frames per second.
     progress : bool
         Show a tqdm progress bar on stderr (default False: library calls are quiet).
-    title, bar_title, cmap, clim, robust, camera, up, zoom, window_size, point_size, background, overwrite
+    title, bar_title, cmap, clim, robust, camera, up, zoom, window_size, style, point_size, background, overwrite
         As in :func:`render_field`.
 
     Returns
@@ -807,8 +843,10 @@ def animate(
         if times is None:
             times = getattr(snapshots, "times", None)
         snapshots = snapshots.snapshots
-    pts = _as_points3(points)
-    n = len(pts)
+    ws = _check_window(window_size)
+    zoom = check_positive("zoom", zoom)
+    scene = _Scene(points, style, point_size, ws, zoom)
+    n = len(scene.points)
     try:
         snaps = np.asarray(snapshots, dtype=np.float64)
     except (TypeError, ValueError) as exc:
@@ -821,21 +859,13 @@ def animate(
         times = as_field("times", times, snaps.shape[0])
     fps = check_positive("fps", fps)
     progress = check_bool("progress", progress)
-    ws = _check_window(window_size)
     path = _check_target(filename, overwrite, (".gif", ".mp4"))
     mp4 = path.suffix.lower() == ".mp4"
+    _check_video(mp4)
     if mp4:
         ws = (ws[0] + ws[0] % 2, ws[1] + ws[1] % 2)  # H.264 wants even sizes
-        try:
-            import imageio_ffmpeg  # noqa: F401
-        except ImportError:
-            raise ValueError(
-                "MP4 output needs the package imageio-ffmpeg (pip install 'manifold-sph[video]'); write a .gif instead"
-            ) from None
     lim = color_limits(snaps, clim, robust)
-    zoom = check_positive("zoom", zoom)
-    spacing = _spacing(pts)
-    ps = _point_size(pts, spacing, ws) * zoom if point_size is None else check_positive("point_size", point_size)
+    up_vector(scene.points, up)
     from tqdm import tqdm
 
     # frames stream to a temporary file beside the target through pyvista's writers (imageio),
@@ -845,20 +875,18 @@ def animate(
         with _quiet_vtk():
             p = _plotter(ws, background=background)
             try:
-                actor = _add_cloud(
-                    p, pts, snaps[0], None, spacing=spacing, point_size=ps, cmap=cmap, clim=lim, robust=None,
-                    bar_title=bar_title, show_scalar_bar=True, vector_scale=None, vector_color="black",
-                )
-                _title_text(p, title, _font(ws, 12))
+                actor = _add_cloud(p, scene, snaps[0], None, cmap=cmap, lim=lim, bar_title=bar_title or "value",
+                                   show_scalar_bar=True, vector_scale=None, vector_color="black", window_size=ws)
+                _title_text(p, title, ws)
                 clock = p.add_text(" ", position="lower_left", font_size=_font(ws, 9), color="black") if times is not None else None
-                _set_camera(p, pts, camera, zoom, up)
+                _set_camera(p, scene.points, camera, zoom, up)
                 if mp4:
                     p.open_movie(str(tmp), framerate=fps, codec="libx264", macro_block_size=2, pixelformat="yuv420p")
                 else:
                     p.open_gif(str(tmp), fps=fps, loop=0, palettesize=256)
                 for k in tqdm(range(snaps.shape[0]), desc=f"frames -> {path.name}", disable=not progress, unit="frame"):
                     data = actor.mapper.dataset
-                    data.point_data["field"][:] = np.clip(snaps[k], *lim)
+                    data.point_data["field"][:] = scene.values(np.clip(snaps[k], *lim))
                     data.Modified()
                     if clock is not None:
                         _set_text(clock, f"t = {times[k]:.4g}")
@@ -874,3 +902,21 @@ def animate(
         if tmp.exists():
             tmp.unlink()
     return path
+
+
+def _check_video(mp4: bool) -> None:
+    """A clear error when the animation writers (the ``video`` extra) are not installed."""
+    try:
+        import imageio  # noqa: F401
+    except ImportError:
+        raise ImportError(
+            "writing animations needs imageio: install manifold-sph[video] (pip install 'manifold-sph[video]')"
+        ) from None
+    if mp4:
+        try:
+            import imageio_ffmpeg  # noqa: F401
+        except ImportError:
+            raise ImportError(
+                "MP4 output needs imageio-ffmpeg: install manifold-sph[video] (pip install 'manifold-sph[video]'), "
+                "or write a .gif"
+            ) from None
