@@ -536,7 +536,7 @@ def render_field(
     clim : (float, float), optional
         Explicit colour limits; values outside are clipped to the end colours.
     robust : bool or float
-        ``True`` (default): the 2-98 % range, narrowed to 4 robust standard deviations
+        ``True`` (default): the 2-98 % range, narrowed to 2 robust standard deviations
         around the median for heavy tails; a number: that percentage clipped at each
         end; ``False``: the full range (:func:`~manifold_sph.viz.style.color_limits`).
     camera : str or (direction, view_up)
