@@ -262,6 +262,10 @@ def test_every_entry_point_takes_point_like_input(tmp_path):
         write(tmp_path / "m.ply", mesh)
         assert len(read(tmp_path / "m.ply")) == 162
         assert Surface(tmp_path / "m.ply").n_points == 162
+    from manifold_sph import estimate_normals
+
+    n = estimate_normals(tmp_path / "m.ply")
+    assert n.shape == (162, 3) and float(np.einsum("ij,ij->i", n, v / np.linalg.norm(v, axis=1)[:, None]).min()) > 0.9
     grid = np.stack(np.meshgrid(np.linspace(0, 1, 12), np.linspace(0, 1, 12)), -1).reshape(-1, 2)
     flat = np.c_[grid, np.full(len(grid), 0.5)]  # the plane z = 0.5
     write(tmp_path / "flat.xyz", flat)

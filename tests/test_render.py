@@ -227,6 +227,15 @@ def test_animate_gif(cloud, tmp_path):
     assert Image.open(path2).n_frames == 3
 
 
+def test_animate_without_the_video_extra_says_how_to_install_it(cloud, tmp_path, monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "imageio", None)  # as if not installed
+    with pytest.raises(ImportError, match=r"install manifold-sph\[video\]"):
+        animate(cloud, np.zeros((2, 600)), tmp_path / "a.gif")
+    assert not list(tmp_path.iterdir())
+
+
 @needs_gl
 def test_animate_mp4(cloud, tmp_path):
     pytest.importorskip("imageio_ffmpeg", reason="MP4 needs imageio-ffmpeg (optional)")

@@ -6,6 +6,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .._validation import as_points
+from ..pointcloud import as_cloud, is_point_array
 from . import tuning
 from .confidence import scale_confidence, thin_confidence
 from .consensus import consensus_normals
@@ -35,8 +36,10 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: str | A
 
     Parameters
     ----------
-    points : array_like, shape (N, 3)
-        At least 3 distinct points; N >= k.
+    points : array_like (N, 3), or anything point-like
+        At least 3 distinct points; N >= k. A PointCloud, Surface, file path or Open3D /
+        PyVista / trimesh object gives its points (:func:`manifold_sph.as_cloud`; their
+        own normals are not used).
     k : int, optional
         Nearest neighbours per particle, itself included. Default: for
         ``method="jet"`` :data:`~manifold_sph.normals.tuning.DEFAULT_JET_K` of the degree (16 for degree 2; at
@@ -96,7 +99,7 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: str | A
     >>> float(np.einsum("ij,ij->i", n, cloud.normals).min().round(3)), bool(conf.min() > 0.9)
     (1.0, True)
     """
-    pts = as_points("points", points)
+    pts = as_points("points", points if is_point_array(points) else as_cloud(points).points)
     N = pts.shape[0]
     if N < 3:
         raise ValueError(f"points must hold at least 3 points to estimate normals, got {N}")
