@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -67,7 +67,7 @@ def mirror_ghosts(points: np.ndarray, bounds: Sequence[float], width: float) -> 
     return np.concatenate(ghosts), np.concatenate(owner)
 
 
-def planar_points(points) -> np.ndarray:
+def planar_points(points: Any) -> np.ndarray:
     """(N, 2) coordinates of planar point-like input: an (N, 2) array as it is; anything else
     :func:`~manifold_sph.as_cloud` takes (an (N, 3) array, a file, a mesh...) when one of
     its coordinates is constant (the plane x, y or z = c), without that coordinate."""

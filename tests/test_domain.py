@@ -135,7 +135,8 @@ def test_collinear_neighbourhoods_fall_back_without_nan():
 @pytest.mark.parametrize(
     "args, kwargs, exc, match",
     [
-        ((np.zeros((20, 3)),), {}, ValueError, r"points must have shape \(N, 2\), got shape \(20, 3\)"),
+        ((np.random.default_rng(0).random((20, 3)),), {}, ValueError, r"points must be planar for a Domain2D.*extents"),
+        ((np.zeros((20, 4)),), {}, ValueError, r"points must have shape \(N, 2\) or \(N, 3\), got shape \(20, 4\)"),
         ((np.full((20, 2), np.nan),), {}, ValueError, "points must be finite"),
         ((jittered(3),), {}, ValueError, "at least 10 points"),
         ((np.zeros((20, 2)),), {}, ValueError, "points must be distinct"),

@@ -7,7 +7,7 @@ from a file, :func:`object_source` from an Open3D, PyVista (or VTK) or trimesh o
 
 - exact duplicate points merged into the first of each group (``duplicates="merge"``,
   the default) or refused (``duplicates="error"``); a mesh's triangles follow the merge;
-- normals ``"auto"``: the source's own, else area-weighted vertex normals of its triangles
+- normals ``"auto"``: the object's or file's own, else area-weighted vertex normals of its triangles
   when those can be trusted (every vertex in a triangle, one consistent winding; turned
   outward by the signed volume), else none (a :class:`~manifold_sph.Surface` estimates them);
 - the triangles are then dropped (the operators work on the points), which the one note
@@ -395,7 +395,7 @@ def settle(src: Source, *, normals: str = "auto", duplicates: str = "merge") -> 
     ----------
     src : Source
     normals : {"auto", "file", "mesh", "none"}
-        "auto": the source's own normals if usable, else vertex normals of its triangles when
+        "auto": the stored normals if usable, else vertex normals of its triangles when
         every point is in one and they are wound consistently, else none. "file": its own
         only. "mesh": from the triangles (required), points in no triangle dropped
         (``fields["index"]`` keeps the original indices). "none": no normals.

@@ -632,7 +632,7 @@ class Picture:
         """Write the PNG file (never over an existing file unless ``overwrite``)."""
         return save_png(self.image, filename, overwrite=overwrite)
 
-    def __array__(self, dtype=None, copy=None):
+    def __array__(self, dtype: Any = None, copy: bool | None = None) -> np.ndarray:
         return self.image if dtype is None else self.image.astype(dtype)
 
     @property
