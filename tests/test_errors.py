@@ -204,7 +204,7 @@ def test_boxplot_planted_outlier():
     rest = np.delete(x, [37, 101])
     assert b.whisker_low == rest.min() and b.whisker_high == rest.max()
     assert b.whisker_high <= q3 + 1.5 * b.iqr and b.whisker_low >= q1 - 1.5 * b.iqr
-    json.dumps(b.to_dict())
+    assert json.loads(json.dumps(b.to_dict(json=True)))["outliers"] == [37, 101]
 
 
 def test_boxplot_exact_small_sample():
@@ -317,7 +317,7 @@ def test_convergence_study_synthetic_table():
     # aligned: all table lines have the same width
     assert len({len(line) for line in lines[:-1]}) == 1
 
-    d = json.loads(json.dumps(t.to_dict()))
+    d = json.loads(json.dumps(t.to_dict(json=True)))
     assert d["sizes"] == sizes and d["kind"] == "N" and d["dim"] == 2
     assert d["orders"]["l2_rel"] == pytest.approx(2.0, abs=1e-12)
     assert d["errors"]["linf_rel"][0] == pytest.approx(0.5)
@@ -340,7 +340,7 @@ def test_convergence_study_nonpositive_error_warns_and_nan_order():
     assert np.isnan(t.local_orders["e"]).all()
     assert t.orders["ok"] == pytest.approx(2.0, abs=1e-12)
     assert t.to_text().splitlines()[-1] == "fitted order:  e -  ok 2.00"
-    d = json.loads(json.dumps(t.to_dict(), allow_nan=False))
+    d = json.loads(json.dumps(t.to_dict(json=True), allow_nan=False))
     assert d["orders"]["e"] is None and d["local_orders"]["e"] == [None, None]
 
 

@@ -96,7 +96,7 @@ def _cmd_convergence(args) -> int:
             filename=args.plot, overwrite=args.overwrite,
         )
     if args.json:
-        print(json.dumps(table.to_dict(), indent=2))
+        print(json.dumps(table.to_dict(json=True), indent=2))
     else:
         print(f"{args.scheme} on {args.shape}, f = {args.function} (orders fitted against h ~ N^-1/2)")
         print(table.to_text())

@@ -32,6 +32,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..exceptions import ManifoldSPHWarning
+from ..results import Result
 from .._validation import check_bool, check_finite, check_in, check_int, check_positive
 
 __all__ = [
@@ -315,8 +316,8 @@ def error_summary(approx: ArrayLike, exact: ArrayLike, mask: ArrayLike | None = 
 # --- boxplot ----------------------------------------------------------------------
 
 
-@dataclass(frozen=True)
-class BoxplotSummary:
+@dataclass(frozen=True, repr=False)
+class BoxplotSummary(Result):
     """Tukey boxplot statistics of a sample of pointwise errors ([1] fig. 14).
 
     Attributes
@@ -337,6 +338,8 @@ class BoxplotSummary:
     >>> b = boxplot_summary([1.0, 2.0, 3.0, 4.0, 100.0])
     >>> b.median, b.whisker_high, b.outliers.tolist()
     (3.0, 4.0, [4])
+    >>> b.to_dict(json=True)["outliers"]
+    [4]
     """
 
     q1: float
@@ -348,24 +351,6 @@ class BoxplotSummary:
     outliers: np.ndarray
     n: int
 
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-serialisable dictionary (outliers as a list of ints).
-
-        Examples
-        --------
-        >>> boxplot_summary([1.0, 2.0, 3.0]).to_dict()["outliers"]
-        []
-        """
-        return {
-            "q1": self.q1,
-            "median": self.median,
-            "q3": self.q3,
-            "iqr": self.iqr,
-            "whisker_low": self.whisker_low,
-            "whisker_high": self.whisker_high,
-            "outliers": [int(i) for i in self.outliers],
-            "n": self.n,
-        }
 
 
 def boxplot_summary(errors: ArrayLike) -> BoxplotSummary:
@@ -503,12 +488,8 @@ def _fmt_order(p: float) -> str:
     return "-" if not np.isfinite(p) else f"{p:.2f}"
 
 
-def _json_float(v: float):
-    return float(v) if np.isfinite(v) else None
-
-
-@dataclass
-class ConvergenceTable:
+@dataclass(repr=False)
+class ConvergenceTable(Result):
     """Result of :func:`convergence_study`.
 
     Attributes
@@ -530,6 +511,10 @@ class ConvergenceTable:
     >>> t = convergence_study([100, 400], lambda n: {"e": 1.0 / n})
     >>> round(t.orders["e"], 12)
     2.0
+    >>> import json
+    >>> d = json.loads(json.dumps(t.to_dict(json=True)))
+    >>> d["sizes"], round(d["orders"]["e"], 12)
+    ([100, 400], 2.0)
     """
 
     sizes: np.ndarray
@@ -569,30 +554,6 @@ class ConvergenceTable:
         lines.append(f"fitted order:  {fitted}")
         return "\n".join(lines)
 
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-serialisable dictionary (NaN orders become None).
-
-        Examples
-        --------
-        >>> import json
-        >>> t = convergence_study([100, 400], lambda n: {"e": 1.0 / n})
-        >>> d = json.loads(json.dumps(t.to_dict()))
-        >>> d["sizes"], round(d["orders"]["e"], 12)
-        ([100, 400], 2.0)
-        """
-        return {
-            "kind": self.kind,
-            "dim": int(self.dim),
-            "sizes": [float(s) if self.kind == "h" else _size_json(s) for s in self.sizes],
-            "errors": {k: [float(v) for v in self.errors[k]] for k in self.names},
-            "orders": {k: _json_float(self.orders[k]) for k in self.names},
-            "local_orders": {k: [_json_float(v) for v in self.local_orders[k]] for k in self.names},
-        }
-
-
-def _size_json(s):
-    s = float(s)
-    return int(s) if s.is_integer() else s
 
 
 def convergence_study(

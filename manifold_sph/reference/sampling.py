@@ -59,6 +59,7 @@ class ImplicitShape(Protocol):
     def fibonacci_points(self, n: int) -> np.ndarray: ...
 
 __all__ = [
+    "as_rng",
     "SURFACE_SAMPLINGS",
     "SPHERE_SAMPLINGS",
     "SQUARE_SAMPLINGS",
@@ -85,7 +86,8 @@ _STEP = 0.35  # relaxation step (fraction of the summed displacement)
 _HEX = 2.0 / math.sqrt(3.0)  # area per point of a hexagonal lattice of unit spacing
 
 
-def _rng(seed) -> np.random.Generator:
+def as_rng(seed: int | np.random.Generator | None) -> np.random.Generator:
+    """A numpy Generator from a seed (a non-negative int or None) or the Generator itself."""
     if isinstance(seed, np.random.Generator):
         return seed
     if isinstance(seed, bool) or not (seed is None or isinstance(seed, (int, np.integer))):
@@ -269,7 +271,7 @@ def sample_surface(
     iterations = POISSON_ITERATIONS if iterations is None else check_int("iterations", iterations, minimum=0)
     if sampling == "fibonacci":
         return shape.fibonacci_points(n)
-    rng = _rng(seed)
+    rng = as_rng(seed)
     if sampling == "random":
         return shape.uniform_random_points(n, rng)
     area = shape.area
@@ -352,7 +354,7 @@ def sample_triangles(vertices: ArrayLike, faces: ArrayLike, n: int, seed: int | 
     A = np.linalg.norm(np.cross(U[F[:, 1]] - U[F[:, 0]], U[F[:, 2]] - U[F[:, 0]]), axis=1)
     if not A.sum() > 0:
         raise ValueError("faces have no area: cannot sample the mesh")
-    rng = _rng(seed)
+    rng = as_rng(seed)
     f = rng.choice(len(F), n, p=A / A.sum())
     u, v = rng.random(n), rng.random(n)
     flip = u + v > 1
@@ -420,7 +422,7 @@ def square(
     density_ratio = check_positive("density_ratio", density_ratio)
     lo, hi = b[[0, 2]], b[[1, 3]]
     width = hi - lo
-    rng = _rng(seed)
+    rng = as_rng(seed)
     if sampling == "halton":
         from scipy.stats import qmc
 
