@@ -18,7 +18,7 @@ Prints JSON lines:
 - planewave (``--only planewave``): the plane wave with PML (0.2 m square, 20 and 40 particles per
   wavelength, jittered and Poisson) with set-up and run seconds.
 - scattering (``--only scattering``): the dielectric (eps_r 4) and coated cylinders at ka = 2 (Yee-style
-  lattice with a conforming wall, cell-averaged eps_r, PML; :func:`manifold_sph.spem.scattering.run_scattering`,
+  lattice with a conforming wall, cell-averaged eps_r, PML; :func:`manifold_sph.spem.cases.run_scattering`,
   20 periods) with ``mimetic_fast`` (h/dr 1.5, the correction in a band along the walls) and ``sbp``, against
   the staircased Yee grid and Yee with the same cell-averaged eps_r of ``benchmarks/spem_vs_yee.py``, in the
   same run: error at equal unknowns and CPU at equal error.
@@ -49,13 +49,13 @@ import numpy as np
 
 import manifold_sph.spem.mimetic as mimetic
 from manifold_sph.spem import EPS0, MU0, TMzSolver, make_layout
-from manifold_sph.spem._casekit import _fitted, relative_error
+from manifold_sph.spem.cases.common import fit_solver_dt, relative_error
 from manifold_sph.spem.cases import cavity_exact, cavity_frequency
-from manifold_sph.spem.cases2d import run_planewave
+from manifold_sph.spem.cases import run_planewave
 from manifold_sph.spem.layouts import balanced_disk_layout, balanced_poisson_layout, disk_layout, joint_poisson_layout
 from manifold_sph.spem.mimetic import localised_modes
-from manifold_sph.spem.scattering import run_scattering
-from manifold_sph.spem.solver import MIMETIC_H_RATIO
+from manifold_sph.spem.cases import run_scattering
+from manifold_sph.spem.operators import MIMETIC_H_RATIO
 
 _DEFAULT = (mimetic.CORRECTION_DEGREE, mimetic.CORRECTION_RADIUS)
 
@@ -148,7 +148,7 @@ def cavity(layout, coupling, n_radial, r0=0.1, eps_r=10.0, seed=0):
     t0 = time.perf_counter()
     s = TMzSolver(lay, coupling=_coupling(coupling), eps_r=eps_r, courant=0.9, sbp_layers=None)
     setup = time.perf_counter() - t0
-    dt, steps = _fitted(s, 1.0 / cavity_frequency(r0, eps_r))
+    dt, steps = fit_solver_dt(s, 1.0 / cavity_frequency(r0, eps_r))
     r = np.hypot(lay.e[:, 0] - c[0], lay.e[:, 1] - c[1])
     s.set_initial(np.clip(1.0 - r**2 / r0**2, 0.0, None))
     t0 = time.perf_counter()

@@ -21,11 +21,12 @@ import time
 
 import numpy as np
 
-from manifold_sph.spem import tez
-from manifold_sph.spem import tez_scattering as ts
+from manifold_sph import spem as tez
+import manifold_sph.spem as ts
+from manifold_sph.spem.cases.scattering import JITTER_CLEARANCE, scattering_domain
 from manifold_sph.spem.constants import C0, EPS0, MU0
 from manifold_sph.spem.pml import PML
-from manifold_sph.spem.scattering import l2_error
+from manifold_sph.spem.cases import l2_error
 
 
 def order(ns, values):
@@ -128,10 +129,10 @@ def run_yee_tez_scattering(kind, n_radial, *, average="staircase", radius=0.1, k
     edge by ``average`` (:func:`.particle_permittivity`: "staircase" is eps_r at the
     edge midpoint) and the volume source on Ey.
     """
-    from manifold_sph.spem.scattering import _Switched
+    from manifold_sph.spem.cases.scattering import SwitchedWave
 
     t0 = time.perf_counter()
-    freq, dr, inner, outer = ts._domain(radius, ka, n_radial, margin, pml_thickness)
+    freq, dr, inner, outer = scattering_domain(radius, ka, n_radial, margin, pml_thickness)
     L = dr * math.ceil(outer / dr - 1e-9)
     pml = PML(outer - inner, 3, 1e-6, interior=(-inner, inner, -inner, inner))
     probe = YeeTEz(L, dr, pml)
@@ -152,12 +153,12 @@ def run_yee_tez_scattering(kind, n_radial, *, average="staircase", radius=0.1, k
     if kind == "pec":
         pec_x = (np.hypot(*s.ex_xy) < radius)
         pec_y = (np.hypot(*s.ey_xy) < radius)
-        inc = _Switched(s.ey_xy[0][pec_y], freq, -radius, ramp, k0)
+        inc = SwitchedWave(s.ey_xy[0][pec_y], freq, -radius, ramp, k0)
         fixed = int(pec_x.sum() + pec_y.sum())
         keep_h = r_h > radius
     else:
         diel = np.asarray(s.eps_y) > EPS0 * (1 + 1e-12)
-        inc = _Switched(s.ey_xy[0][diel], freq, -radius, ramp, k0)
+        inc = SwitchedWave(s.ey_xy[0][diel], freq, -radius, ramp, k0)
         fac = eta0 * (1.0 - EPS0 / np.asarray(s.eps_y)[diel])
         fixed = 0
         keep_h = np.ones(len(hz_p), bool)

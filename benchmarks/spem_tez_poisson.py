@@ -5,9 +5,9 @@ Run: .venv/bin/python benchmarks/spem_tez_poisson.py                 (about 20 m
                                                                       disk, disk-modes, edges)
      .venv/bin/python benchmarks/spem_tez_poisson.py --ns 12 24 --seeds 0 1
 
-Layouts (:func:`manifold_sph.spem.tez.tez_layout`): "poisson" (independent Poisson Hz, Ex, Ey sets),
+Layouts (:func:`manifold_sph.spem.tez_layout`): "poisson" (independent Poisson Hz, Ex, Ey sets),
 "poisson-shared" (one Poisson E set carrying Ex and Ey) and, for comparison, the jittered lattice
-(amplitude 0.2), each through :func:`~manifold_sph.spem.tez.wall_closure_layout` (coupling "sbp").
+(amplitude 0.2), each through :func:`~manifold_sph.spem.wall_closure_layout` (coupling "sbp").
 
 * convergence: ``run_tez_cavity`` (0.1 x 0.06 m, TE10 + TE11, ``n`` spacings along 0.06 m): relative L2
   error of Hz after one TE10 period and the TE10 resonance error (fitted over 5 periods), per seed;
@@ -48,7 +48,7 @@ import time
 
 import numpy as np
 
-from manifold_sph.spem import tez
+from manifold_sph import spem as tez
 from manifold_sph.spem.constants import C0
 
 A, B = 0.1, 0.06

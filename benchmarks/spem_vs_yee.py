@@ -2,7 +2,7 @@
 
 Run: .venv/bin/python benchmarks/spem_vs_yee.py [--full]
      .venv/bin/python benchmarks/spem_vs_yee.py --scattering [--full]   (plane wave on PEC, dielectric and
-     coated cylinders, :mod:`manifold_sph.spem.scattering`, against the same scattered-field formulation,
+     coated cylinders, :mod:`manifold_sph.spem.cases.scattering`, against the same scattered-field formulation,
      PML and DFT on the Yee grid; staircased, and for the dielectric also cell-averaged like SPEM's particles)
      .venv/bin/python benchmarks/spem_vs_yee.py --dielectric   (the dielectric cylinder table of issue 21
      item 3 in one run: Yee staircased / cell-averaged against SPEM with and without ``time_correction``,
@@ -206,7 +206,7 @@ def main():
 
 
 def run_spem_scattering(kind, n_radial, **kw):
-    from manifold_sph.spem.scattering import run_scattering
+    from manifold_sph.spem.cases import run_scattering
 
     r = run_scattering(kind, n_radial=n_radial, **kw)
     return {"method": f"SPEM {r.coupling} {r.layout}", "case": kind, "n_radial": n_radial, "unknowns": r.particles,
@@ -375,14 +375,17 @@ def dielectric_checks():
 
 def run_offcentre_dielectric(n_radial, centre, interface, *, radius=0.1, ka=2.0, eps_r=4.0, periods=20.0):
     """The dielectric cylinder (eps_r 4, ka = 2) centred at ``centre``, off the lattice's symmetry, with the
-    public pieces of :mod:`manifold_sph.spem.scattering` (``run_scattering`` keeps the cylinder at the
-    origin): cell-averaged eps or :func:`~manifold_sph.spem.scattering.jump_permittivity` with the circle's
+    public pieces of :mod:`manifold_sph.spem.cases.scattering` (``run_scattering`` keeps the cylinder at the
+    origin): cell-averaged eps or :func:`~manifold_sph.spem.cases.jump_permittivity` with the circle's
     curvature, mimetic fast band, h/dr 1.2, time correction, the same PML and DFT. Returns (error, set-up s,
     run s); the exact field is the centred series shifted (the incident phase ``exp(i k cx)``)."""
     from manifold_sph.spem.pml import PML
-    from manifold_sph.spem.scattering import (_interior_particles, _run_phasor, _Switched, _VolumeDrive, cell_fraction,
-                                              jump_permittivity, l2_error, scattered_field, scattering_layout)
-    from manifold_sph.spem.solver import TMzSolver
+    from manifold_sph.spem.cases import l2_error
+    from manifold_sph.spem.cases.scattering import (SwitchedWave, VolumeDrive, interior_particles, run_phasor,
+                                                    scattering_layout)
+    from manifold_sph.spem.interfaces import cell_fraction, jump_permittivity
+    from manifold_sph.spem.mie import scattered_field
+    from manifold_sph.spem.tmz import TMzSolver
     from manifold_sph.spem.sources import Source
 
     t0 = time.perf_counter()
@@ -398,8 +401,8 @@ def run_offcentre_dielectric(n_radial, centre, interface, *, radius=0.1, ka=2.0,
     eps = 1.0 + (eps_r - 1.0) * cell_fraction(e, dr, lambda x, y: np.hypot(x - cx, y - cy) < radius)
     cand = np.flatnonzero((phi < 6 * dr) & ~lay.e_fixed)  # every particle the jump can change (checked below)
     k0 = 2 * math.pi * freq / C0
-    inc = _Switched(e[cand, 0], freq, cx - radius, 3.0, k0)
-    drive = _VolumeDrive(inc, np.zeros(len(cand)))
+    inc = SwitchedWave(e[cand, 0], freq, cx - radius, 3.0, k0)
+    drive = VolumeDrive(inc, np.zeros(len(cand)))
     pml = PML(outer - inner, 3, 1e-6, interior=(-inner, inner, -inner, inner))
     s = TMzSolver(lay, h_ratio=1.2, eps_r=eps, pml=pml, sources=[Source(cand, drive, "soft")], coupling="mimetic",
                   mimetic_fast=True, sbp_layers=2)
@@ -423,9 +426,9 @@ def run_offcentre_dielectric(n_radial, centre, interface, *, radius=0.1, ka=2.0,
     s.set_dt(dt)
     drive.dt = s.dt
     steps, n_dft = int(round(periods * per)), 2 * per
-    ev = _interior_particles(s, e, inner)
+    ev = interior_particles(s, e, inner)
     setup = time.perf_counter() - t0
-    phasor = _run_phasor(s, ev, w, steps, n_dft)
+    phasor = run_phasor(s, ev, w, steps, n_dft)
     exact = scattered_field(e[ev] - [cx, cy], "dielectric", freq=freq, radius=radius, eps_r=eps_r)
     exact = exact * np.exp(1j * k0 * cx)
     return l2_error(phasor, exact), setup, time.perf_counter() - t0 - setup
@@ -435,18 +438,21 @@ def run_offcentre_dielectric(n_radial, centre, interface, *, radius=0.1, ka=2.0,
 def run_yee_scattering(kind, n_radial, *, radius=0.1, ka=2.0, eps_r=4.0, core_radius=None, margin=0.5,
                        pml_thickness=0.5, periods=12.0, ramp=3.0, dft_periods=2.0, courant=0.99 / math.sqrt(2),
                        eps_mode="staircase", time_correction=False):
-    """The scattering cases of :func:`manifold_sph.spem.scattering.run_scattering` on a numpy Yee grid.
+    """The scattering cases of :func:`manifold_sph.spem.cases.run_scattering` on a numpy Yee grid.
 
     Same scattered-field formulation, incident switch-on, split-field PML (the same
     :class:`~manifold_sph.spem.pml.PML` profile, same thickness in metres), periods and DFT. Cells of
     side d = radius / n_radial with an Ez node at the centre; the conductor is staircased (Ez_s = -Ez_inc
     on every node with r <= b), the dielectric too (``eps_mode="staircase"``: eps_r on the nodes with
     r < a) or cell-averaged like SPEM's particles (``"average"``). ``time_correction``: as in
-    :func:`~manifold_sph.spem.scattering.run_scattering` (the leap-frog's time dispersion removed at the
+    :func:`~manifold_sph.spem.cases.run_scattering` (the leap-frog's time dispersion removed at the
     drive frequency; not the issue's baseline, which is without it).
     """
     from manifold_sph.spem.pml import PML
-    from manifold_sph.spem.scattering import _Switched, cell_fraction, l2_error, scattered_field
+    from manifold_sph.spem.cases import l2_error
+    from manifold_sph.spem.cases.scattering import SwitchedWave
+    from manifold_sph.spem.interfaces import cell_fraction
+    from manifold_sph.spem.mie import scattered_field
 
     t_start = time.perf_counter()
     if kind == "coated" and core_radius is None:
@@ -500,9 +506,9 @@ def run_yee_scattering(kind, n_radial, *, radius=0.1, ka=2.0, eps_r=4.0, core_ra
     x0 = -radius
     pec_i = np.nonzero(pec)
     k0 = w / C0
-    drive_pec = _Switched(X[pec_i], f_drive, x0, ramp, k0)
+    drive_pec = SwitchedWave(X[pec_i], f_drive, x0, ramp, k0)
     diel = np.nonzero((eps > 1.0) & ~pec)
-    drive_d = _Switched(X[diel], f_drive, x0, ramp, k0)
+    drive_d = SwitchedWave(X[diel], f_drive, x0, ramp, k0)
     fac = (eps[diel] - 1.0) / eps[diel]
     ezx = np.zeros(X.shape)
     ezy = np.zeros(X.shape)

@@ -46,7 +46,7 @@ def test_spem_run_returns_a_run_result():
     lay = yee_layout((0.0, 0.1, 0.0, 0.1), 0.01)
     s = TMzSolver(lay)
     s.set_initial(np.sin(np.pi * lay.e[:, 0] / 0.1) * np.sin(np.pi * lay.e[:, 1] / 0.1))
-    res = s.run(6, probes=[3, 4], snapshot_every=3)
+    res = s.run(6, probes=[3, 4], every=3)
     assert isinstance(res, RunResult)
     assert res.times.shape == (6,) and res.probes.shape == (6, 2) and res.seconds >= 0
     assert res.snapshots.shape == (2, s.n_e) and np.allclose(res.snapshot_times, res.times[[2, 5]])
@@ -74,17 +74,17 @@ def test_spem_cases_return_named_fields_and_json(cavity):
     np.testing.assert_allclose(f.times[-1], r.steps * r.dt)
 
 
-
 def _imports(path):
     tree = ast.parse(path.read_text())
     return {(n.module or "") for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) and n.level == 1}
 
 
 def test_spem_case_modules_import_one_way():
-    """The case modules import one way: cases -> cases2d -> _casekit -> results."""
-    assert "cases" not in _imports(SPEM / "cases2d.py")
-    assert not {"cases", "cases2d"} & _imports(SPEM / "_casekit.py")
-    assert not {"cases", "cases2d", "solver", "_casekit"} & _imports(SPEM / "results.py")
+    """The cases build on the solvers and results, never the reverse; the shared helpers on no case."""
+    cases = SPEM / "cases"
+    assert not {"cavity", "line", "propagation", "scattering"} & _imports(cases / "common.py")
+    for name in ("results.py", "tmz.py", "tez.py", "stepping.py", "stability.py", "mie.py", "interfaces.py"):
+        assert not {"cases", "cli"} & _imports(SPEM / name), name
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        import manifold_sph.spem.cases2d  # noqa: F401 - importable on its own
+        import manifold_sph.spem.cases.propagation  # noqa: F401 - importable on its own

@@ -14,7 +14,7 @@ from manifold_sph.spem.analysis import (measured_phase_velocity, null_mode_respo
                                         ppw_for_phase_error, yee_fdtd_phase_velocity)
 from manifold_sph.spem.cases import (cavity_exact, cavity_frequency, peak_frequency, run_cavity,
                                      run_line1d)
-from manifold_sph.spem.cases2d import guided_exact, run_planewave, run_pml, run_waveguide
+from manifold_sph.spem.cases import guided_exact, run_planewave, run_pml, run_waveguide
 
 
 # --------------------------------------------------------------------------- operators

@@ -329,7 +329,7 @@ def test_balanced_disk_has_no_spurious_low_modes():
 
 def _cylinder(n_radial=8, half_width=3.2):
     """The lattice around a PEC cylinder (radius 0.1) with its conforming wall, as run_scattering builds it."""
-    from manifold_sph.spem.scattering import scattering_layout
+    from manifold_sph.spem.cases import scattering_layout
 
     dr = 0.1 / n_radial
     return scattering_layout("pec", 0.1, dr, half_width * 0.1), dr

@@ -11,7 +11,7 @@ import pytest
 
 from manifold_sph.spem import (C0, EPS0, MU0, Sinusoid, TMzSolver, cfl_number, disk_layout, make_layout,
                                point_source, yee_layout)
-from manifold_sph.spem.solver import leapfrog_growth
+from manifold_sph.spem.stability import leapfrog_growth
 
 A = 0.1  # square side (m); dr = A / 19: 20 x 20 E particles on the lattices
 
@@ -191,12 +191,12 @@ def test_cfl_number_checks_its_arguments():
 
 
 @pytest.mark.parametrize("every", [0, -1])
-def test_snapshot_every_must_be_at_least_one(every):
+def test_every_must_be_at_least_one(every):
     s = TMzSolver(yee_layout((0.0, A, 0.0, A), A / 10))
-    with pytest.raises(ValueError, match=rf"snapshot_every must be at least 1, got {every}"):
-        s.run(10, snapshot_every=every)
-    with pytest.raises(TypeError, match=r"snapshot_every must be an integer"):
-        s.run(10, snapshot_every=2.5)
+    with pytest.raises(ValueError, match=rf"every must be at least 1, got {every}"):
+        s.run(10, every=every)
+    with pytest.raises(TypeError, match=r"every must be an integer"):
+        s.run(10, every=2.5)
 
 
 def test_sources_outside_the_domain_are_refused_not_snapped():
@@ -237,7 +237,7 @@ def test_spectral_radius_bound_brackets_the_radius_of_clustered_and_irregular_sp
     eigenvalues."""
     import scipy.sparse as sp
 
-    from manifold_sph.spem import solver
+    from manifold_sph.spem import stability as solver
 
     m = 40
     T = sp.diags([-np.ones(m - 1), 2 * np.ones(m), -np.ones(m - 1)], [-1, 0, 1])
@@ -258,7 +258,7 @@ def test_spectral_radius_bound_brackets_the_radius_of_clustered_and_irregular_sp
 def test_spectral_radius_bound_checks_its_arguments():
     import scipy.sparse as sp
 
-    from manifold_sph.spem.solver import spectral_radius_bound
+    from manifold_sph.spem.stability import spectral_radius_bound
 
     S = -sp.eye(500).tocsr()
     with pytest.raises(ValueError, match=r"failure must be a probability in \(0, 1\), got 1.5"):

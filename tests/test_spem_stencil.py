@@ -112,7 +112,7 @@ def test_set_dt_rebuilds_the_runs_and_the_step_still_matches_csr():
 
 
 def test_threaded_stencil_step_gives_the_same_numbers(monkeypatch):
-    from manifold_sph.spem import solver
+    from manifold_sph.spem import tmz as solver
 
     monkeypatch.setattr(solver, "THREADED_STEP", 100)  # thread this small lattice too
     out = []

@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from manifold_sph.spem import tez
+from manifold_sph import spem as tez
 from manifold_sph.spem.constants import C0
-from manifold_sph.spem.solver import leapfrog_growth
+from manifold_sph.spem.stability import leapfrog_growth
 
 A = 0.1  # cavity radius (m)
 

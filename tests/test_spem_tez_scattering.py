@@ -1,4 +1,4 @@
-"""TEz scattering by circular cylinders: the exact series, the PML and the SPEM cases (:mod:`manifold_sph.spem.tez_scattering`)."""
+"""TEz scattering by circular cylinders: the exact series, the PML and the SPEM cases (:mod:`manifold_sph.spem.mie`, :mod:`manifold_sph.spem.tez`, :mod:`manifold_sph.spem.cases.scattering`)."""
 
 import math
 
@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 from scipy.special import h1vp, hankel1, jv, jvp
 
-from manifold_sph.spem import tez_scattering as ts
+import manifold_sph.spem as ts
+from manifold_sph.spem.cases.scattering import JITTER_CLEARANCE, scattering_domain
 from manifold_sph.spem.pml import PML
-from manifold_sph.spem.scattering import mie_coefficients, wavenumber
+from manifold_sph.spem.mie import mie_coefficients, wavenumber
 
 A = 0.1  # cylinder radius (m)
 F = 1e9 * 2.0 / (wavenumber(1e9) * A)  # ka = 2
@@ -126,7 +127,7 @@ def test_jittered_exterior_layout():
     assert np.array_equal(lay.hz, again.hz) and np.array_equal(lay.wall, lat.wall)
     for p, q in ((lay.hz, lat.hz), (lay.ex, lat.ex), (lay.ey, lat.ey)):
         assert p.shape == q.shape
-        assert np.hypot(*p.T).min() >= A + ts.JITTER_CLEARANCE * dr - 1e-12  # never in (or on) the conductor
+        assert np.hypot(*p.T).min() >= A + JITTER_CLEARANCE * dr - 1e-12  # never in (or on) the conductor
         moved = np.abs(p - q).max(axis=1)
         assert moved.max() <= 0.2 * dr + 1e-12 and moved.max() > 0.1 * dr
         assert np.all(moved[np.abs(q).max(axis=1) > 0.2] == 0)  # the lattice beyond jitter_width
@@ -192,7 +193,7 @@ def test_solver_bad_input():
         ts.TEzPMLSolver(lay, pml="all")
     with pytest.raises(ValueError, match="coupling"):
         ts.TEzPMLSolver(lay, coupling="direct")
-    from manifold_sph.spem.tez import tez_layout
+    from manifold_sph.spem import tez_layout
 
     with pytest.raises(ValueError, match="wall"):
         ts.TEzPMLSolver(tez_layout((0.0, 0.1, 0.0, 0.1), 0.02))

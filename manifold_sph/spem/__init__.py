@@ -1,21 +1,18 @@
-"""SPEM: smoothed-particle electromagnetics, time-domain Maxwell on particles (docs/method.md section 7).
+"""SPEM: smoothed-particle electromagnetics, time-domain Maxwell on particles (docs/method.md section 7, docs/spem.md).
 
-Modules: :mod:`.layouts` (E / H particle sets: staggered, Yee-style, jittered,
-Poisson, disk, line), :mod:`.operators` (cross-set CSPM derivative matrices,
-the SBP correction with its PEC closure), :mod:`.mimetic` (the second-order, energy-conserving
-"mimetic" coupling: cubic-exact gradient, adjoint divergence, fitted volumes), :mod:`.solver` (leap-frog TMz and 1D
-solvers, energy-conserving "sbp" coupling by default, the CFL and spectral
-limits, the measured-spectrum check that refuses a growing "direct" coupling,
-PEC, materials, split-field PML), :mod:`.pml`, :mod:`.sources` (sinusoid,
-Gaussian pulse, hard/soft point and line sources), :mod:`.dirichlet` (the
-Kronecker-delta system), :mod:`.scattering` (plane-wave scattering by PEC, dielectric and
-coated cylinders: exact Bessel series and SPEM cases), :mod:`.tez` (TEz: Hz, Ex, Ey), :mod:`.tez_scattering` (TEz
-scattering by PEC and dielectric cylinders: exact Hz series, split-field PML),
-:mod:`.cases` / :mod:`.cases2d` (helpers in
-:mod:`._casekit`; :mod:`.cases` imports :mod:`.cases2d`, not the reverse) (the
-validation cases of the thesis [2] with exact references), :mod:`.results` (what ``run`` and
-the cases return: :class:`RunResult`, :class:`CaseResult` and one subclass per case, frozen
-dataclasses with named fields), :mod:`.analysis` (null modes and dispersion), :mod:`.cli`
+Modules, in the order they build on each other: :mod:`.constants`; :mod:`.layouts`
+(TMz E / H sets: staggered, Yee-style, jittered, Poisson, disk, line; TEz Hz / Ex /
+Ey sets with wall particles); :mod:`.operators` (cross-set CSPM derivative matrices,
+the SBP correction with its PEC closure, the couplings) and :mod:`.mimetic` (the
+second-order energy-conserving "mimetic" coupling); :mod:`.pml`, :mod:`.sources`;
+:mod:`.stability` (CFL rule, spectral radius bound, leap-frog growth);
+:mod:`.stepping` (the ``run`` contract every solver shares); :mod:`.tmz`
+(:class:`TMzSolver`, :class:`Line1DSolver`; compiled steps in :mod:`.compiled` and
+:mod:`.stencil`); :mod:`.tez` (:class:`TEzSolver`, :class:`TEzPMLSolver`);
+:mod:`.mie` (the exact cylinder series of both polarisations); :mod:`.interfaces`
+(dielectric interface permittivities); :mod:`.cases` (the validation cases with
+exact references); :mod:`.results` (every result type); :mod:`.analysis` (null
+modes and dispersion); :mod:`.dirichlet` (the Kronecker-delta system); :mod:`.cli`
 (``manifold-sph spem CASE``).
 
 Examples
@@ -31,41 +28,45 @@ Examples
 ((100, 2), True)
 """
 
+from .cases import (CASES, run_case, run_cavity, run_line1d, run_planewave, run_pml, run_scattering,
+                    run_tez_cavity, run_tez_circular_cavity, run_tez_pml, run_tez_scattering, run_waveguide,
+                    scattering_layout, tez_cavity_frequency, tez_disk_frequency, tez_disk_mode, tez_scattering_layout)
 from .constants import C0, EPS0, ETA0, MU0
 from .dirichlet import KroneckerSystem
-from .layouts import (LAYOUTS, Layout, disk_layout, jitter, line_layout, make_layout, poisson_layout,
-                      staggered_layout, yee_layout)
-from .operators import FORMS, cross_gradient, cross_pairs, sbp_pair
+from .interfaces import (EPS_AVERAGES, INTERFACES, TEZ_INTERFACES, cell_fraction, jump_permittivity,
+                         particle_permittivity, tez_jump_permittivity)
+from .layouts import (LAYOUTS, POISSON_H_RATIO, TEZ_LAYOUT_KINDS, Layout, TEzLayout, disk_layout, jitter, line_layout,
+                      make_layout, poisson_layout, staggered_layout, tez_disk_layout, tez_layout, wall_closure_layout,
+                      yee_layout)
+from .mie import (SCATTERERS, TEZ_SCATTERERS, mie_coefficients, scattered_field, tez_mie_coefficients,
+                  tez_scattered_field, tez_total_field, total_field, wavenumber)
+from .operators import (COUPLINGS, DEFAULT_COUPLING, DEFAULT_H_RATIO, FORMS, cross_gradient, cross_pairs, sbp_pair)
 from .pml import PML, sigma_max
-from .scattering import (INTERFACES, SCATTERERS, ScatteringResult, jump_permittivity, mie_coefficients, run_scattering,
-                         scattered_field, scattering_layout, total_field)
-from .tez import (POISSON_H_RATIO, TEZ_LAYOUT_KINDS, TEzCavityResult, TEzLayout, TEzSolver, run_tez_cavity, run_tez_circular_cavity, tez_cavity_frequency,
-                  tez_disk_frequency, tez_disk_layout, tez_disk_mode, tez_layout, wall_closure_layout)
-from .tez_scattering import (EPS_AVERAGES, TEZ_INTERFACES, TEZ_SCATTERERS, TEzPMLResult, TEzPMLSolver, TEzScatteringResult,
-                             particle_permittivity, run_tez_pml, run_tez_scattering, tez_jump_permittivity,
-                             tez_mie_coefficients,
-                             tez_scattered_field, tez_scattering_layout, tez_total_field)
 from .results import (CaseResult, CavityResult, FieldHistory, LineResult, PlanewaveResult, PMLResult, RunResult,
-                      WaveguideResult)
-from .solver import COUPLINGS, DEFAULT_COUPLING, DEFAULT_H_RATIO, Line1DSolver, TMzSolver, cfl_number, leapfrog_growth
+                      ScatteringResult, TEzCavityResult, TEzPMLResult, TEzScatteringResult, WaveguideResult)
 from .sources import GaussianPulse, Sinusoid, Source, line_source, point_source
+from .stability import cfl_number, leapfrog_growth, spectral_radius_bound
+from .tez import DISK_H_RATIO, TEzPMLSolver, TEzSolver
+from .tmz import Line1DSolver, TMzSolver
 
 __all__ = [
     "C0", "EPS0", "ETA0", "MU0",
-    "KroneckerSystem",
-    "LAYOUTS", "Layout", "disk_layout", "jitter", "line_layout", "make_layout", "poisson_layout",
-    "staggered_layout", "yee_layout",
-    "FORMS", "cross_gradient", "cross_pairs", "sbp_pair",
-    "PML", "sigma_max",
-    "INTERFACES", "SCATTERERS", "ScatteringResult", "jump_permittivity", "mie_coefficients", "run_scattering", "scattered_field", "scattering_layout",
-    "total_field", "POISSON_H_RATIO", "TEZ_LAYOUT_KINDS", "TEzCavityResult", "TEzLayout", "TEzSolver", "run_tez_cavity", "tez_cavity_frequency",
-    "tez_layout", "run_tez_circular_cavity", "tez_disk_frequency", "tez_disk_layout", "tez_disk_mode",
+    "LAYOUTS", "Layout", "disk_layout", "jitter", "line_layout", "make_layout", "poisson_layout", "staggered_layout",
+    "yee_layout", "POISSON_H_RATIO", "TEZ_LAYOUT_KINDS", "TEzLayout", "tez_layout", "tez_disk_layout",
     "wall_closure_layout",
-    "EPS_AVERAGES", "TEZ_INTERFACES", "TEZ_SCATTERERS", "tez_jump_permittivity", "TEzPMLResult", "TEzPMLSolver", "TEzScatteringResult", "particle_permittivity",
-    "run_tez_pml", "run_tez_scattering", "tez_mie_coefficients", "tez_scattered_field", "tez_scattering_layout",
-    "tez_total_field",
-    "RunResult", "CaseResult", "LineResult", "CavityResult", "PlanewaveResult", "WaveguideResult", "PMLResult",
-    "FieldHistory",
-    "COUPLINGS", "DEFAULT_COUPLING", "DEFAULT_H_RATIO", "Line1DSolver", "TMzSolver", "cfl_number", "leapfrog_growth",
+    "FORMS", "COUPLINGS", "DEFAULT_COUPLING", "DEFAULT_H_RATIO", "cross_gradient", "cross_pairs", "sbp_pair",
+    "PML", "sigma_max",
     "GaussianPulse", "Sinusoid", "Source", "line_source", "point_source",
+    "cfl_number", "leapfrog_growth", "spectral_radius_bound",
+    "TMzSolver", "Line1DSolver", "TEzSolver", "TEzPMLSolver", "DISK_H_RATIO",
+    "SCATTERERS", "TEZ_SCATTERERS", "wavenumber", "mie_coefficients", "scattered_field", "total_field",
+    "tez_mie_coefficients", "tez_scattered_field", "tez_total_field",
+    "INTERFACES", "EPS_AVERAGES", "TEZ_INTERFACES", "cell_fraction", "jump_permittivity", "particle_permittivity",
+    "tez_jump_permittivity",
+    "CASES", "run_case", "run_line1d", "run_cavity", "run_waveguide", "run_planewave", "run_pml", "run_tez_pml",
+    "run_tez_cavity", "run_tez_circular_cavity", "tez_cavity_frequency", "tez_disk_frequency", "tez_disk_mode",
+    "scattering_layout", "tez_scattering_layout", "run_scattering", "run_tez_scattering",
+    "RunResult", "FieldHistory", "CaseResult", "LineResult", "CavityResult", "PlanewaveResult", "WaveguideResult",
+    "PMLResult", "ScatteringResult", "TEzScatteringResult", "TEzCavityResult", "TEzPMLResult",
+    "KroneckerSystem",
 ]

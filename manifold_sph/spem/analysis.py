@@ -32,8 +32,7 @@ from numpy.typing import ArrayLike
 from .._validation import check_in, check_positive
 from .constants import C0
 from .layouts import make_layout
-from .operators import cross_gradient
-from .solver import DEFAULT_COUPLING, DEFAULT_H_RATIO
+from .operators import DEFAULT_COUPLING, DEFAULT_H_RATIO, cross_gradient
 
 if TYPE_CHECKING:
     from ..kernels import Kernel
@@ -174,7 +173,7 @@ def measured_phase_velocity(layout: str = "yee", m: int = 4, *, cells: int = 40,
     (v_phase / c, particles per wavelength)
     """
     from .layouts import make_layout as _make
-    from .solver import TMzSolver
+    from .tmz import TMzSolver
 
     a = 1.0
     dr = a / cells

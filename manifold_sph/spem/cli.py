@@ -40,8 +40,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     """Add the ``spem`` subcommand to an ``argparse`` subparsers object and return it."""
     from .cases import CASES
     from .layouts import LAYOUTS
-    from .operators import FORMS
-    from .solver import COUPLINGS, DEFAULT_COUPLING
+    from .operators import COUPLINGS, DEFAULT_COUPLING, FORMS
 
     p = subparsers.add_parser("spem", help="SPEM time-domain Maxwell cases (line1d, cavity, waveguide, planewave, pml)",
                               description="Run a SPEM validation case against its exact solution.")
@@ -83,7 +82,7 @@ _OPTION_CASES = {
 
 
 def _kwargs(args) -> dict:
-    from .solver import DEFAULT_COUPLING
+    from .operators import DEFAULT_COUPLING
 
     kw = {"form": args.form, "kernel": args.kernel, "progress": args.progress}
     for name, cases in _OPTION_CASES.items():
@@ -186,7 +185,7 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-# ----------------------------------------------------------------------------- scattering and TEz cases (issue 21)
+# ----------------------------------------------------------------------------- scattering and TEz cases
 #: The cylinder scattering cases of :mod:`.scattering` and the TEz cavities of :mod:`.tez`, beside :data:`.cases.CASES`.
 SCATTERING_CASES = ("scatter-pec", "scatter-dielectric", "scatter-coated", "tez-cavity", "tez-disk", "tez-scatter-pec",
                     "tez-scatter-dielectric")
@@ -224,9 +223,8 @@ def _add_scattering_arguments(p: argparse.ArgumentParser) -> None:
 def _run_scattering(args: argparse.Namespace) -> int:
     """``spem scatter-*`` (:func:`.scattering.run_scattering`), ``spem tez-cavity`` (:func:`.tez.run_tez_cavity`)
     and ``spem tez-disk`` (:func:`.tez.run_tez_circular_cavity`)."""
-    from .scattering import run_scattering
-    from .solver import DEFAULT_COUPLING
-    from .tez import run_tez_cavity, run_tez_circular_cavity
+    from .cases import run_scattering, run_tez_cavity, run_tez_circular_cavity
+    from .operators import DEFAULT_COUPLING
 
     try:
         if args.case not in SCATTERING_CASES:
@@ -246,7 +244,7 @@ def _run_scattering(args: argparse.Namespace) -> int:
         if args.wall_closure and args.case != "tez-cavity":
             raise ValueError(f"--wall-closure applies only to case 'tez-cavity', not {args.case!r}")
         if args.case.startswith("tez-scatter-"):
-            from .tez_scattering import run_tez_scattering
+            from .cases import run_tez_scattering
 
             kind = args.case.rsplit("-", 1)[1]
             for name in ("core_radius", "mimetic_fast", "time_correction", "interface"):

@@ -8,7 +8,7 @@ solving ``K u = f`` with ``K_ij = W(x_j - x_i) dV_j`` - the
 constant while the particles do not move, so it is LU-factorised once and the
 factors are reused at every step.
 
-:class:`~manifold_sph.spem.solver.TMzSolver` stores point values (its CSPM
+:class:`~manifold_sph.spem.TMzSolver` stores point values (its CSPM
 derivatives act on values), so Dirichlet values and hard sources are imposed
 directly; this class converts to and from the nodal parameters of the
 formulation of [2].

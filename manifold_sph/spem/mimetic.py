@@ -1,4 +1,4 @@
-"""Second-order energy-conserving (summation-by-parts) SPEM operators on any layout (issue 21 item 2).
+"""Second-order energy-conserving (summation-by-parts) SPEM operators on any layout.
 
 The "mimetic" coupling builds the E -> H gradient ``G`` first, as a corrected
 (moving-least-squares) gradient exact for *cubic* fields, and takes the

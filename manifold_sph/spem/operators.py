@@ -47,10 +47,22 @@ from scipy.spatial import cKDTree
 from .._validation import as_points, check_in, check_positive
 from ..kernels import Kernel, get_kernel
 
-__all__ = ["FORMS", "cross_pairs", "cross_gradient"]
+__all__ = ["FORMS", "COUPLINGS", "DEFAULT_COUPLING", "DEFAULT_H_RATIO", "MIMETIC_H_RATIO", "SBP_LAYERS", "cross_pairs",
+           "cross_gradient", "sbp_correct", "sbp_pair"]
 
 #: Names of the per-particle derivative systems.
 FORMS = ("fpm", "cspm", "diagonal")
+
+#: Couplings of the E and H derivative matrices (see :class:`.TMzSolver`).
+COUPLINGS = ("sbp", "mimetic", "adjoint", "direct")
+#: The default: energy-conserving (stable for every layout, h_ratio and material).
+DEFAULT_COUPLING = "sbp"
+#: Default smoothing length over spacing (cubic kernel, support 2h = 1.4 dr:
+#: the nearest cross neighbours and the next row/column).
+DEFAULT_H_RATIO = 0.7
+#: Default ``h / dr`` of the "mimetic" coupling (its cubic fits need 10 neighbours or more; 1.2 leaves
+#: some Poisson particles with fewer).
+MIMETIC_H_RATIO = 1.5
 
 #: Default rings of pairs, around the columns that miss their adjoint
 #: conditions, that :func:`sbp_pair` may change (None: the whole operator).

@@ -1,12 +1,13 @@
-"""SPEM results: :class:`RunResult` of a solver's ``run``, the ``*Result`` of each validation case.
+"""Every SPEM result type: what a solver's ``run`` and each validation case return.
 
-Frozen dataclasses with named fields (the package's convention, README
-"Results"); ``to_dict()`` gives the JSON-ready numbers (what ``manifold-sph spem
---json`` prints). Every case result has ``case``, ``particles``, ``steps``,
-``seconds`` (wall time of the whole call), ``step_seconds`` (the stepping
-alone), ``error``, ``dt``, ``dr`` and ``fields`` (the E field for pictures,
-:class:`FieldHistory`, when asked for with ``frames=``), plus its own
-quantities.
+Frozen dataclasses with named fields (docs/conventions.md, "Results"); ``to_dict()``
+gives the JSON-ready fields (what ``manifold-sph spem --json`` prints: arrays and
+picture data left out), the ``repr`` shows arrays by shape. :class:`RunResult` is
+what every solver's ``run`` returns; every TMz case result derives from
+:class:`CaseResult` (``case``, ``particles``, ``steps``, ``seconds`` (wall time of
+the whole call), ``step_seconds`` (the stepping alone), ``error``, ``dt``, ``dr``
+and ``fields``, the E field for pictures as a :class:`FieldHistory` when asked for
+with ``frames=``); the scattering and TEz cases have their own.
 
 Examples
 --------
@@ -27,21 +28,22 @@ import numpy as np
 from ..results import Result
 
 __all__ = ["RunResult", "FieldHistory", "CaseResult", "LineResult", "CavityResult", "PlanewaveResult",
-           "WaveguideResult", "PMLResult"]
+           "WaveguideResult", "PMLResult", "ScatteringResult", "TEzScatteringResult", "TEzCavityResult",
+           "TEzPMLResult"]
 
 
 @dataclass(frozen=True, repr=False, eq=False)
 class RunResult(Result):
-    """What :meth:`TMzSolver.run <manifold_sph.spem.TMzSolver.run>` and ``Line1DSolver.run`` return.
+    """What every SPEM solver's ``run`` returns (:class:`.stepping.Leapfrog`).
 
     Attributes
     ----------
     times : ndarray, shape (steps,)
         The time after each step.
     probes : ndarray, shape (steps, P)
-        The E field at the probe particles after each step.
+        The recorded field (Ez, Ex on the line, Hz for TEz) at the probe particles after each step.
     snapshots : ndarray, shape (S, n_e)
-        Copies of the E field every ``snapshot_every`` steps (S = 0 without it).
+        Copies of the recorded field every ``every`` steps (S = 0 without it).
     snapshot_times : ndarray, shape (S,)
     seconds : float
         Wall time of the steps.
@@ -72,6 +74,8 @@ class CaseResult(Result):
     incidence, None where the pulse never reaches the probe).
     """
 
+    _dict_skip = ('fields',)
+
     case: str
     particles: int
     steps: int
@@ -81,8 +85,6 @@ class CaseResult(Result):
     dt: float
     dr: float
     fields: FieldHistory | None = dataclasses.field(default=None, repr=False)
-
-    _dict_skip = ("fields",)
 
 
 @dataclass(frozen=True, repr=False, eq=False, kw_only=True)
@@ -109,7 +111,7 @@ class CavityResult(CaseResult):
 
 @dataclass(frozen=True, repr=False, eq=False, kw_only=True)
 class PlanewaveResult(CaseResult):
-    """:func:`~manifold_sph.spem.cases2d.run_planewave`; the line measures on lattice layouts only."""
+    """:func:`~manifold_sph.spem.cases.run_planewave`; the line measures on lattice layouts only."""
 
     layout: str
     form: str
@@ -122,7 +124,7 @@ class PlanewaveResult(CaseResult):
 
 @dataclass(frozen=True, repr=False, eq=False, kw_only=True)
 class WaveguideResult(CaseResult):
-    """:func:`~manifold_sph.spem.cases2d.run_waveguide`: frequency, cut-off and the evaluation line."""
+    """:func:`~manifold_sph.spem.cases.run_waveguide`: frequency, cut-off and the evaluation line."""
 
     layout: str
     form: str
@@ -135,7 +137,7 @@ class WaveguideResult(CaseResult):
 
 @dataclass(frozen=True, repr=False, eq=False, kw_only=True)
 class PMLResult(CaseResult):
-    """:func:`~manifold_sph.spem.cases2d.run_pml`: reflections in dB (None where undefined), the reference run."""
+    """:func:`~manifold_sph.spem.cases.run_pml`: reflections in dB (None where undefined), the reference run."""
 
     reference_particles: int
     reflection_normal_db: float | None
@@ -144,3 +146,148 @@ class PMLResult(CaseResult):
     order: int
     target_reflection: float
     layout: str
+
+
+@dataclass(frozen=True, repr=False, eq=False)
+class ScatteringResult(Result):
+    """What :func:`run_scattering` measured.
+
+    Attributes
+    ----------
+    case : str
+        The scatterer ("pec", "dielectric", "coated").
+    error : float
+        Relative L2 error of the complex scattered field on the evaluation particles.
+    ring_error : float
+        The same on the E particles of the annulus ``radius < r <= 2 radius`` (the near field).
+    particles, steps : int
+        Particles (E + Hx + Hy, PML included) and leap-frog steps.
+    seconds, setup_seconds : float
+        Wall time of the whole case and of the set-up (layout, operators, stability limit).
+    dr, dt : float
+    layout, coupling : str
+    points : (P, 2) array
+        The evaluation E particles (outside the PML, not on a conductor).
+    phasor, exact : (P,) complex arrays
+        Measured and exact scattered phasors there.
+    interface : str
+        The interface treatment used ("average" or "jump"; "average" for the PEC cylinder).
+    """
+
+    _dict_skip = ('points', 'phasor', 'exact')
+
+    case: str
+    error: float
+    ring_error: float
+    particles: int
+    steps: int
+    seconds: float
+    setup_seconds: float
+    dr: float
+    dt: float
+    layout: str
+    coupling: str
+    n_radial: int
+    points: np.ndarray = dataclasses.field(repr=False)
+    phasor: np.ndarray = dataclasses.field(repr=False)
+    exact: np.ndarray = dataclasses.field(repr=False)
+    interface: str = "average"
+
+
+@dataclass(frozen=True, repr=False, eq=False)
+class TEzScatteringResult(Result):
+    """What :func:`run_tez_scattering` measured (the fields of :class:`.ScatteringResult`, for Hz, and more).
+
+    Attributes
+    ----------
+    case : str
+        The scatterer ("pec", "dielectric").
+    error : float
+        Relative L2 error of the complex scattered Hz on the evaluation Hz particles.
+    ring_error : float
+        The same on those in the annulus ``radius < r <= 2 radius`` (the near field).
+    particles, steps : int
+        Particles (Hz + Ex + Ey + wall, PML included) and leap-frog steps.
+    seconds, setup_seconds : float
+        Wall time of the whole case and of the set-up (layout, operators, stability limit).
+    dr, dt : float
+    layout, coupling, average : str
+        ``average``: the permittivity average of the E particles ("dielectric").
+    n_radial : int
+    stable_fraction : float
+        ``dt`` over the lossless pair's stability limit ``2 / sqrt(rho)``.
+    field_growth : float
+        Largest ``|Hz|`` over the last period divided by the largest over the
+        period before (about 1 at steady state; silent growth shows as > 1).
+    points : (P, 2) array
+        The evaluation Hz particles (outside the PML, outside a conductor).
+    phasor, exact : (P,) complex arrays
+        Measured and exact scattered phasors there.
+    """
+
+    _dict_skip = ('points', 'phasor', 'exact')
+
+    case: str
+    error: float
+    ring_error: float
+    particles: int
+    steps: int
+    seconds: float
+    setup_seconds: float
+    dr: float
+    dt: float
+    layout: str
+    coupling: str
+    average: str
+    n_radial: int
+    stable_fraction: float
+    field_growth: float
+    points: np.ndarray = dataclasses.field(repr=False)
+    phasor: np.ndarray = dataclasses.field(repr=False)
+    exact: np.ndarray = dataclasses.field(repr=False)
+
+
+@dataclass(frozen=True, repr=False, eq=False)
+class TEzCavityResult(Result):
+    """What :func:`run_tez_cavity` measured.
+
+    ``error``: relative L2 error of Hz after ``periods`` periods of the first
+    mode (its initial field evolved exactly); ``frequency_error``: relative
+    error of that mode's resonance, fitted to the projection of Hz onto the mode.
+    :func:`run_tez_circular_cavity` also gives ``probe_frequency_error`` (the
+    peak of the spectrum of Hz at one particle) and ``stable_fraction`` (the
+    time step over the CFL step ``h / (sqrt(2) c)``).
+    """
+
+    case: str
+    error: float
+    frequency_error: float
+    frequency: float
+    exact_frequency: float
+    particles: int
+    steps: int
+    seconds: float
+    dr: float
+    dt: float
+    coupling: str
+    layout: str
+    probe_frequency_error: float | None = None
+    stable_fraction: float | None = None
+
+
+# ----------------------------------------------------------------------------- PML reflection
+@dataclass(frozen=True, repr=False, eq=False)
+class TEzPMLResult(Result):
+    """What :func:`run_tez_pml` measured: the reflection (dB) at each probe angle, and the cost."""
+
+    angles: tuple
+    reflection_db: tuple
+    particles: int
+    reference_particles: int
+    steps: int
+    seconds: float
+    dr: float
+    dt: float
+    pml_cells: int
+    order: int
+    target_reflection: float

@@ -12,8 +12,8 @@ an index and a weight per entry). Among the other rows, those that share only
 their offsets (PML corners, graded materials, the corrected rows by the walls)
 form *weighted runs*: each row keeps its own weights and coefficients, stored
 run by run so that they are read in order, without column indices. The rest
-keep their CSR form. The kernels (:func:`manifold_sph._jit.tmz_e_half`,
-:func:`manifold_sph._jit.tmz_h_half`) form the sums of a block of rows weight
+keep their CSR form. The kernels (:func:`manifold_sph.spem.compiled.tmz_e_half`,
+:func:`manifold_sph.spem.compiled.tmz_h_half`) form the sums of a block of rows weight
 by weight, so the rows run in SIMD lanes; each row's sum is still the same
 sequence of operations as in CSR.
 
@@ -334,7 +334,7 @@ def _interleave(parts, shifts, n):
 
 def pack_e(runs: StencilRuns, Dx: sp.spmatrix, Dy: sp.spmatrix, free: np.ndarray, coefs: np.ndarray, n_e: int,
            shift_x: int, shift_y: int = 0) -> tuple:
-    """The arrays of :func:`manifold_sph._jit.tmz_e_half` for the E rows (``free``) of ``Dx``, ``Dy`` and their
+    """The arrays of :func:`manifold_sph.spem.compiled.tmz_e_half` for the E rows (``free``) of ``Dx``, ``Dy`` and their
     runs (``find_runs([Dx, Dy], free, coefs)``); ``Dx`` reads the stacked H at ``column + shift_x``, ``Dy`` at
     ``column + shift_y``.
 
@@ -365,7 +365,7 @@ def pack_e(runs: StencilRuns, Dx: sp.spmatrix, Dy: sp.spmatrix, free: np.ndarray
 
 
 def pack_h(runs: StencilRuns, D: sp.spmatrix, coefs: np.ndarray) -> tuple:
-    """The arrays of :func:`manifold_sph._jit.tmz_h_half` for the rows of ``D`` and their runs
+    """The arrays of :func:`manifold_sph.spem.compiled.tmz_h_half` for the rows of ``D`` and their runs
     (``find_runs([D], arange(n), coefs)``).
 
     Returns

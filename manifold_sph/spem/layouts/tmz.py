@@ -39,7 +39,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .._validation import as_points, check_in, check_positive
+from ..._validation import as_points, check_in, check_positive
 
 __all__ = ["Layout", "LAYOUTS", "staggered_layout", "yee_layout", "poisson_layout", "jitter", "make_layout",
            "disk_layout", "line_layout", "joint_poisson_layout", "relax_h", "balance_h", "balanced_poisson_layout",
@@ -198,7 +198,7 @@ def poisson_layout(bounds: Sequence[float], dr: float, seed: int | np.random.Gen
     The free particles come from :func:`manifold_sph.reference.sampling.square` (a
     relaxed, Poisson-disk-like sampling); Hx and Hy share the H set.
     """
-    from ..reference.sampling import square
+    from ...reference.sampling import square
 
     b, dr = _check_bounds(bounds, dr)
     x0, x1, y0, y1 = b
@@ -243,7 +243,7 @@ def disk_layout(center: ArrayLike, radius: float, dr: float, kind: str = "yee", 
     The wall particles (spacing about ``wall_spacing * dr`` along the circle)
     are fixed at Ez = 0; lattice E particles closer than ``wall_margin * dr``
     to the wall are dropped, H particles are kept strictly inside the circle.
-    The defaults 0.5 and 0.3 (issue 21; formerly 1 and 0.5) gave the TM010
+    The defaults 0.5 and 0.3 (against 1 and 0.5) gave the TM010
     cavity of :func:`.cases.run_cavity` 1.2e-2 / 2.4e-3 / 8.2e-4 at 10 / 20 / 40
     spacings per radius instead of 1.5e-2 / 3.9e-3 / 1.3e-3, with a 2-3.6x
     larger stable step (the `sbp` correction is less stiff next to a denser wall).
@@ -285,7 +285,7 @@ def disk_layout(center: ArrayLike, radius: float, dr: float, kind: str = "yee", 
     hy = hx if lay.shared else (lay.hy + shift)[inside(lay.hy + shift, 0.0)]
     near = np.flatnonzero(~inside(e, dr))  # drop the E particles next to the wall whose H neighbours are cut off
     keep = np.ones(len(e), bool)
-    keep[near] = _supported(e, ((hy, 0), (hx, 1)), dr, near)
+    keep[near] = supported(e, ((hy, 0), (hx, 1)), dr, near)
     e = e[keep]
     e_all = np.vstack([e, wall])
     fixed = np.r_[np.zeros(len(e), bool), np.ones(m, bool)]
@@ -293,7 +293,7 @@ def disk_layout(center: ArrayLike, radius: float, dr: float, kind: str = "yee", 
 
 
 def _random_disk(center, radius, dr, kind, wall_spacing, wall_margin, seed, amplitude):
-    from ..reference.sampling import square
+    from ...reference.sampling import square
 
     radius = check_positive("radius", radius)
     dr = check_positive("dr", dr)
@@ -398,7 +398,7 @@ def joint_poisson_layout(bounds: Sequence[float], dr: float, seed: int | np.rand
     return Layout(lay.e, h, h, lay.dr, "poisson-joint", lay.e_fixed.copy(), lay.bounds)
 
 
-def _supported(e: np.ndarray, h_sets, dr: float, candidates: np.ndarray, reach: float = 1.2) -> np.ndarray:
+def supported(e: np.ndarray, h_sets: Sequence[tuple[np.ndarray, int]], dr: float, candidates: np.ndarray, reach: float = 1.2) -> np.ndarray:
     """Which ``candidates`` (indices into ``e``) have a well-posed derivative system next to a wall.
 
     For every ``(H points, axis)`` in ``h_sets`` the H particles within

@@ -12,7 +12,8 @@ split is exact and costs two vector additions. ``ca, cb`` include the
 material conductivity sigma and the PML sigma_x / sigma_y (semi-implicit
 average, unconditionally stable for any sigma); ``da, db`` the matched
 magnetic conductivity ``sigma* = sigma mu0/eps0`` (Hx is damped by the
-y-layer, Hy by the x-layer).
+y-layer, Hy by the x-layer). ``run`` is the contract of every SPEM solver
+(:class:`.stepping.Leapfrog`): it returns a :class:`.results.RunResult`.
 
 Examples
 --------
@@ -40,191 +41,43 @@ from numpy.typing import ArrayLike
 
 from .. import _jit
 from .._validation import check_in, check_int, check_positive
+from . import compiled
 from .constants import C0, EPS0, MU0
 from .layouts import Layout
-from .operators import SBP_LAYERS, cross_gradient, sbp_pair
+from .operators import (
+    COUPLINGS,
+    DEFAULT_COUPLING,
+    DEFAULT_H_RATIO,
+    MIMETIC_H_RATIO,
+    SBP_LAYERS,
+    cross_gradient,
+    sbp_pair,
+)
 from .pml import PML
-from .results import RunResult
 from .sources import Source
+from .stability import (
+    SPECTRUM_TOL,
+    STABILITY_MARGIN,
+    cfl_number,
+    check_dt,
+    leapfrog_growth,
+    per_particle,
+    spectral_radius_bound,
+)
+from .stepping import Leapfrog
 
 if TYPE_CHECKING:
     from ..kernels import Kernel
 
-__all__ = ["TMzSolver", "Line1DSolver", "cfl_number", "leapfrog_growth", "DEFAULT_H_RATIO", "DEFAULT_COUPLING",
-           "COUPLINGS"]
+__all__ = ["TMzSolver", "Line1DSolver", "DENSE_SPECTRUM", "THREADED_STEP"]
 
-#: Default smoothing length over spacing (cubic kernel, support 2h = 1.4 dr:
-#: the nearest cross neighbours and the next row/column).
-DEFAULT_H_RATIO = 0.7
 
-#: Default ``h / dr`` of the "mimetic" coupling (its cubic fits need 10 neighbours or more; 1.2 leaves
-#: some Poisson particles with fewer).
-MIMETIC_H_RATIO = 1.5
-
-#: Couplings of the E and H derivative matrices (see :class:`TMzSolver`).
-COUPLINGS = ("sbp", "mimetic", "adjoint", "direct")
-#: The default: energy-conserving (stable for every layout, h_ratio and material).
-DEFAULT_COUPLING = "sbp"
-#: Relative margin on the computed spectral radius in :meth:`TMzSolver.stability_limit` (the
-#: smallest one: the Lanczos bound's own may be larger, see :func:`spectral_radius_bound`).
-STABILITY_MARGIN = 5e-3
-#: Lanczos steps of :func:`spectral_radius_bound` (the bound is then within about 0.2 % of the
-#: radius for any size: 0.19 % at 10^4 unknowns, 0.22 % at 10^6).
-LANCZOS_STEPS = 300
-#: Probability that :func:`spectral_radius_bound` is below the spectral radius (random start).
-LANCZOS_FAILURE = 1e-9
-#: Up to this many unknowns :func:`spectral_radius_bound` computes every eigenvalue (dense).
-DENSE_RADIUS = 400
 #: Up to this many free E particles the "direct" spectrum is computed densely.
 DENSE_SPECTRUM = 900
+
+
 #: With ``workers`` > 1 the stencil step runs on threads from this many E particles on.
 THREADED_STEP = 20000
-#: Imaginary parts below this fraction of the spectral radius count as round-off.
-SPECTRUM_TOL = 1e-10
-
-
-def cfl_number(dt: float, h_min: float, c: float = C0) -> float:
-    """``S = sqrt(2) c dt / h_min`` ([2] eq. 3.16), ``c`` the fastest wave speed (default c0).
-
-    >>> round(cfl_number(1e-11, 0.01), 4)
-    0.424
-    >>> cfl_number(1e-11, 0.0)
-    Traceback (most recent call last):
-    ...
-    ValueError: h_min must be a finite positive number, got 0.0
-    """
-    dt = check_positive("dt", dt)
-    h_min = check_positive("h_min", h_min)
-    c = check_positive("c", c)
-    return math.sqrt(2.0) * c * dt / h_min
-
-
-def _per_particle(name, value, points, *, positive=True, allow_zero=False):
-    """A scalar, an (N,) array or a callable of the (N, d) points -> float64 (N,)."""
-    n = len(points)
-    v = value(points) if callable(value) else value
-    try:
-        arr = np.broadcast_to(np.asarray(v, dtype=np.float64), (n,)).copy()
-    except (ValueError, TypeError):
-        raise ValueError(f"{name} must be a scalar or an array of shape ({n},), got shape {np.shape(v)}") from None
-    bad = ~np.isfinite(arr) | ((arr < 0) if allow_zero else (arr <= 0)) if positive else ~np.isfinite(arr)
-    if bad.any():
-        k = int(np.flatnonzero(bad)[0])
-        kind = "non-negative" if allow_zero else "positive"
-        raise ValueError(f"{name} must be finite and {kind} at every particle, got {float(arr[k])!r} at particle {k}")
-    return arr
-
-
-def _check_dt(dt, h_min, courant, c=C0):
-    """The CFL step ``courant h_min / (sqrt(2) c)``, or ``dt`` checked against it (``c`` the fastest speed)."""
-    limit = h_min / (math.sqrt(2.0) * c)
-    if dt is None:
-        courant = check_positive("courant", courant)
-        if courant > 1:
-            raise ValueError(f"courant must be at most 1 (CFL), got {courant}")
-        return courant * limit
-    dt = check_positive("dt", dt)
-    S = cfl_number(dt, h_min, c)
-    if S > 1.0 + 1e-12:
-        speed = "" if c == C0 else f", c = {c:.4g} m/s the fastest wave speed in the materials"
-        raise ValueError(
-            f"dt = {dt:.4g} s violates the CFL condition S = sqrt(2) c dt / h_min = {S:.3f} > 1 "
-            f"(h_min = {h_min:.4g} m{speed}); use dt <= {limit:.4g} s"
-        )
-    return dt
-
-
-def spectral_radius_bound(S: sp.spmatrix, steps: int = LANCZOS_STEPS, failure: float = LANCZOS_FAILURE,
-                          seed: int = 0) -> tuple[float, float]:
-    """Estimate and upper bound of the spectral radius of a symmetric negative semi-definite ``S``.
-
-    ``steps`` Lanczos steps on ``-S`` from a random start (``seed``) give its largest Ritz
-    value ``theta`` (never above the radius). By Kuczynski and Wozniakowski (1992), with
-    probability at least ``1 - failure`` the radius is below ``theta / (1 - e)``,
-    ``sqrt(e) = ln(1.648 sqrt(n) / failure) / (2 steps - 1)``: a bound that does not depend on
-    how the top of the spectrum is clustered (ARPACK to tol 1e-8 took 88 s on a 200 x 200
-    lattice, whose top eigenvalues are close together; this takes well under a second).
-    Up to :data:`DENSE_RADIUS` unknowns every eigenvalue is computed and both numbers are exact.
-
-    Parameters
-    ----------
-    S : sparse matrix, shape (n, n)
-    steps : int
-    failure : float
-        Probability, over the random start, that the bound is below the radius.
-    seed : int
-
-    Returns
-    -------
-    (float, float)
-        ``(theta, bound)``.
-
-    Examples
-    --------
-    >>> import scipy.sparse as sp
-    >>> n = 2000
-    >>> S = -sp.diags([-np.ones(n - 1), 2 * np.ones(n), -np.ones(n - 1)], [-1, 0, 1])  # -(1D Laplacian)
-    >>> theta, bound = spectral_radius_bound(S)
-    >>> rho = 2 + 2 * np.cos(np.pi / (n + 1))
-    >>> bool(theta <= rho <= bound), bool(bound / rho - 1 < 0.003)
-    (True, True)
-    """
-    from scipy.linalg import eigvalsh_tridiagonal
-
-    if not sp.issparse(S) or S.ndim != 2 or S.shape[0] != S.shape[1]:
-        raise ValueError(f"S must be a square sparse matrix, got {type(S).__name__} of shape {getattr(S, 'shape', None)}")
-    n = S.shape[0]
-    check_int("steps", steps, minimum=1)
-    if not 0.0 < failure < 1.0:
-        raise ValueError(f"failure must be a probability in (0, 1), got {failure!r}")
-    if n == 0:
-        return 0.0, 0.0
-    if n <= DENSE_RADIUS:
-        rho = float(np.abs(np.linalg.eigvalsh(S.toarray())).max())
-        return rho, rho
-    m = min(int(steps), n)
-    S = sp.csr_matrix(S)
-    S = sp.csr_matrix((-S.data, S.indices, S.indptr), shape=S.shape)  # -S, positive semi-definite
-    q = np.random.default_rng(seed).standard_normal(n)
-    q /= math.sqrt(np.einsum("i,i->", q, q))  # einsum, not BLAS: no thread start-up on every short vector
-    q_prev = np.zeros(n)
-    alpha = np.empty(m)
-    beta = np.zeros(m)
-    b = 0.0
-    for j in range(m):
-        w = S @ q
-        if b:
-            w -= b * q_prev
-        a = float(np.einsum("i,i->", q, w))
-        w -= a * q
-        alpha[j] = a
-        b = math.sqrt(float(np.einsum("i,i->", w, w)))
-        beta[j] = b
-        if not np.isfinite(b):
-            raise ValueError("the E -> E operator has non-finite entries; its stability limit cannot be computed")
-        if b <= 1e-14 * max(abs(a), 1e-300):  # an invariant subspace: its Ritz values are eigenvalues
-            m = j + 1
-            break
-        w /= b
-        q_prev, q = q, w
-    theta = float(eigvalsh_tridiagonal(alpha[:m], beta[: m - 1], select="i", select_range=(m - 1, m - 1))[0])
-    theta = max(theta, 0.0)
-    e = (math.log(1.648 * math.sqrt(n) / failure) / (2 * m - 1)) ** 2
-    return theta, (theta / (1.0 - e) if e < 1.0 else float(abs(S).sum(axis=1).max()))
-
-
-def leapfrog_growth(lam: ArrayLike, dt: float) -> np.ndarray:
-    """Per-step amplification ``max |z|`` of leap-frog for ``y'' = lam y`` (``z^2 - (2 + dt^2 lam) z + 1 = 0``).
-
-    1 for real ``lam`` in ``[-4/dt^2, 0]``, above 1 otherwise (complex or
-    positive ``lam`` grow whatever ``dt``).
-
-    >>> leapfrog_growth(np.array([-1.0, -5.0, 0.01, -1 + 0.1j]), 1.0).round(4).tolist()
-    [1.0, 2.618, 1.1051, 1.0594]
-    """
-    b = 2.0 + dt * dt * np.asarray(lam, dtype=np.complex128)
-    disc = np.sqrt(b * b - 4.0)
-    return np.maximum(np.abs(0.5 * (b + disc)), np.abs(0.5 * (b - disc)))
 
 
 #: CPython's reference count (None elsewhere: the compiled step then never updates H in place).
@@ -241,64 +94,7 @@ def _chunks(run_rows, n_rest, parts):
     return [(int(qs[c]), int(qs[c + 1]), int(rs[c]), int(rs[c + 1])) for c in range(parts)]
 
 
-class _Leapfrog:
-    """Shared run loop: probes, snapshots, progress."""
-
-    def run(self, steps: int | None = None, *, t_end: float | None = None, probes: ArrayLike | None = None,
-            snapshot_every: int | None = None, progress: bool = False) -> RunResult:
-        """Advance ``steps`` steps (or up to time ``t_end``), recording probes and snapshots.
-
-        Parameters
-        ----------
-        steps : int, optional
-        t_end : float, optional
-            Alternative to ``steps``: ``ceil((t_end - t) / dt)`` steps.
-        probes : (P,) int array, optional
-            Indices of E particles whose field is recorded after every step.
-        snapshot_every : int, optional
-            Store a copy of the E field every this many steps (>= 1).
-        progress : bool
-            Show a tqdm bar.
-
-        Returns
-        -------
-        RunResult
-            ``times`` (steps,), ``probes`` (steps, P), ``snapshots`` (S, n_e) at
-            ``snapshot_times`` (S,), ``seconds`` wall time.
-        """
-        if (steps is None) == (t_end is None):
-            raise ValueError("give exactly one of steps and t_end")
-        if steps is None:
-            t_end = check_positive("t_end", t_end, allow_zero=True)
-            steps = max(0, int(math.ceil((t_end - self.t) / self.dt - 1e-9)))
-        steps = check_int("steps", steps, minimum=0)
-        if snapshot_every is not None:
-            snapshot_every = check_int("snapshot_every", snapshot_every, minimum=1)
-        probes = np.zeros(0, dtype=np.int64) if probes is None else np.atleast_1d(np.asarray(probes, dtype=np.int64))
-        if probes.size and (probes.min() < 0 or probes.max() >= self.n_e):
-            raise ValueError(f"probes must be E particle indices in [0, {self.n_e}), got {probes.tolist()}")
-        times = np.empty(steps)
-        series = np.empty((steps, probes.size))
-        snaps = []
-        it = range(steps)
-        if progress:
-            from tqdm import tqdm
-
-            it = tqdm(it, desc="spem", unit="step")
-        t0 = _time.perf_counter()
-        for n in it:
-            self.step()
-            times[n] = self.t
-            if probes.size:
-                series[n] = self.e_field[probes]
-            if snapshot_every and (n + 1) % snapshot_every == 0:
-                snaps.append((self.t, self.e_field.copy()))
-        seconds = _time.perf_counter() - t0
-        return RunResult(times, series, np.array([f for _, f in snaps]).reshape(len(snaps), self.n_e),
-                         np.array([t for t, _ in snaps], dtype=np.float64), seconds)
-
-
-class TMzSolver(_Leapfrog):
+class TMzSolver(Leapfrog):
     """SPEM for 2D TMz waves on an E set and H sets (the thesis [2], chapter 3).
 
     Parameters
@@ -427,10 +223,10 @@ class TMzSolver(_Leapfrog):
     def _set_materials(self, eps_r, mu_r, sigma):
         """eps_r, sigma per E particle and mu_r per H particle (finite, > 0 / >= 0); the fastest speed c_max."""
         lay = self.layout
-        self.eps_r = _per_particle("eps_r", eps_r, lay.e)
-        self.sigma = _per_particle("sigma", sigma, lay.e, allow_zero=True)
-        self.mu_r_x = _per_particle("mu_r", mu_r, lay.hx)
-        self.mu_r_y = self.mu_r_x if lay.shared else _per_particle("mu_r", mu_r, lay.hy)
+        self.eps_r = per_particle("eps_r", eps_r, lay.e)
+        self.sigma = per_particle("sigma", sigma, lay.e, allow_zero=True)
+        self.mu_r_x = per_particle("mu_r", mu_r, lay.hx)
+        self.mu_r_y = self.mu_r_x if lay.shared else per_particle("mu_r", mu_r, lay.hy)
         slowest = float(self.eps_r.min()) * float(min(self.mu_r_x.min(), self.mu_r_y.min()))
         self.c_max = C0 / math.sqrt(slowest)
 
@@ -530,7 +326,7 @@ class TMzSolver(_Leapfrog):
 
     def _set_time_step(self, dt, courant):
         """dt from (or checked against) the CFL rule at the fastest speed and the spectral limit."""
-        self.dt = _check_dt(dt, self.h, courant, self.c_max)
+        self.dt = check_dt(dt, self.h, courant, self.c_max)
         self.dt_stable = self.stability_limit()
         self.growth = 1.0
         if dt is None:
@@ -664,7 +460,7 @@ class TMzSolver(_Leapfrog):
 
         Call it before ``set_initial`` / ``run``; the fields are not rescaled.
         """
-        dt = _check_dt(dt, self.h, 1.0, self.c_max)
+        dt = check_dt(dt, self.h, 1.0, self.c_max)
         if dt >= self.dt_stable:
             raise ValueError(f"dt = {dt:.4g} s exceeds the stability limit {self.dt_stable:.4g} s of this layout")
         self.dt = dt
@@ -700,6 +496,11 @@ class TMzSolver(_Leapfrog):
     @property
     def e_field(self) -> np.ndarray:
         """Ez = Ezx + Ezy at the E particles (time ``t``)."""
+        return self.ezx + self.ezy
+
+    @property
+    def field(self) -> np.ndarray:
+        """What ``run`` records: Ez (:attr:`e_field`)."""
         return self.ezx + self.ezy
 
     def probe_indices(self, xy: ArrayLike) -> np.ndarray:
@@ -758,7 +559,7 @@ class TMzSolver(_Leapfrog):
 
     def _step_plan(self):
         """The stencil runs and CSR remainder of the E and H half steps (:mod:`.stencil`), packed for
-        :func:`.._jit.tmz_e_half` / :func:`.._jit.tmz_h_half`; found for the current operators and
+        :func:`.compiled.tmz_e_half` / :func:`.compiled.tmz_h_half`; found for the current operators and
         coefficients, rebuilt when one of them is replaced (``set_dt``). The H rows are those of the
         stacked ``[Dy_hx; Dx_hy]`` acting on ``[hx, hy]``."""
         cached = getattr(self, "_plan", None)
@@ -768,7 +569,9 @@ class TMzSolver(_Leapfrog):
                     and k[4] is self._cax and k[5] is self._cbx and k[6] is self._cay and k[7] is self._cby
                     and k[8] is self.da_x and k[9] is self.db_x and k[10] is self.da_y and k[11] is self.db_y):
                 return cached[1]
-        from types import SimpleNamespace  # (below the cached return: an import costs microseconds per step)
+        from types import (
+            SimpleNamespace,  # (below the cached return: an import costs microseconds per step)
+        )
 
         from .stencil import find_runs, pack_e, pack_h
 
@@ -833,12 +636,12 @@ class TMzSolver(_Leapfrog):
         if self.workers > 1 and len(ez) >= THREADED_STEP:
             self._threaded_halves(pl, h, out)
             return
-        _jit.tmz_e_half(0, len(ea[1]), 0, len(ea[8]), *ea, h, self.ezx, self.ezy, ez)
+        compiled.tmz_e_half(0, len(ea[1]), 0, len(ea[8]), *ea, h, self.ezx, self.ezy, ez)
         self.t = (self.n + 1) * self.dt
         self.n += 1
         for s in self._drive_sources():
             ez[s.indices] = self.ezx[s.indices] + self.ezy[s.indices]
-        _jit.tmz_h_half(0, len(ha[0]), 0, len(ha[7]), *ha, ez, h, out)
+        compiled.tmz_h_half(0, len(ha[0]), 0, len(ha[7]), *ha, ez, h, out)
 
     def _threaded_halves(self, pl, h, out):
         """:meth:`_step_stencil` with each half step's runs and CSR rows cut into ``workers`` chunks of about
@@ -854,10 +657,10 @@ class TMzSolver(_Leapfrog):
 
         def e_job(c):
             q0, q1, r0, r1 = pl.chunks[0][c]
-            _jit.tmz_e_half(q0, q1, r0, r1, ea[0] if c == 0 else empty, *ea[1:], h, self.ezx, self.ezy, ez)
+            compiled.tmz_e_half(q0, q1, r0, r1, ea[0] if c == 0 else empty, *ea[1:], h, self.ezx, self.ezy, ez)
 
         def h_job(c):
-            _jit.tmz_h_half(*pl.chunks[1][c], *ha, ez, h, out)
+            compiled.tmz_h_half(*pl.chunks[1][c], *ha, ez, h, out)
 
         threads.run_chunks(e_job, w, workers=w)
         self.t = (self.n + 1) * self.dt
@@ -874,15 +677,15 @@ class TMzSolver(_Leapfrog):
         if _jit.ENABLED:  # the same numbers as the numpy step below, in one pass per half step
             (x, y, hxm, hym), fr = self._fused_arrays()
             ez = self.ezx + self.ezy  # fixed particles: their (held) values
-            _jit.tmz_e_update(fr, *x, *y, self.hy, self.hx, self._cax, self._cbx, self._cay, self._cby,
+            compiled.tmz_e_update(fr, *x, *y, self.hy, self.hx, self._cax, self._cbx, self._cay, self._cby,
                               self.ezx, self.ezy, ez)
             self.t = (self.n + 1) * self.dt
             self.n += 1
             for s in self._drive_sources():
                 ez[s.indices] = self.ezx[s.indices] + self.ezy[s.indices]
             hx, hy = np.empty_like(self.hx), np.empty_like(self.hy)  # new arrays, as the numpy step's
-            _jit.tmz_h_update(*hxm, ez, self.hx, self.da_x, self.db_x, -1.0, hx)
-            _jit.tmz_h_update(*hym, ez, self.hy, self.da_y, self.db_y, 1.0, hy)
+            compiled.tmz_h_update(*hxm, ez, self.hx, self.da_x, self.db_x, -1.0, hx)
+            compiled.tmz_h_update(*hym, ez, self.hy, self.da_y, self.db_y, 1.0, hy)
             self.hx, self.hy = hx, hy
             return
         fr = self.free
@@ -899,7 +702,7 @@ class TMzSolver(_Leapfrog):
         self.hy = self.da_y * self.hy + self.db_y * dey
 
 
-class Line1DSolver(_Leapfrog):
+class Line1DSolver(Leapfrog):
     """SPEM on a line: Ex on E particles, Hy on H particles ([2] sec. 4.2).
 
     ``dEx/dt = -(1/eps) dHy/dz``, ``dHy/dt = -(1/mu) dEx/dz``; the end E
@@ -933,10 +736,10 @@ class Line1DSolver(_Leapfrog):
                                   row_name="E particles", col_name="H particles")[0]
         self.D_h = cross_gradient(self.h_points, self.e_points, self.h, kernel=kernel, form=form,
                                   row_name="H particles", col_name="E particles")[0]
-        self.eps = EPS0 * _per_particle("eps_r", eps_r, self.e_points)
-        self.mu = MU0 * _per_particle("mu_r", mu_r, self.h_points)
+        self.eps = EPS0 * per_particle("eps_r", eps_r, self.e_points)
+        self.mu = MU0 * per_particle("mu_r", mu_r, self.h_points)
         self.c_max = C0 / math.sqrt(float(self.eps.min() / EPS0) * float(self.mu.min() / MU0))
-        self.dt = _check_dt(dt, self.h, courant, self.c_max)
+        self.dt = check_dt(dt, self.h, courant, self.c_max)
         self.courant = cfl_number(self.dt, self.h, self.c_max)
         self.sources = list(sources)
         self.ex = np.zeros(self.n_e)
@@ -947,6 +750,11 @@ class Line1DSolver(_Leapfrog):
     @property
     def e_field(self) -> np.ndarray:
         """Ex at the E particles."""
+        return self.ex
+
+    @property
+    def field(self) -> np.ndarray:
+        """What ``run`` records: Ex (:attr:`e_field`)."""
         return self.ex
 
     def step(self) -> None:
