@@ -560,3 +560,26 @@ def test_misnamed_file_names_the_format_it_holds(tmp_path, cloud):
     with pytest.raises(ReadError, match="LAS file, not CSV"):
         read(tmp_path / "l.csv")
     assert len(read(tmp_path / "c.xyz", format="ply")) == 40
+
+
+# ------------------------------------------------------------------ SPEM (owner: spem)
+def test_spem_line_source_outside_the_domain_is_refused():
+    from manifold_sph.spem import Sinusoid, line_source, yee_layout
+
+    lay = yee_layout((0.0, 0.1, 0.0, 0.1), 0.01)
+    assert len(line_source(lay.e, 0.05, Sinusoid(1e9)).indices) == 11  # inside: the row y = 0.05
+    for y in (0.5, -0.02):
+        with pytest.raises(ValueError, match=rf"y = {y!r} lies outside .* y in \[0, 0\.1\]"):
+            line_source(lay.e, y, Sinusoid(1e9))
+    with pytest.raises(ValueError, match="y must be finite"):
+        line_source(lay.e, float("nan"), Sinusoid(1e9))
+
+
+def test_spem_waveguide_on_a_jittered_layout_keeps_the_lattice_time_step():
+    """A source row on the edge of a jittered layout once collapsed dt 10^4-fold (3.6M steps for 265)."""
+    from manifold_sph.spem import run_waveguide
+
+    lattice = run_waveguide(ppw=20, t_end=2e-10)
+    jittered = run_waveguide(ppw=20, t_end=2e-10, layout="jittered")
+    assert jittered.dt >= 0.5 * lattice.dt, (jittered.dt, lattice.dt)
+    assert jittered.steps <= 2 * lattice.steps

@@ -14,7 +14,7 @@ Examples
 >>> r = LineResult(case="line1d", particles=10, steps=5, seconds=0.1, step_seconds=0.05, error=0.01,
 ...                dt=1e-12, dr=1e-3, h=7e-4, particles_per_wavelength=20.0, courant=0.9)
 >>> r.error, sorted(r.to_dict())[:3]
-(0.01, ['case', 'courant', 'dr'])
+(0.01, ['case', 'consistency', 'courant'])
 """
 
 from __future__ import annotations
@@ -69,8 +69,10 @@ class FieldHistory(NamedTuple):
 class CaseResult(Result):
     """The fields every validation case reports (:mod:`manifold_sph.spem.cases`).
 
-    ``error`` is mean |numerical - exact| / max |exact| over the case's
-    evaluation points (the PML case: the relative reflection at normal
+    ``consistency`` is the largest error of the run's derivative matrices on linear fields
+    (:meth:`.TMzSolver.consistency_residual`: round-off for a consistent coupling, O(1) for an
+    inconsistent one); None where not computed. ``error`` is mean |numerical - exact| / max |exact|
+    over the case's evaluation points (the PML case: the relative reflection at normal
     incidence, None where the pulse never reaches the probe).
     """
 
@@ -85,6 +87,7 @@ class CaseResult(Result):
     dt: float
     dr: float
     fields: FieldHistory | None = dataclasses.field(default=None, repr=False)
+    consistency: float | None = None
 
 
 @dataclass(frozen=True, repr=False, eq=False, kw_only=True)
@@ -98,7 +101,8 @@ class LineResult(CaseResult):
 
 @dataclass(frozen=True, repr=False, eq=False, kw_only=True)
 class CavityResult(CaseResult):
-    """:func:`~manifold_sph.spem.cases.run_cavity`; ``f1_measured``/``f1_error`` with ``spectrum_periods`` > 0."""
+    """:func:`~manifold_sph.spem.cases.run_cavity`; ``f1_measured``/``f1_error`` with ``spectrum_periods`` > 0;
+    ``energy_drift``: ``|W(end) / W(0) - 1|`` of the discrete energy (:meth:`.TMzSolver.energy`) over the periods."""
 
     layout: str
     form: str
@@ -107,6 +111,7 @@ class CavityResult(CaseResult):
     f1_exact: float
     f1_measured: float | None = None
     f1_error: float | None = None
+    energy_drift: float | None = None
 
 
 @dataclass(frozen=True, repr=False, eq=False, kw_only=True)

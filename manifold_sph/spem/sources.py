@@ -17,6 +17,7 @@ Examples
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -133,9 +134,37 @@ def point_source(e_points: ArrayLike, position: ArrayLike, waveform: Callable[[f
 
 def line_source(e_points: ArrayLike, y: float, waveform: Callable[[float], ArrayLike], kind: str = "hard",
                 tol: float | None = None) -> Source:
-    """A plane-wave line source: every E particle with ``|y_i - y| <= tol`` (default: the nearest row)."""
-    e = np.asarray(e_points, dtype=np.float64)
+    """A plane-wave line source: every E particle with ``|y_i - y| <= tol`` (default: the nearest row).
+
+    ``y`` outside the rows of E particles (below the lowest or above the highest
+    ``y_i``) is refused: a source outside the domain is a mistake, not something
+    to snap to the nearest row.
+
+    >>> e = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
+    >>> line_source(e, 0.9, Sinusoid(1e9)).indices.tolist()
+    [2, 3]
+    >>> line_source(e, 5.0, Sinusoid(1e9))
+    Traceback (most recent call last):
+    ...
+    ValueError: y = 5.0 lies outside the E particles' rows, y in [0, 1]: the line source would be outside the domain
+    """
+    from .._validation import as_points
+
+    e = as_points("e_points", e_points, dim=2)
+    try:
+        y = float(y)
+    except (TypeError, ValueError):
+        raise TypeError(f"y must be a number, got {type(y).__name__}") from None
+    if not math.isfinite(y):
+        raise ValueError(f"y must be finite, got {y!r}")
+    lo, hi = float(e[:, 1].min()), float(e[:, 1].max())
+    slack = 1e-9 * max(1.0, abs(lo), abs(hi))
+    if not lo - slack <= y <= hi + slack:
+        raise ValueError(f"y = {y!r} lies outside the E particles' rows, y in [{lo:.6g}, {hi:.6g}]: the line source "
+                         f"would be outside the domain")
     dy = np.abs(e[:, 1] - y)
     if tol is None:
         tol = dy.min() + 1e-9 * max(1.0, abs(y))
+    else:
+        tol = check_positive("tol", tol, allow_zero=True)
     return Source(np.flatnonzero(dy <= tol), waveform, kind)

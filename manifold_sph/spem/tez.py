@@ -70,14 +70,7 @@ from numpy.typing import ArrayLike
 from .._validation import check_in, check_positive
 from .constants import EPS0, MU0
 from .layouts import TEzLayout
-from .operators import (
-    COUPLINGS,
-    DEFAULT_COUPLING,
-    DEFAULT_H_RATIO,
-    SBP_LAYERS,
-    cross_gradient,
-    sbp_pair,
-)
+from .operators import COUPLINGS, DEFAULT_COUPLING, DEFAULT_H_RATIO, SBP_LAYERS, cross_gradient, sbp_pair
 from .pml import PML
 from .stability import STABILITY_MARGIN, leapfrog_growth, spectral_radius_bound
 from .stepping import Leapfrog

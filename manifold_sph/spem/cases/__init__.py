@@ -42,12 +42,7 @@ from .propagation import (
     run_tez_pml,
     run_waveguide,
 )
-from .scattering import (
-    run_scattering,
-    run_tez_scattering,
-    scattering_layout,
-    tez_scattering_layout,
-)
+from .scattering import run_scattering, run_tez_scattering, scattering_layout, tez_scattering_layout
 
 __all__ = ["CASES", "run_case", "relative_error", "l2_error", "dft_phasor", "run_line1d", "cavity_exact",
            "cavity_frequency", "peak_frequency", "run_cavity", "tez_cavity_frequency", "run_tez_cavity",

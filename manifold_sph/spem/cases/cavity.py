@@ -24,13 +24,7 @@ from scipy.special import j0, j1, jn_zeros
 
 from ..._validation import as_points, check_in, check_int, check_positive
 from ..constants import C0, EPS0, MU0
-from ..layouts import (
-    POISSON_H_RATIO,
-    disk_layout,
-    tez_disk_layout,
-    tez_layout,
-    wall_closure_layout,
-)
+from ..layouts import POISSON_H_RATIO, disk_layout, tez_disk_layout, tez_layout, wall_closure_layout
 from ..operators import DEFAULT_COUPLING, DEFAULT_H_RATIO, SBP_LAYERS
 from ..results import CavityResult, TEzCavityResult
 from ..tez import DISK_H_RATIO, TEzSolver
@@ -39,13 +33,7 @@ from ..tmz import TMzSolver
 if TYPE_CHECKING:
     from ...kernels import Kernel
 
-from .common import (
-    field_history,
-    fit_solver_dt,
-    relative_error,
-    snapshot_interval,
-    timed,
-)
+from .common import field_history, fit_solver_dt, relative_error, snapshot_interval, timed
 
 __all__ = ["cavity_exact", "cavity_frequency", "peak_frequency", "run_cavity", "tez_cavity_frequency", "run_tez_cavity",
            "tez_disk_frequency", "tez_disk_mode", "run_tez_circular_cavity"]
@@ -125,12 +113,15 @@ def run_cavity(*, r0: float = 0.1, eps_r: float = 10.0, n_radial: int = 40, peri
     r = np.hypot(lay.e[:, 0] - c[0], lay.e[:, 1] - c[1])
     s.set_initial(np.clip(1.0 - r**2 / r0**2, 0.0, None))
     centre = int(np.argmin(r))
+    energy0 = s.energy()
     res = s.run(steps, probes=[centre], every=snapshot_interval(steps, frames), progress=progress)
+    energy_drift = abs(s.energy() / energy0 - 1.0)
     exact = cavity_exact(r, s.t, r0, eps_r)
     out = CavityResult(case="cavity", particles=lay.n_particles, steps=steps, seconds=res.seconds,
                        step_seconds=res.seconds, error=relative_error(s.e_field, exact), dt=dt, dr=dr, layout=layout,
                        form=form, r0=r0, eps_r=eps_r, f1_exact=f1,
-                       fields=field_history(lay.e, s.e_field, s.t, res, frames, exact))
+                       fields=field_history(lay.e, s.e_field, s.t, res, frames, exact),
+                       consistency=s.consistency_residual(), energy_drift=energy_drift)
     if spectrum_periods > 0:
         more = int(round(spectrum_periods * T1 / dt))
         res2 = s.run(more, probes=[centre], progress=progress)

@@ -42,12 +42,7 @@ from ..interfaces import (
     tez_jump_permittivity,
 )
 from ..layouts import Layout, TEzLayout, jitter, supported, tez_layout, yee_layout
-from ..mie import (
-    check_scatterer,
-    check_tez_scatterer,
-    scattered_field,
-    tez_scattered_field,
-)
+from ..mie import check_scatterer, check_tez_scatterer, scattered_field, tez_scattered_field
 from ..operators import COUPLINGS, DEFAULT_COUPLING
 from ..pml import PML
 from ..results import ScatteringResult, TEzScatteringResult
@@ -116,7 +111,7 @@ def scattering_layout(kind: str, radius: float, dr: float, half_width: float, *,
         lay = jitter(lay, amplitude, seed)
     wall_r = {"pec": radius, "coated": core_radius}.get(kind)
     if wall_r is None:
-        return Layout(lay.e, lay.hx, lay.hy, dr, f"cylinder-{lay.name}", lay.e_fixed, lay.bounds)
+        return Layout(lay.e, lay.hx, lay.hy, dr, f"cylinder-{lay.name}", lay.e_fixed, lay.bounds, lay.h_ratio)
     ring = _ring(wall_r, wall_spacing * dr)
     r_e = np.hypot(lay.e[:, 0], lay.e[:, 1])
     keep = r_e >= wall_r + wall_margin * dr
@@ -126,7 +121,7 @@ def scattering_layout(kind: str, radius: float, dr: float, half_width: float, *,
     keep[near] = supported(lay.e, ((hy, 0), (hx, 1)), dr, near)
     e = np.vstack([lay.e[keep], ring])
     fixed = np.r_[lay.e_fixed[keep], np.ones(len(ring), bool)]
-    return Layout(e, hx, hy, dr, f"cylinder-{lay.name}", fixed, lay.bounds)
+    return Layout(e, hx, hy, dr, f"cylinder-{lay.name}", fixed, lay.bounds, lay.h_ratio)
 
 
 #: Jittered layouts: particles pushed closer than this (spacings) to a conductor are put back at this distance.
