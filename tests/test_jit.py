@@ -223,9 +223,9 @@ def test_environment_variable_turns_the_kernels_off(monkeypatch):
     # the parsing itself, in this process (the default is on)
     for raw, on in (("1", True), ("0", False), ("true", True), ("off", False)):
         monkeypatch.setenv("MANIFOLD_SPH_JIT", raw)
-        assert _jit._from_env() is on, raw
+        assert _jit.from_env() is on, raw
     monkeypatch.delenv("MANIFOLD_SPH_JIT")
-    assert _jit._from_env() is True
+    assert _jit.from_env() is True
 
 
 def test_bicgstab_csr_equals_the_row_block_iteration(monkeypatch):
@@ -316,7 +316,7 @@ def test_environment_variable_is_validated(monkeypatch):
     # test_hostile_inputs.py::test_bad_thread_and_jit_environment_warn_not_fail)
     monkeypatch.setenv("MANIFOLD_SPH_JIT", "maybe")
     with pytest.warns(RuntimeWarning, match=r"MANIFOLD_SPH_JIT must be 0 or 1.*'maybe'"):
-        assert _jit._from_env() is True
+        assert _jit.from_env() is True
 
 
 def test_near_duplicate_pairs_equal_numpy(monkeypatch):
