@@ -78,6 +78,7 @@ MODULES = [
     "manifold_sph.spem.sources",
     "manifold_sph.spem.tez",
     "manifold_sph.spem.tmz",
+    "manifold_sph.spem.line",
     "manifold_sph.spem.mimetic",
     "manifold_sph.spem.stencil",
     "manifold_sph.normals.poles",

@@ -7,8 +7,8 @@ the SBP correction with its PEC closure, the couplings) and :mod:`.mimetic` (the
 second-order energy-conserving "mimetic" coupling); :mod:`.pml`, :mod:`.sources`;
 :mod:`.stability` (CFL rule, spectral radius bound, leap-frog growth);
 :mod:`.stepping` (the ``run`` contract every solver shares); :mod:`.tmz`
-(:class:`TMzSolver`, :class:`Line1DSolver`; compiled steps in :mod:`.compiled` and
-:mod:`.stencil`); :mod:`.tez` (:class:`TEzSolver`, :class:`TEzPMLSolver`);
+(:class:`TMzSolver`; compiled steps in :mod:`.compiled` and
+:mod:`.stencil`); :mod:`.line` (:class:`Line1DSolver`); :mod:`.tez` (:class:`TEzSolver`, :class:`TEzPMLSolver`);
 :mod:`.mie` (the exact cylinder series of both polarisations); :mod:`.interfaces`
 (dielectric interface permittivities); :mod:`.cases` (the validation cases with
 exact references); :mod:`.results` (every result type); :mod:`.analysis` (null
@@ -47,7 +47,8 @@ from .results import (CaseResult, CavityResult, FieldHistory, LineResult, Planew
 from .sources import GaussianPulse, Sinusoid, Source, line_source, point_source
 from .stability import cfl_number, leapfrog_growth, spectral_radius_bound
 from .tez import DISK_H_RATIO, TEzPMLSolver, TEzSolver
-from .tmz import Line1DSolver, TMzSolver
+from .line import Line1DSolver
+from .tmz import TMzSolver
 
 __all__ = [
     "C0", "EPS0", "ETA0", "MU0",

@@ -20,7 +20,7 @@ from ..layouts import line_layout
 from ..operators import DEFAULT_H_RATIO
 from ..results import LineResult
 from ..sources import Sinusoid, Source, point_source
-from ..tmz import Line1DSolver
+from ..line import Line1DSolver
 
 if TYPE_CHECKING:
     from ...kernels import Kernel
