@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import warnings
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from .exceptions import ManifoldSPHWarning
-from . import geometry
 from .frames import FramePair, PairOffsets, check_frames, project_pairs, tangent_frames
 from .neighbors import GRID_MIN_POINTS, build_tree, find_neighbors
 from .operators import OperatorSet
@@ -162,26 +161,58 @@ class Surface(OperatorSet, PointViews):
         """(N, 3) unit normals."""
         return self.cloud.normals
 
-    # ------------------------------------------------------------- geometry
-    def shape_operator(self) -> np.ndarray:
+    # ------------------------------------------------------------- geometry (manifold_sph.geometry, imported lazily)
+    def shape_operator(self, *, scale: float | str | None = None) -> np.ndarray:
         """(N, 2, 2) shape operator in the frames ``(u, v)``; see :func:`manifold_sph.geometry.shape_operator`."""
-        return geometry.shape_operator(self)
+        from .geometry import shape_operator
 
-    def mean_curvature(self, method: str = "auto") -> np.ndarray:
-        """(N,) mean curvature ``(k1 + k2) / 2``; see :func:`manifold_sph.geometry.mean_curvature`."""
-        return geometry.mean_curvature(self, method)
+        return shape_operator(self, scale=scale)
 
-    def gaussian_curvature(self) -> np.ndarray:
+    def mean_curvature(self, method: str = "auto", *, scale: float | str | None = None) -> np.ndarray:
+        """(N,) mean curvature ``(k1 + k2) / 2``, pointwise or at a ``scale``; see :func:`manifold_sph.geometry.mean_curvature`."""
+        from .geometry import mean_curvature
+
+        return mean_curvature(self, method, scale=scale)
+
+    def gaussian_curvature(self, *, scale: float | str | None = None) -> np.ndarray:
         """(N,) Gaussian curvature ``k1 k2``; see :func:`manifold_sph.geometry.gaussian_curvature`."""
-        return geometry.gaussian_curvature(self)
+        from .geometry import gaussian_curvature
 
-    def principal_curvatures(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        return gaussian_curvature(self, scale=scale)
+
+    def principal_curvatures(
+        self, *, scale: float | str | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``(k1, k2, d1, d2)``; see :func:`manifold_sph.geometry.principal_curvatures`."""
-        return geometry.principal_curvatures(self)
+        from .geometry import principal_curvatures
 
-    def geodesic_distance(self, sources: ArrayLike, **options: Any) -> np.ndarray:
-        """(N,) geodesic distance from ``sources``; see :func:`manifold_sph.geometry.geodesic_distance`."""
-        return geometry.geodesic_distance(self, sources, **options)
+        return principal_curvatures(self, scale=scale)
+
+    def geodesic_distance(self, sources: ArrayLike, *, to: ArrayLike | None = None, method: str = "wavefront"):
+        """(N,) geodesic distance from ``sources`` (or to ``to`` only); see :func:`manifold_sph.geometry.geodesic_distance`."""
+        from .geometry import geodesic_distance
+
+        return geodesic_distance(self, sources, to=to, method=method)
+
+    def transport(self, source: int, vector: ArrayLike) -> np.ndarray:
+        """(N, 3) the tangent ``vector`` at particle ``source`` carried to every particle; see :func:`manifold_sph.geometry.transport`."""
+        from .geometry import transport
+
+        return transport(self, source, vector)
+
+    def log_map(self, source: int) -> np.ndarray:
+        """(N, 2) logarithmic map at particle ``source`` in its frame ``(u, v)``; see :func:`manifold_sph.geometry.log_map`."""
+        from .geometry import log_map
+
+        return log_map(self, source)
+
+    def smooth(
+        self, *, method: str = "jet", scale: float | None = None, iterations: int = 3, features: bool = False
+    ) -> PointCloud:
+        """A smoothed (denoised) copy of the cloud as a PointCloud; see :func:`manifold_sph.geometry.smooth`."""
+        from .geometry import smooth
+
+        return smooth(self, method=method, scale=scale, iterations=iterations, features=features)
 
     def _widen_lonely(self, nb, pts, nrm, hv, normal_threshold, tree):
         """Give particles with fewer than the scheme's minimum of neighbours (isolated points, sparse

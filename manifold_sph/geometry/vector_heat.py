@@ -1,0 +1,265 @@
+"""The vector heat method on a point cloud (Sharp, Soliman and Crane 2019).
+
+Tangent vectors at particle ``i`` are complex numbers in its frame ``(u_i, v_i)``
+(:attr:`Surface.u`, :attr:`Surface.v`): ``X = a u_i + b v_i`` is ``a + i b``.
+
+- **Connection Laplacian.** The stable Laplacian's stiffness ``K`` (Voronoi fluxes) with
+  each off-diagonal entry multiplied by the rotation ``r_ij`` that carries particle ``j``'s
+  tangent plane onto particle ``i``'s: the smallest rotation taking ``n_j`` to ``n_i``
+  (parallel transport along the short arc between neighbours), written as a unit complex
+  number ``r_ij = (R u_j) . (u_i + i v_i)``. ``K_conn`` is Hermitian positive semi-definite
+  (``r_ji = conj(r_ij)``); :func:`connection_laplacian`.
+- **Parallel transport** (:func:`transport`). One implicit heat step of the vector at the
+  source, ``(M + t K_conn) Y = M delta X``; the direction of ``Y`` at each particle is the
+  vector transported along the shortest geodesic (its length is kept). The solve is the
+  real symmetric form ``[[Re A, -Im A], [Im A, Re A]]`` of the Hermitian system, set up once
+  by :func:`manifold_sph.solvers.spd_solver` and reused for every source.
+- **Logarithmic map** (:func:`log_map`). The geodesic distance ``r`` (a
+  :class:`~manifold_sph.geometry.GeodesicSolver`) and the angle, at each particle, between
+  the direction of increasing distance and the transported frame vector ``u_source``:
+  ``log(x) = r (cos theta, sin theta)`` in the source's frame. The direction of increasing
+  distance is the gradient of ``r`` from quadric fits over the 24 nearest points
+  (:func:`~manifold_sph.geometry.jets.field_gradient`), smoother on irregular clouds than
+  the scheme's gradient.
+- **Karcher mean** (:func:`karcher_mean`): the particle ``p`` where the weighted mean of
+  ``log_p`` of the given particles vanishes, by the fixed-point iteration
+  ``p <- exp_p(mean log_p)`` (the particle nearest to that tangent point in the log map).
+
+The normals must be consistently oriented (a Surface's are): the sign of the angles follows them.
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import TYPE_CHECKING
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import ArrayLike
+
+from .._validation import as_field, check_in, check_int, check_positive
+from ..exceptions import ManifoldSPHWarning
+from .common import SCALE_RANGE, check_scale, check_surface
+from .jets import field_gradient
+
+if TYPE_CHECKING:
+    from ..surface import Surface
+
+__all__ = ["connection_laplacian", "transport", "log_map", "karcher_mean", "VectorHeatSolver"]
+
+#: Heat time of the vector diffusion, in units of the mean cell area.
+VECTOR_HEAT_TIME = 16.0
+
+
+def _frame_rotations(n: np.ndarray, u: np.ndarray, v: np.ndarray, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+    """Unit complex ``r_ij``: particle ``j``'s frame vector ``u_j`` carried by the smallest rotation taking
+    ``n_j`` to ``n_i``, in the frame ``(u_i, v_i)``."""
+    f, t = n[j], n[i]
+    c = np.einsum("pd,pd->p", f, t)
+    w = np.cross(f, t)
+    a = u[j]
+    wa = np.cross(w, a)
+    Ra = a + wa + np.cross(w, wa) / np.maximum(1.0 + c, 1e-12)[:, None]
+    z = np.einsum("pd,pd->p", Ra, u[i]) + 1j * np.einsum("pd,pd->p", Ra, v[i])
+    return z / np.maximum(np.abs(z), 1e-300)
+
+
+def connection_laplacian(surface: Surface) -> sp.csr_matrix:
+    """Complex Hermitian connection Laplacian ``K_conn``, shape (N, N) (module notes); cached on the surface.
+
+    ``K_conn`` has the diagonal of the stiffness ``K`` and off-diagonal entries ``K_ij r_ij``;
+    ``-M^-1 K_conn`` is the Bochner (connection) Laplacian on tangent fields written in the
+    particles' frames.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from manifold_sph import Surface
+    >>> from manifold_sph.reference import shapes
+    >>> s = Surface(shapes.sphere(1000))
+    >>> Kc = connection_laplacian(s)
+    >>> bool(abs(Kc - Kc.conj().T).max() < 1e-14), bool(np.allclose(Kc.diagonal(), s.stiffness_matrix().diagonal()))
+    (True, True)
+    """
+    check_surface(surface)
+
+    def compute():
+        K = surface.stiffness_matrix().tocoo()
+        off = K.row != K.col
+        i, j = K.row[off], K.col[off]
+        r = _frame_rotations(surface.normals, surface.u, surface.v, i, j)
+        n = surface.n_points
+        data = np.concatenate([K.data[~off].astype(np.complex128), K.data[off] * r])
+        rows = np.concatenate([K.row[~off], i])
+        cols = np.concatenate([K.col[~off], j])
+        A = sp.csr_matrix((data, (rows, cols)), shape=(n, n))
+        return (0.5 * (A + A.conj().T)).tocsr()  # Hermitian to round-off
+
+    return surface.cached("connection_laplacian", compute)
+
+
+def _to_complex(surface, i, vector):
+    return vector @ surface.u[i] + 1j * (vector @ surface.v[i])
+
+
+def _to_ambient(surface, z):
+    return z.real[:, None] * surface.u + z.imag[:, None] * surface.v
+
+
+class VectorHeatSolver:
+    """The vector heat method on a Surface, with its systems set up once.
+
+    Parameters
+    ----------
+    surface : Surface
+    t : float, optional
+        Heat time of the vector diffusion (default the mean cell area times
+        ``VECTOR_HEAT_TIME``).
+    geodesics : {"heat", "wavefront"}
+        The :class:`~manifold_sph.geometry.GeodesicSolver` method of the log map's
+        distances: ``"heat"`` (default; smooth, the more accurate on smooth well-sampled
+        surfaces) or ``"wavefront"`` (coarse or sharp models, several sources).
+    """
+
+    def __init__(self, surface: Surface, *, t: float | None = None, geodesics: str = "heat") -> None:
+        from ..solvers import spd_solver
+
+        check_surface(surface)
+        check_scale(surface.points, "vector heat method", SCALE_RANGE)
+        self.surface = surface
+        self.geodesics = check_in("geodesics", geodesics, ("heat", "wavefront"))
+        m = np.asarray(surface.mass_matrix().diagonal(), dtype=np.float64)
+        self._h2 = float(m.mean())
+        self.t = VECTOR_HEAT_TIME * self._h2 if t is None else check_positive("t", t)
+        A = sp.diags(m / self._h2) + (self.t / self._h2) * connection_laplacian(surface)  # units of the mean cell
+        Ar, Ai = A.real.tocsr(), A.imag.tocsr()
+        self._m = m / self._h2
+        self._solve = spd_solver(sp.bmat([[Ar, -Ai], [Ai, Ar]], format="csr")).solve
+        self._distance = None
+
+    def _source(self, source) -> int:
+        n = self.surface.n_points
+        if isinstance(source, (bool, np.bool_)) or not isinstance(source, (int, np.integer)):
+            raise TypeError(f"source must be a particle index (int), got {type(source).__name__}")
+        if not 0 <= source < n:
+            raise ValueError(f"source must lie in [0, {n}), got {source}")
+        return int(source)
+
+    def diffuse(self, source: int, vector: ArrayLike) -> np.ndarray:
+        """The vector heat step's solution ``Y`` (complex, in the particles' frames), shape (N,)."""
+        i = self._source(source)
+        vec = as_field("vector", np.reshape(np.asarray(vector, dtype=np.float64), (1, 3)), 1, 3)[0]
+        z = _to_complex(self.surface, i, vec)
+        if z == 0:
+            raise ValueError(f"vector must have a non-zero component in the tangent plane of particle {i}, got {vec.tolist()}")
+        n = self.surface.n_points
+        b = np.zeros(2 * n)
+        b[i], b[n + i] = z.real, z.imag  # M delta X in units of the mean cell: the source's own mass cancels
+        y = self._solve(b)
+        return y[:n] + 1j * y[n:]
+
+    def transport(self, source: int, vector: ArrayLike) -> np.ndarray:
+        """``vector`` (3,) at ``source`` (projected to its tangent plane) carried to every particle, shape (N, 3)."""
+        i = self._source(source)
+        Y = self.diffuse(i, vector)
+        vec = np.asarray(vector, dtype=np.float64).reshape(3)
+        length = abs(_to_complex(self.surface, i, vec))
+        mag = np.abs(Y)
+        lost = mag <= 1e-300 * max(mag.max(), 1e-300)
+        if lost.any():
+            warnings.warn(f"transport: {int(lost.sum())} particle(s) got no share of the diffused vector (pieces "
+                          "without the source): their vector is NaN", ManifoldSPHWarning, stacklevel=2)
+        Z = np.where(lost, np.nan, Y / np.where(lost, 1.0, mag) * length)
+        return _to_ambient(self.surface, Z)
+
+    def log_map(self, source: int) -> np.ndarray:
+        """Logarithmic map at ``source``: (N, 2) coordinates in the frame ``(u, v)`` of the source particle.
+
+        Their length is the geodesic distance; their angle that of the initial direction of
+        the shortest geodesic from the source.
+        """
+        from .geodesics import GeodesicSolver
+
+        s = self.surface
+        i = self._source(source)
+        if self._distance is None:
+            self._distance = GeodesicSolver(s, method=self.geodesics)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ManifoldSPHWarning)
+            r = self._distance.distance(i)
+        g = field_gradient(s.points, s.u, s.v, np.where(np.isfinite(r), r, np.nan))
+        radial = np.einsum("nd,nd->n", g, s.u) + 1j * np.einsum("nd,nd->n", g, s.v)
+        Y = self.diffuse(i, s.u[i])
+        ratio = radial * np.conj(Y)
+        theta = np.angle(ratio)
+        out = np.stack([r * np.cos(theta), r * np.sin(theta)], axis=1)
+        out[i] = 0.0
+        out[~np.isfinite(r)] = np.nan
+        return out
+
+    def karcher_mean(self, indices: ArrayLike, weights: ArrayLike | None = None, *, start: int | None = None,
+                     max_iter: int = 20) -> int:
+        """Weighted Karcher (Frechet) mean of particles ``indices``: the particle index where the mean log map vanishes."""
+        s = self.surface
+        idx = np.atleast_1d(np.asarray(indices))
+        if idx.ndim != 1 or idx.size == 0 or not np.issubdtype(idx.dtype, np.integer):
+            raise ValueError(f"indices must be a non-empty 1-D array of particle indices, got {idx!r}")
+        if np.any((idx < 0) | (idx >= s.n_points)):
+            raise ValueError(f"indices must lie in [0, {s.n_points})")
+        w = np.ones(idx.size) if weights is None else as_field("weights", weights, idx.size)
+        if np.any(w < 0) or w.sum() <= 0:
+            raise ValueError("weights must be non-negative with a positive sum")
+        w = w / w.sum()
+        max_iter = check_int("max_iter", max_iter, minimum=1)
+        if start is None:  # the particle nearest the extrinsic mean
+            c = (w[:, None] * s.points[idx]).sum(axis=0)
+            start = int(np.argmin(np.einsum("nd,nd->n", s.points - c, s.points - c)))
+        p = self._source(start)
+        seen = {p}
+        for _ in range(max_iter):
+            L = self.log_map(p)
+            step = (w[:, None] * L[idx]).sum(axis=0)
+            q = int(np.nanargmin(np.einsum("nd,nd->n", L - step, L - step)))
+            if q == p or q in seen:
+                return q if q == p else p
+            seen.add(q)
+            p = q
+        return p
+
+
+def _solver(surface, geodesics="heat"):
+    check_surface(surface)
+    return surface.cached(("vector_heat", geodesics), lambda: VectorHeatSolver(surface, geodesics=geodesics))
+
+
+def transport(surface: Surface, source: int, vector: ArrayLike) -> np.ndarray:
+    """Parallel transport of ``vector`` (3,) at particle ``source`` to every particle, shape (N, 3).
+
+    See :class:`VectorHeatSolver`; its systems are cached on the surface.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from manifold_sph import Surface
+    >>> from manifold_sph.reference import shapes
+    >>> s = Surface(shapes.sphere(4000))
+    >>> Y = transport(s, 0, s.u[0])
+    >>> bool(np.allclose(np.linalg.norm(Y, axis=1), 1.0)), bool(np.abs(np.einsum("nd,nd->n", Y, s.normals)).max() < 1e-12)
+    (True, True)
+    """
+    return _solver(surface).transport(source, vector)
+
+
+def log_map(surface: Surface, source: int, *, geodesics: str = "heat") -> np.ndarray:
+    """Logarithmic map at particle ``source``, shape (N, 2), in the frame ``(u, v)`` of ``source``.
+
+    The length of each row is the geodesic distance (``geodesics`` picks the
+    :class:`~manifold_sph.geometry.GeodesicSolver` method), its angle that of the initial
+    direction of the shortest geodesic. See :class:`VectorHeatSolver`.
+    """
+    return _solver(surface, check_in("geodesics", geodesics, ("heat", "wavefront"))).log_map(source)
+
+
+def karcher_mean(surface: Surface, indices: ArrayLike, weights: ArrayLike | None = None, *, geodesics: str = "heat") -> int:
+    """Weighted Karcher (Frechet) mean of particles ``indices``, as a particle index; see :class:`VectorHeatSolver`."""
+    return _solver(surface, check_in("geodesics", geodesics, ("heat", "wavefront"))).karcher_mean(indices, weights)
