@@ -86,7 +86,7 @@ def torus_mesh(n, R=0.8, r=0.2, seed=0):
     P = shapes.torus(n, R=R, r=r, seed=seed).points
     th = np.arctan2(P[:, 1], P[:, 0])
     ph = np.arctan2(P[:, 2], np.hypot(P[:, 0], P[:, 1]) - R)
-    X = np.stack([th * (R + r * np.cos(ph)), ph * r], axis=1)
+    X = np.stack([th * R, ph * r], axis=1)  # periodic with periods 2 pi R, 2 pi r
     W = np.array([2 * np.pi * R, 2 * np.pi * r])
     tiles = [(a, b) for a in (-1, 0, 1) for b in (-1, 0, 1)]
     Y = np.concatenate([X + np.array(t) * W for t in tiles])
@@ -94,7 +94,6 @@ def torus_mesh(n, R=0.8, r=0.2, seed=0):
     centre = T // len(P) == tiles.index((0, 0))
     keep = centre.any(axis=1) & (np.ptp(Y[T][:, :, 0], axis=1) < 0.1 * W[0]) & (np.ptp(Y[T][:, :, 1], axis=1) < 0.3 * W[1])
     F = np.unique(np.sort(T[keep] % len(P), axis=1), axis=0)
-    # orient consistently is not needed by libigl's exact geodesic; drop duplicates only
     return P, F
 
 

@@ -15,11 +15,13 @@
   with outward normals is positive). Noise of amplitude ``sigma`` leaves a scatter of
   about ``sigma h / r^3`` (``h`` the spacing); the surface's own variation a bias that
   grows with ``r``.
-- **Automatic scale** (``scale="auto"``): per particle, the largest radius of the ladder
-  ``2.5 h, 3.5 h, 5 h, 7 h, 10 h, 14 h`` whose estimate agrees with every smaller one
-  within their combined uncertainties (the intersection of confidence intervals of
-  Lepski's method; each uncertainty from the fit's own variance and the noise measured by
-  the residuals of the smallest fit).
+- **Automatic scale** (``scale="auto"``): the cloud is first denoised
+  (:func:`~manifold_sph.geometry.smooth`, jet fits over ``4 h``), then per particle the
+  largest radius of the ladder ``2.5 h, 3.5 h, 5 h, 7 h, 10 h, 14 h`` is taken whose estimate
+  agrees with every smaller one within their combined uncertainties (the intersection of
+  confidence intervals of Lepski's method; each uncertainty from the fit's own variance and
+  the noise left, measured by the residuals of the smallest fit). ``h`` is the mean
+  distance to the 6 nearest points.
 """
 
 from __future__ import annotations
@@ -27,11 +29,10 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from .._validation import check_in, check_positive
 from .common import SCALE_RANGE, check_scale, check_surface
-from .jets import fit_jets
+from .jets import fit_jets, mean_spacing
 
 if TYPE_CHECKING:
     from ..surface import Surface
@@ -48,7 +49,7 @@ __all__ = [
 ]
 
 CURVATURE_METHODS = ("auto", "normals", "laplacian")
-#: Radii of the automatic scale, in units of the mean spacing ``h`` (square root of the mean cell area).
+#: Radii of the automatic scale, in units of the mean spacing ``h`` (mean distance to the 6 nearest points).
 AUTO_RADII = (2.5, 3.5, 5.0, 7.0, 10.0, 14.0)
 #: Half-width of the confidence intervals of the automatic scale, in standard deviations.
 AUTO_WIDTH = 2.0
@@ -71,18 +72,21 @@ def _pointwise_shape_operator(surface):
 
 
 def _spacing(surface) -> float:
-    return float(np.sqrt(np.mean(surface.mass_matrix().diagonal())))
+    return surface.cached("mean_spacing", lambda: mean_spacing(surface.points))
 
 
-def _jet_fits(surface, radii):
-    """Quadric fits at each radius (:func:`~manifold_sph.geometry.jets.fit_jets`) in the Surface's frames:
-    shape operators (R, N, 2, 2), the variance of their H per unit noise variance (R, N), and the noise
-    variance of each particle from the smallest fit (N,)."""
+def _jet_fits(surface, radii, points=None, normals=None):
+    """Quadric fits at each radius (:func:`~manifold_sph.geometry.jets.fit_jets`) in frames close to the
+    Surface's (of ``normals`` if given): shape operators (R, N, 2, 2), the variance of their H per unit noise
+    variance (R, N), and the noise variance of each particle from the smallest fit (N,)."""
     check_scale(surface.points, "curvature at a scale", SCALE_RANGE)
-    P, nrm = surface.points, surface.normals
-    tree = cKDTree(P)
+    P = surface.points if points is None else points
+    nrm = surface.normals if normals is None else normals
+    u = surface.u - np.einsum("nd,nd->n", surface.u, nrm)[:, None] * nrm  # the Surface's u, in the fit's plane
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    v = np.cross(nrm, u)
     h = _spacing(surface)
-    fits = [fit_jets(P, nrm, r, u=surface.u, v=surface.v, spacing=h, tree=tree) for r in radii]
+    fits = [fit_jets(P, nrm, r, u=u, v=v, spacing=h) for r in radii]
     return (np.stack([f.shape_operator() for f in fits]), np.stack([f.var_mean for f in fits]), fits[0].noise)
 
 
@@ -91,8 +95,14 @@ def _scaled_shape_operator(surface, scale):
         check_in("scale", scale, ("auto",))
 
         def compute():
+            from .smoothing import smooth
+
             h = _spacing(surface)
-            Ws, var, noise = _jet_fits(surface, [f * h for f in AUTO_RADII])
+            den = smooth(surface)  # noise normal to the surface removed first: the fits' scatter falls with it
+            Ws, var, _ = _jet_fits(surface, [f * h for f in AUTO_RADII], den.points, den.normals)
+            # the noise of the raw points sets the intervals: what smoothing leaves is correlated over its
+            # own scale, which the residuals of a small fit cannot see
+            noise = _jet_fits(surface, [AUTO_RADII[0] * h])[2]
             H = 0.5 * (Ws[:, :, 0, 0] + Ws[:, :, 1, 1])
             sd = AUTO_WIDTH * np.sqrt(var * noise[None, :])
             lo, hi = H[0] - sd[0], H[0] + sd[0]

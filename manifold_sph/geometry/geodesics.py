@@ -228,6 +228,8 @@ class GeodesicSolver:
     def _indices(self, name: str, value: ArrayLike, allow_mask: bool) -> np.ndarray:
         n = self.n_points
         arr = np.atleast_1d(np.asarray(value))
+        if arr.size == 0:
+            raise ValueError(f"{name} must hold at least one particle index")
         if allow_mask and arr.dtype == bool:
             if arr.shape != (n,):
                 raise ValueError(f"{name} as a mask must have shape ({n},), got {arr.shape}")
@@ -238,7 +240,7 @@ class GeodesicSolver:
         if arr.ndim != 1:
             raise ValueError(f"{name} must be an index or a 1-D array of indices, got shape {arr.shape}")
         if arr.size == 0:
-            raise ValueError(f"{name} must hold at least one particle index")
+            raise ValueError(f"{name} as a mask must select at least one particle")
         bad = (arr < 0) | (arr >= n)
         if bad.any():
             raise ValueError(f"{name} must lie in [0, {n}), got {arr[bad][:5].tolist()}")

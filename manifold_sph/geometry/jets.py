@@ -23,9 +23,17 @@ from scipy.spatial import cKDTree
 
 from ..results import Result
 
-__all__ = ["Jets", "fit_jets", "tangent_basis", "field_gradient"]
+__all__ = ["Jets", "fit_jets", "tangent_basis", "field_gradient", "mean_spacing"]
 
 _ROWS = 4096  # particles a chunk
+
+
+def mean_spacing(points: np.ndarray, tree: cKDTree | None = None) -> float:
+    """Mean distance from a particle to its 6 nearest points (over a sample of at most 5,000 particles)."""
+    tree = cKDTree(points) if tree is None else tree
+    step = max(1, points.shape[0] // 5000)
+    d, _ = tree.query(points[::step], k=min(7, points.shape[0]), workers=-1)
+    return float(np.mean(d[:, 1:]))
 
 
 def tangent_basis(normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -74,7 +82,6 @@ def fit_jets(
     v: np.ndarray | None = None,
     spacing: float | None = None,
     robust: int = 0,
-    tree: cKDTree | None = None,
 ) -> Jets:
     """Weighted quadric fit at every particle (module notes).
 
@@ -91,8 +98,6 @@ def fit_jets(
         Reweighting passes: each multiplies the weights by ``1 / (1 + (res / (2 s))^2)`` (Cauchy),
         ``res`` the residuals of the previous fit and ``s`` their weighted RMS, so that a fit
         across a sharp edge settles on one side.
-    tree : cKDTree, optional
-        KD-tree of ``points`` (built here if not given).
     """
     n = points.shape[0]
     lo, hi = points.min(axis=0), points.max(axis=0)
@@ -101,12 +106,8 @@ def fit_jets(
     r = radius / L
     if u is None or v is None:
         u, v = tangent_basis(normals)
-    tree = cKDTree(P) if tree is None else tree
-    if spacing is None:
-        dd, _ = tree.query(P[:: max(1, n // 2000)], k=min(7, n), workers=-1)
-        spacing_n = float(np.mean(dd[:, 1:]))
-    else:
-        spacing_n = spacing / L
+    tree = cKDTree(P)
+    spacing_n = mean_spacing(P, tree) if spacing is None else spacing / L
     k = int(min(n, max(12, np.ceil(1.2 * np.pi * r * r / (0.9 * spacing_n**2)))))
     coef = np.zeros((n, 6))
     noise = np.zeros(n)

@@ -34,24 +34,16 @@ from scipy.spatial import cKDTree
 from .._validation import check_bool, check_in, check_int, check_positive
 from ..exceptions import ManifoldSPHWarning
 from .common import SCALE_RANGE, as_cloud_points, check_scale, is_surface
-from .jets import fit_jets, tangent_basis
+from .jets import fit_jets, mean_spacing, tangent_basis
 from .wavefront import pca_normals
 
 if TYPE_CHECKING:
     from ..pointcloud import PointCloud
     from ..surface import Surface
 
-__all__ = ["smooth", "mean_spacing", "SMOOTH_METHODS"]
+__all__ = ["smooth", "SMOOTH_METHODS"]
 
 SMOOTH_METHODS = ("jet", "flow")
-
-
-def mean_spacing(points: np.ndarray, tree: cKDTree | None = None) -> float:
-    """Mean distance from a particle to its 6 nearest points (a sample of at most 5,000 particles)."""
-    tree = cKDTree(points) if tree is None else tree
-    step = max(1, points.shape[0] // 5000)
-    d, _ = tree.query(points[::step], k=min(7, points.shape[0]), workers=-1)
-    return float(np.mean(d[:, 1:]))
 
 
 def _orient(new: np.ndarray, like: np.ndarray | None) -> np.ndarray:

@@ -18,7 +18,7 @@ the cloud itself defines:
    reached gives ``c`` the distance from the virtual point source that lies at distances
    ``d_a`` from ``a`` and ``d_b`` from ``b`` in the triangle's plane, unfolded across the
    edge ``ab`` (Novotni and Klein 2002), when the straight ray from that source to ``c``
-   crosses ``ab``; every Delaunay edge gives ``d_a + |x_a - x_c|``. The smallest candidate
+   crosses ``ab``; every Delaunay pair and triangle side gives ``d_a + |x_a - x_c|``. The smallest candidate
    wins. In a plane, and across any developable strip of triangles, this is exact;
    on a curved surface the front's curvature is taken as ``1 / d``, which costs a relative
    error of first order in the spacing.
@@ -41,7 +41,7 @@ from scipy.spatial import cKDTree
 
 from .. import _jit
 from ..results import Result
-from ..voronoi import voronoi_cells
+from ..voronoi import INCOMPLETE, voronoi_cells
 
 __all__ = ["LocalTriangles", "local_triangles", "pca_normals", "propagate", "OPEN_GAP"]
 
@@ -91,14 +91,15 @@ _sift_up = _compile(_sift_up)
 _sift_down = _compile(_sift_down)
 
 
-def _triangle_update(P, a, b, c, da, db):
-    """Distance at ``c`` from the virtual source seen through the edge ``ab`` of triangle ``(a, b, c)``; inf if none.
+def _triangle_update(P, a, b, c, da, db, k):
+    """Distance at ``c`` from the front seen through the edge ``ab`` of triangle ``(a, b, c)``; inf if none.
 
     The triangle is unfolded with ``a`` at the origin, ``b`` on the x axis and ``c`` above it.
-    The source lies below the axis at distances ``da``, ``db`` from ``a``, ``b``: its unit
-    direction ``g`` towards ``a`` solves ``(b - a) . g = D + (D^2 - l^2) / (2 da)``,
-    ``D = db - da`` (the circle-intersection written without cancellation); the distance at
-    ``c = a + y`` is ``da + (|y|^2 / da + 2 y . g) / (1 + |y / da + g|)``.
+    The front reaches ``a`` and ``b`` at distances ``da``, ``db`` with curvature ``k`` (``1 / da``
+    for a point source, 0 for a straight front): its unit normal ``g`` at ``a`` solves
+    ``(b - a) . g = D + k (D^2 - l^2) / 2``, ``D = db - da`` (the circle intersection written
+    without cancellation); the distance at ``c = a + y`` is
+    ``da + (k |y|^2 + 2 y . g) / (1 + |k y + g|)``.
     """
     abx = P[b, 0] - P[a, 0]
     aby = P[b, 1] - P[a, 1]
@@ -108,7 +109,7 @@ def _triangle_update(P, a, b, c, da, db):
     acz = P[c, 2] - P[a, 2]
     lab2 = abx * abx + aby * aby + abz * abz
     lac2 = acx * acx + acy * acy + acz * acz
-    if lab2 <= 0.0 or da <= 0.0:
+    if lab2 <= 0.0 or not k < np.inf:
         return np.inf
     lab = np.sqrt(lab2)
     cx = (acx * abx + acy * aby + acz * abz) / lab
@@ -116,7 +117,6 @@ def _triangle_update(P, a, b, c, da, db):
     if cy2 <= 0.0:
         return np.inf
     cy = np.sqrt(cy2)
-    k = 1.0 / da
     delta = db - da
     gx = (delta + 0.5 * k * (delta * delta - lab2)) / lab
     if gx * gx > 1.0:
@@ -155,6 +155,8 @@ _push = _compile(_push)
 def _propagate(P, vt_ptr, vt_pair, e_ptr, e_idx, src, d0, targets):
     n = P.shape[0]
     d = np.full(n, np.inf)
+    o = np.zeros(n)  # the offset of the source each particle's front comes from
+    sid = np.full(n, -1, np.int64)  # and which source that is
     heap = np.empty(n, np.int64)
     pos = np.full(n, -1, np.int64)
     size = 0
@@ -162,6 +164,8 @@ def _propagate(P, vt_ptr, vt_pair, e_ptr, e_idx, src, d0, targets):
         v = src[k]
         if d0[k] < d[v]:
             d[v] = d0[k]
+            o[v] = d0[k]
+            sid[v] = v
             size = _push(heap, pos, d, size, v)
     wanted = np.zeros(n, np.bool_)
     left = 0
@@ -183,6 +187,8 @@ def _propagate(P, vt_ptr, vt_pair, e_ptr, e_idx, src, d0, targets):
             if left == 0:
                 break
         dv = d[v]
+        ov = o[v]
+        sv = sid[v]
         for q in range(e_ptr[v], e_ptr[v + 1]):
             w = e_idx[q]
             ex = P[w, 0] - P[v, 0]
@@ -191,6 +197,8 @@ def _propagate(P, vt_ptr, vt_pair, e_ptr, e_idx, src, d0, targets):
             cand = dv + np.sqrt(ex * ex + ey * ey + ez * ez)
             if cand < d[w] * (1.0 - 1e-12):
                 d[w] = cand
+                o[w] = ov
+                sid[w] = sv
                 size = _push(heap, pos, d, size, w)
         for q in range(vt_ptr[v], vt_ptr[v + 1]):
             x = vt_pair[q, 0]
@@ -199,9 +207,25 @@ def _propagate(P, vt_ptr, vt_pair, e_ptr, e_idx, src, d0, targets):
                 if r == 1:
                     x, y = y, x
                 if d[x] < np.inf:
-                    cand = _triangle_update(P, v, x, y, dv, d[x])
+                    sx = sid[x]
+                    if sx == sv:  # both corners' fronts come from one point source
+                        cand = _triangle_update(P, v, x, y, dv - ov, d[x] - ov, 1.0 / (dv - ov) if dv > ov else np.inf) + ov
+                    else:
+                        ax = P[sx, 0] - P[sv, 0]
+                        ay = P[sx, 1] - P[sv, 1]
+                        az = P[sx, 2] - P[sv, 2]
+                        bx = P[x, 0] - P[v, 0]
+                        by = P[x, 1] - P[v, 1]
+                        bz = P[x, 2] - P[v, 2]
+                        if ax * ax + ay * ay + az * az <= 9.0 * (bx * bx + by * by + bz * bz) and o[x] == ov:
+                            # neighbouring sources of a set (a curve, a boundary): one straight front
+                            cand = _triangle_update(P, v, x, y, dv, d[x], 0.0)
+                        else:  # fronts of distinct sources meet here (a kink): no front spans them
+                            cand = np.inf
                     if cand < d[y] * (1.0 - 1e-12):
                         d[y] = cand
+                        o[y] = ov
+                        sid[y] = sv
                         size = _push(heap, pos, d, size, y)
     return d
 
@@ -223,7 +247,9 @@ def propagate(P, incidence, edges, sources, offsets, targets=None) -> np.ndarray
         ``(ptr (N + 1,), idx (E,))``: the edge neighbours of every particle (CSR).
     sources : ndarray of int, shape (S,)
     offsets : ndarray, shape (S,)
-        Distance each source starts with (0 for a point source).
+        Distance each source starts with (0 for a point source). Each particle remembers the
+        offset of the source its front comes from: a triangle update needs both corners'
+        fronts from one source, and places the virtual source at their distances less it.
     targets : ndarray of int, optional
         Stop once all of these are final; the others may be left larger or inf.
     """
@@ -253,7 +279,7 @@ class LocalTriangles(Result):
     triangles : ndarray of int, shape (T, 3)
         Distinct triangles (sorted corner indices).
     edges : ndarray of int, shape (E, 2)
-        Every Delaunay pair ``(i, j)`` once, ``i < j``.
+        Every Delaunay pair and every triangle side ``(i, j)`` once, ``i < j``.
     open : ndarray of bool, shape (N,)
         Particles whose fan is open (boundary particles of an open surface, or particles
         without a closed neighbourhood).
@@ -283,6 +309,40 @@ class LocalTriangles(Result):
         return ptr, np.ascontiguousarray(both[order, 1], dtype=np.int64)
 
 
+def _delaunay_pairs(P, nrm, u, v, tree, rows, k):
+    """Delaunay neighbours of ``rows`` among their ``k`` nearest points in their tangent planes:
+    ``(row, col, angle, distance)`` of every pair, and the cells' flags."""
+    m = rows.size
+    dist, idx = tree.query(P[rows], k=k, workers=-1)
+    if k == 1:
+        dist, idx = dist[:, None], idx[:, None]
+    off = P[idx] - P[rows][:, None, :]
+    xy = np.stack([np.einsum("rkd,rd->rk", off, u[rows]), np.einsum("rkd,rd->rk", off, v[rows])], axis=-1).reshape(-1, 2)
+    z = np.einsum("rkd,rd->rk", off, nrm[rows]).ravel()
+    del off
+    indptr = np.arange(m + 1, dtype=np.int64) * k
+    radius = np.maximum(dist[:, -1], 1e-300) * (1.0 + 1e-9) if k < P.shape[0] else np.full(m, np.inf)
+    cells = voronoi_cells(indptr, xy, radius, height=z)
+    owner = np.repeat(rows, k)
+    keep = (cells.weights > 0) & (idx.ravel() != owner)
+    return owner[keep], idx.ravel()[keep], np.arctan2(xy[keep, 1], xy[keep, 0]), dist.ravel()[keep], cells.flags, dist[:, -1]
+
+
+def _fans(rows, cols, ang, n):
+    """Sort pairs into fans (by row, then angle); the next neighbour of each pair round its fan, and
+    whether the angle to it closes (below :data:`OPEN_GAP`)."""
+    order = np.lexsort((ang, rows))
+    rows, cols, ang = rows[order], cols[order], ang[order]
+    count = np.bincount(rows, minlength=n)
+    start = np.concatenate([[0], np.cumsum(count)])
+    nxt = np.arange(rows.size) + 1
+    has = count > 0
+    nxt[start[1:][has] - 1] = start[:-1][has]  # the last neighbour of a fan wraps round to its first
+    gap = (ang[nxt] - ang) % (2.0 * np.pi)
+    closed = (gap < OPEN_GAP) & (nxt != np.arange(rows.size))
+    return order, rows, cols, nxt, closed, has
+
+
 def local_triangles(points: np.ndarray, normals: np.ndarray | None = None, *, neighbors: int = 16) -> LocalTriangles:
     """The local Delaunay triangles of a cloud (see the module notes).
 
@@ -294,7 +354,9 @@ def local_triangles(points: np.ndarray, normals: np.ndarray | None = None, *, ne
         Normals of the tangent planes (their orientation does not matter); by default the
         least-variance direction of each particle's ``neighbors`` nearest points.
     neighbors : int
-        Nearest points (the particle included) among which each fan is computed.
+        Nearest points (the particle included) among which each fan is computed; a cell
+        that farther points could still cut is computed again among 4 times as many (see
+        the comments of the code for which result is kept).
 
     Returns
     -------
@@ -306,43 +368,47 @@ def local_triangles(points: np.ndarray, normals: np.ndarray | None = None, *, ne
     if not scale > 0:
         raise ValueError("points must not all coincide (the cloud has zero extent)")
     P = np.ascontiguousarray((points - (lo + 0.5 * (hi - lo))) / scale)
+    tree = cKDTree(P)
     k = min(int(neighbors), n)
-    dist, idx = cKDTree(P).query(P, k=k, workers=-1)
-    if k == 1:
-        dist, idx = dist[:, None], idx[:, None]
-    nrm = pca_normals(P, idx) if normals is None else np.asarray(normals, dtype=np.float64)
+    if normals is None:
+        nrm = pca_normals(P, tree.query(P, k=k, workers=-1)[1])
+    else:
+        nrm = np.asarray(normals, dtype=np.float64)
     helper = np.where(np.abs(nrm[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
     u = np.cross(nrm, helper)
     u /= np.linalg.norm(u, axis=1)[:, None]
     v = np.cross(nrm, u)
-    off = P[idx] - P[:, None, :]
-    xy = np.stack([np.einsum("rkd,rd->rk", off, u), np.einsum("rkd,rd->rk", off, v)], axis=-1).reshape(-1, 2)
-    z = np.einsum("rkd,rd->rk", off, nrm).ravel()
-    del off
-    indptr = np.arange(n + 1, dtype=np.int64) * k
-    radius = np.maximum(dist[:, -1], 1e-300) * (1.0 + 1e-9)
-    w = voronoi_cells(indptr, xy, radius, height=z).weights
-    rows = np.repeat(np.arange(n), k)
-    keep = (w > 0) & (idx.ravel() != rows)
-    rows, cols = rows[keep], idx.ravel()[keep]
-    ang = np.arctan2(xy[keep, 1], xy[keep, 0])
-    del xy, z, w
-    order = np.lexsort((ang, rows))
-    rows, cols, ang = rows[order], cols[order], ang[order]
-    count = np.bincount(rows, minlength=n)
-    start = np.concatenate([[0], np.cumsum(count)])
-    nxt = np.arange(rows.size) + 1
-    has = count > 0
-    nxt[start[1:][has] - 1] = start[:-1][has]  # the last neighbour of a fan wraps round to its first
-    gap = (ang[nxt] - ang) % (2.0 * np.pi)
-    closed = (gap < OPEN_GAP) & (nxt != np.arange(rows.size))
-    is_open = ~has.copy()
+    rows, cols, ang, _, flags, reach = _delaunay_pairs(P, nrm, u, v, tree, np.arange(n), k)
+    redo = np.flatnonzero((flags & INCOMPLETE) != 0)
+    interior = np.zeros(n, bool)  # fans that close only in the wider search
+    if redo.size and k < n:
+        # a cell farther points could cut: computed again among 4 times as many. Its fan replaces the
+        # first if it then closes within 1.25 times the first search radius (an interior particle whose
+        # nearest points lie to one side); if it closes within twice that radius the particle is not on a
+        # boundary, but its triangles stay the first fan's (a fan closed farther out may bridge a thin
+        # gap of the surface: an ear's two sheets, a notch in a boundary)
+        r2, c2, a2, d2, _, _ = _delaunay_pairs(P, nrm, u, v, tree, redo, min(4 * k, n))
+        _, r2s, _, _, closed2, has2 = _fans(r2, c2, a2, n)
+        ok = has2.copy()
+        np.logical_and.at(ok, r2s, closed2)
+        far = np.zeros(n)
+        np.maximum.at(far, r2, d2)
+        take = np.zeros(n, bool)
+        take[redo] = ok[redo] & (far[redo] <= 1.25 * reach[redo])
+        interior[redo] = ok[redo] & (far[redo] <= 2.0 * reach[redo])
+        keep = ~take[rows]
+        sel = take[r2]
+        rows, cols, ang = (np.concatenate([rows[keep], r2[sel]]), np.concatenate([cols[keep], c2[sel]]),
+                           np.concatenate([ang[keep], a2[sel]]))
+    _, rows, cols, nxt, closed, has = _fans(rows, cols, ang, n)
+    is_open = ~has
     is_open[rows[~closed]] = True
+    is_open &= ~interior
     tri = np.sort(np.stack([rows[closed], cols[closed], cols[nxt][closed]], axis=1), axis=1)
     tri = np.unique(tri, axis=0) if tri.size else np.zeros((0, 3), np.int64)
-    pairs = np.stack([rows, cols], axis=1)
+    pairs = np.concatenate([np.stack([rows, cols], axis=1), tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [0, 2]]])
     lonely = np.flatnonzero(~has & (k > 1))  # no Delaunay neighbour (a degenerate cell): its nearest point
     if lonely.size:
-        pairs = np.concatenate([pairs, np.stack([lonely, idx[lonely, 1]], axis=1)])
+        pairs = np.concatenate([pairs, np.stack([lonely, tree.query(P[lonely], k=2)[1][:, 1]], axis=1)])
     edges = np.unique(np.sort(pairs, axis=1), axis=0) if pairs.size else np.zeros((0, 2), np.int64)
     return LocalTriangles(points=P, scale=scale, triangles=tri.astype(np.int64), edges=edges.astype(np.int64), open=is_open)
