@@ -367,3 +367,42 @@ def test_smoothing_reduces_noise_and_keeps_sharp_edges():
     assert np.percentile(to_cube(kept.points[edge]), 95) < 2 * hc
     assert to_cube(kept.points[edge]).mean() < to_cube(plain.points[edge]).mean()
     assert to_cube(kept.points).mean() < to_cube(cube).mean() / 2
+
+
+# ----------------------------------------------------------------------------- command line
+def test_cli_geometry_commands(tmp_path, capsys):
+    import json
+
+    from manifold_sph.cli import main
+    from manifold_sph.scans.io import read, write
+
+    path = tmp_path / "s.ply"
+    write(path, shapes.sphere(1500))
+    assert main(["geodesic", str(path), "--source", "0", "--to", "700", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    exact = sphere_exact(shapes.sphere(1500).points, 0)[700]
+    assert out["method"] == "wavefront" and out["unreached"] == 0 and abs(out["to"]["700"] / exact - 1) < 1e-2
+    hemi = tmp_path / "h.ply"
+    write(hemi, random_sphere(4000)[random_sphere(4000)[:, 2] > 0])
+    assert main(["geodesic", str(hemi), "--boundary", "--out", str(tmp_path / "d.csv"), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["sources"] == "boundary" and abs(out["max"] - np.pi / 2) < 0.1
+    d = read(tmp_path / "d.csv")
+    assert len(d) == out["n"]
+    assert main(["transport", str(path), "--source", "3", "--vector", "1,0,0", "--to", "10", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert abs(np.linalg.norm(out["to"]["10"]) - np.linalg.norm(out["vector"])) < 1e-9
+    assert main(["logmap", str(path), "--source", "3", "--to", "3", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["to"]["3"] == [0.0, 0.0]
+    noisy = tmp_path / "n.xyz"
+    P = shapes.sphere(3000).points
+    write(noisy, P + 0.02 * np.random.default_rng(0).standard_normal(P.shape))
+    assert main(["smooth", str(noisy), "--out", str(tmp_path / "o.ply"), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["mean_move"] > 0
+    assert np.abs(np.linalg.norm(read(tmp_path / "o.ply").points, axis=1) - 1).mean() < 0.01
+    assert main(["smooth", str(noisy), "--out", str(tmp_path / "o.ply")]) == 2  # exists: not overwritten
+    assert "pass --overwrite" in capsys.readouterr().err
+    assert main(["curvature", str(path), "--scale", "auto", "--json"]) == 0
+    assert abs(json.loads(capsys.readouterr().out)["median"] - 1.0) < 0.02
+    assert main(["transport", str(path), "--source", "3", "--vector", "1,2"]) == 2
+    assert main(["geodesic", str(path), "--source", "0", "--boundary"]) == 2

@@ -583,3 +583,94 @@ def test_spem_waveguide_on_a_jittered_layout_keeps_the_lattice_time_step():
     jittered = run_waveguide(ppw=20, t_end=2e-10, layout="jittered")
     assert jittered.dt >= 0.5 * lattice.dt, (jittered.dt, lattice.dt)
     assert jittered.steps <= 2 * lattice.steps
+
+
+# ------------------------------------------------------------------ geometry (issue 35; items of issues 34 and 38)
+@pytest.fixture(scope="module")
+def geo_sphere():
+    from manifold_sph.reference import shapes as _shapes
+
+    return _shapes.sphere(800).points
+
+
+def _geo_quiet(fn, *a, **kw):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return fn(*a, **kw)
+
+
+@pytest.mark.parametrize("scale", [1e-160, 1e-100, 1e-60, 1e-3, 1e3, 1e60, 1e100, 1e200])
+def test_geodesics_do_not_depend_on_the_units(geo_sphere, scale):
+    """Was: relative error 0.78 at 1e60 and 1e-60, NaN at 1e-150, 'Factor is exactly singular' at 1e-160."""
+    from manifold_sph.geometry import GeodesicSolver
+
+    base = GeodesicSolver(geo_sphere).distance(0)
+    scaled = GeodesicSolver(geo_sphere * scale).distance(0) / scale
+    assert np.abs(scaled - base).max() < 1e-12 * base.max()
+
+
+@pytest.mark.parametrize("scale", [1e-100, 1e-60, 1e60])
+def test_heat_geodesics_and_curvature_do_not_depend_on_the_units(geo_sphere, scale):
+    from manifold_sph import Surface
+    from manifold_sph.geometry import GeodesicSolver
+
+    base = _geo_quiet(Surface, geo_sphere, geo_sphere.copy())
+    moved = _geo_quiet(Surface, geo_sphere * scale, geo_sphere.copy())
+    d0, d1 = (GeodesicSolver(s, method="heat").distance(0) for s in (base, moved))
+    assert np.isfinite(d1).all() and np.abs(d1 / scale - d0).max() < 1e-9 * d0.max()
+    assert np.abs(moved.mean_curvature() * scale - base.mean_curvature()).max() < 1e-9
+    assert np.abs(moved.mean_curvature(scale=0.3 * scale) * scale - base.mean_curvature(scale=0.3)).max() < 1e-9
+
+
+@pytest.mark.parametrize("scale", [1e-160, 1e150])
+def test_heat_geodesics_and_curvature_refuse_out_of_range_units(geo_sphere, scale):
+    """A clear refusal naming the accepted range, not a bare library error or NaN."""
+    from manifold_sph import Surface
+    from manifold_sph.geometry import GeodesicSolver
+
+    try:
+        s = _geo_quiet(Surface, geo_sphere * scale, geo_sphere.copy())
+    except ValueError:
+        return  # the Surface itself refuses these units: nothing reaches the geometry
+    with pytest.raises(ValueError, match=r"extent .* must lie in \[1e-140, 1e\+140\].*got"):
+        GeodesicSolver(s, method="heat")
+    with pytest.raises(ValueError, match=r"extent .* must lie in \[1e-140, 1e\+140\]"):
+        s.mean_curvature()
+
+
+def test_geodesics_say_what_was_not_reached(geo_sphere):
+    """Was: inf silently, and the CLI called a connected sphere 772/800 'unreached'."""
+    from manifold_sph.exceptions import ManifoldSPHWarning
+    from manifold_sph.geometry import GeodesicSolver
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for scale in (1e-150, 1.0, 1e60):
+            solver = GeodesicSolver(geo_sphere * scale)
+            assert np.isfinite(solver.distance(0)).all() and solver.unreached.size == 0
+    two = GeodesicSolver(np.vstack([geo_sphere, geo_sphere + 10.0]))
+    with pytest.warns(ManifoldSPHWarning, match="800 particle"):
+        d = two.distance(0)
+    assert np.isinf(d[800:]).all() and two.unreached.tolist() == list(range(800, 1600))
+
+
+def test_geodesics_are_deterministic_across_runs_and_threads(geo_sphere):
+    from manifold_sph import threads
+    from manifold_sph.geometry import GeodesicSolver
+
+    ref = GeodesicSolver(geo_sphere).distance([0, 5])
+    for n in (1, 2):
+        with threads.limit(n):
+            assert np.array_equal(GeodesicSolver(geo_sphere).distance([0, 5]), ref)
+
+
+def test_wave_kernel_signature_finite_for_any_finite_energy(geo_sphere):
+    """Was: all NaN at energy 1e300."""
+    from manifold_sph import Surface
+    from manifold_sph.geometry import wave_kernel_signature
+
+    s = _geo_quiet(Surface, geo_sphere, geo_sphere.copy())
+    W = wave_kernel_signature(s, [-1e300, 0.0, 1e300], k=12)
+    assert np.isfinite(W).all() and np.all(W >= 0)
+    m = s.mass_matrix().diagonal()
+    assert np.allclose(m @ W, 1.0)  # a weighted mean of M-normalised squared eigenfunctions, at every energy

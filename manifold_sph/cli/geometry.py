@@ -63,8 +63,12 @@ def add_parsers(sub, schemes: list[str]) -> None:
         q.add_argument("--json", action="store_true", help="print the summary as JSON")
 
     def source(q, many):
-        q.add_argument("--source", type=int, action="append" if many else "store", required=not many, metavar="I",
-                       help="index of a source particle (0-based)" + ("; repeat for several sources" if many else ""))
+        where = q.add_mutually_exclusive_group(required=True) if many else q
+        where.add_argument("--source", type=int, action="append" if many else "store", required=not many, metavar="I",
+                           help="index of a source particle (0-based)" + ("; repeat for several sources" if many else ""))
+        if many:
+            where.add_argument("--boundary", action="store_true",
+                               help="the distance from the cloud's open boundary (instead of --source)")
         q.add_argument("--to", type=int, action="append", default=None, metavar="J",
                        help="print the result at these particles (repeat)")
 
@@ -84,7 +88,6 @@ def add_parsers(sub, schemes: list[str]) -> None:
     geo = sub.add_parser("geodesic", help="geodesic distance from particles (or the boundary) of a point-cloud file")
     common(geo)
     source(geo, many=True)
-    geo.add_argument("--boundary", action="store_true", help="the distance from the cloud's open boundary (instead of --source)")
     geo.add_argument("--method", default="wavefront", choices=GEODESIC_METHODS,
                      help="wavefront propagation over the local Delaunay triangles (default), or the heat method")
     geo.add_argument("--robust", type=percent_arg, default=0.0,
@@ -264,8 +267,6 @@ def _cmd_geodesic(args) -> int:
     from ..exceptions import ManifoldSPHWarning
     from ..geometry import GeodesicSolver
 
-    if bool(args.source) == bool(args.boundary):
-        raise UserError("give --source I (repeatable) or --boundary, not both and not neither")
     png, out = _png_target(args), _out_target(args)
     t0 = time.perf_counter()
     cloud = _read(args)

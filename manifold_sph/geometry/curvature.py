@@ -60,6 +60,8 @@ def _frames(surface):
 
 
 def _pointwise_shape_operator(surface):
+    check_scale(surface.points, "curvature", SCALE_RANGE)
+
     def compute():
         n, N = surface.normals, surface.n_points
         G = surface.gradient_matrix()
@@ -77,8 +79,8 @@ def _spacing(surface) -> float:
 
 def _jet_fits(surface, radii, points=None, normals=None):
     """Quadric fits at each radius (:func:`~manifold_sph.geometry.jets.fit_jets`) in frames close to the
-    Surface's (of ``normals`` if given): shape operators (R, N, 2, 2), the variance of their H per unit noise
-    variance (R, N), and the noise variance of each particle from the smallest fit (N,)."""
+    Surface's (of ``normals`` if given): shape operators (R, N, 2, 2), the standard deviation of their H per
+    unit noise (R, N), and the noise of each particle from the smallest fit (N,)."""
     check_scale(surface.points, "curvature at a scale", SCALE_RANGE)
     P = surface.points if points is None else points
     nrm = surface.normals if normals is None else normals
@@ -87,7 +89,7 @@ def _jet_fits(surface, radii, points=None, normals=None):
     v = np.cross(nrm, u)
     h = _spacing(surface)
     fits = [fit_jets(P, nrm, r, u=u, v=v, spacing=h) for r in radii]
-    return (np.stack([f.shape_operator() for f in fits]), np.stack([f.var_mean for f in fits]), fits[0].noise)
+    return (np.stack([f.shape_operator() for f in fits]), np.stack([f.mean_sd for f in fits]), fits[0].noise)
 
 
 def _scaled_shape_operator(surface, scale):
@@ -99,12 +101,12 @@ def _scaled_shape_operator(surface, scale):
 
             h = _spacing(surface)
             den = smooth(surface)  # noise normal to the surface removed first: the fits' scatter falls with it
-            Ws, var, _ = _jet_fits(surface, [f * h for f in AUTO_RADII], den.points, den.normals)
+            Ws, unit_sd, _ = _jet_fits(surface, [f * h for f in AUTO_RADII], den.points, den.normals)
             # the noise of the raw points sets the intervals: what smoothing leaves is correlated over its
             # own scale, which the residuals of a small fit cannot see
             noise = _jet_fits(surface, [AUTO_RADII[0] * h])[2]
             H = 0.5 * (Ws[:, :, 0, 0] + Ws[:, :, 1, 1])
-            sd = AUTO_WIDTH * np.sqrt(var * noise[None, :])
+            sd = AUTO_WIDTH * unit_sd * noise[None, :]
             lo, hi = H[0] - sd[0], H[0] + sd[0]
             pick = np.zeros(H.shape[1], dtype=np.int64)
             alive = np.ones(H.shape[1], dtype=bool)
@@ -187,6 +189,7 @@ def mean_curvature(surface: Surface, method: str = "auto", *, scale: float | str
     if curvature_method(surface, method) == "normals":
         W = _pointwise_shape_operator(surface)
         return 0.5 * (W[:, 0, 0] + W[:, 1, 1])
+    check_scale(surface.points, "curvature", SCALE_RANGE)
     return surface.cached(("mean_curvature", "laplacian"), lambda: -0.5 * np.einsum(
         "ij,ij->i", surface.laplacian_matrix() @ surface.points, surface.normals))
 

@@ -8,9 +8,9 @@ tangent coordinates ``y = (u_i . (x_j - x_i), v_i . (x_j - x_i))``, with Gaussia
 height of the fitted surface above the particle (the smoother moves it there);
 ``(c1, c2)`` the slope, ``[[c3, c4], [c4, c5]]`` the Hessian of the height function.
 
-Each fit also returns the residual noise (weighted mean square residual over the
-residual degrees of freedom) and the variance of ``(c3 + c5) / 2`` per unit noise
-variance, for confidence intervals. Fits run in chunks of rows on the cloud divided by
+Each fit also returns the residual noise (the root of the weighted mean square residual
+over the residual degrees of freedom) and the standard deviation of ``(c3 + c5) / 2`` per
+unit noise, for confidence intervals. Fits run in chunks of rows on the cloud divided by
 its extent, so squared offsets stay in float64's range.
 """
 
@@ -53,14 +53,15 @@ class Jets(Result):
     coef : ndarray, shape (N, 6)
         ``c0 .. c5`` (module notes).
     noise : ndarray, shape (N,)
-        Residual noise variance of each fit.
-    var_mean : ndarray, shape (N,)
-        Variance of ``(c3 + c5) / 2`` per unit noise variance.
+        Residual noise (a length: the standard deviation of the heights about the fit).
+    mean_sd : ndarray, shape (N,)
+        Standard deviation of ``(c3 + c5) / 2`` per unit noise (``mean_sd * noise`` is that of
+        the mean curvature; units 1 / length^2).
     """
 
     coef: np.ndarray
     noise: np.ndarray
-    var_mean: np.ndarray
+    mean_sd: np.ndarray
 
     def shape_operator(self) -> np.ndarray:
         """Shape operator of the fitted height functions at ``y = 0``, (N, 2, 2), positive on a sphere
@@ -143,7 +144,7 @@ def fit_jets(
         var[rows] = np.einsum("rk,rk->r", np.einsum("rki,ri->rk", A, Ge) ** 2, w * w) / r**4
     coef[:, 0] *= L
     coef[:, 3:] /= L
-    return Jets(coef=coef, noise=noise * L * L, var_mean=var / L**4)  # var * noise is the variance of H
+    return Jets(coef=coef, noise=np.sqrt(noise) * L, mean_sd=np.sqrt(var) / L / L)  # each factor in float64's range
 
 
 def field_gradient(
