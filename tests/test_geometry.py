@@ -404,5 +404,8 @@ def test_cli_geometry_commands(tmp_path, capsys):
     assert "pass --overwrite" in capsys.readouterr().err
     assert main(["curvature", str(path), "--scale", "auto", "--json"]) == 0
     assert abs(json.loads(capsys.readouterr().out)["median"] - 1.0) < 0.02
-    assert main(["transport", str(path), "--source", "3", "--vector", "1,2"]) == 2
-    assert main(["geodesic", str(path), "--source", "0", "--boundary"]) == 2
+    for argv in (["transport", str(path), "--source", "3", "--vector", "1,2"],
+                 ["geodesic", str(path), "--source", "0", "--boundary"]):
+        with pytest.raises(SystemExit) as exc:
+            main(argv)
+        assert exc.value.code == 2
