@@ -47,6 +47,16 @@ def _unit(g: np.ndarray) -> np.ndarray:
     return g / np.where(norm > 0, norm, 1.0)[:, None]
 
 
+def straight_line(P: np.ndarray, src: np.ndarray) -> np.ndarray:
+    """Distance in space from every point of ``P`` (N, 3) to the nearest of the points ``P[src]``, shape (N,)."""
+    if src.size <= 16:  # a few sources: direct (a KD-tree's set-up and threads cost more at small N)
+        r = np.full(P.shape[0], np.inf)
+        for i in src:
+            np.minimum(r, np.sqrt(np.einsum("nd,nd->n", P - P[i], P - P[i])), out=r)
+        return r
+    return cKDTree(P[src]).query(P, workers=-1 if P.shape[0] > 100_000 else 1)[0]
+
+
 class _Wavefront:
     """The wavefront engine: local triangles built once, one sweep a query."""
 
@@ -66,8 +76,7 @@ class _Wavefront:
         P = self.tri.points
         d = propagate(P, self._inc, self._adj, src, offsets / self.tri.scale, targets)
         if offsets.max() == 0:  # never below the straight line to the nearest source
-            r = cKDTree(P[src]).query(P, workers=-1)[0]
-            d = np.maximum(d, np.where(np.isfinite(d), r, np.inf))
+            d = np.maximum(d, np.where(np.isfinite(d), straight_line(P, src), np.inf))
         return d * self.tri.scale
 
 
@@ -110,7 +119,7 @@ class _Heat:
         else:  # -M div X from the stable Laplacian's fluxes
             i, j, w = self._pairs
             b = np.bincount(i, weights=w * np.einsum("pd,pd->p", 0.5 * (X[i] + X[j]), P[i] - P[j]), minlength=N)
-        r = cKDTree(P[src]).query(P, workers=-1)[0]
+        r = straight_line(P, src)
         reached = np.isin(self.labels, self.labels[src])
         near = ((r <= self.radius) | np.isin(np.arange(N), src)) & reached
         free = ~near & reached

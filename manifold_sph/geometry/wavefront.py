@@ -91,34 +91,20 @@ _sift_up = _compile(_sift_up)
 _sift_down = _compile(_sift_down)
 
 
-def _triangle_update(P, a, b, c, da, db, k):
+def _triangle_update(lab, cx, cy, da, db, k):
     """Distance at ``c`` from the front seen through the edge ``ab`` of triangle ``(a, b, c)``; inf if none.
 
-    The triangle is unfolded with ``a`` at the origin, ``b`` on the x axis and ``c`` above it.
-    The front reaches ``a`` and ``b`` at distances ``da``, ``db`` with curvature ``k`` (``1 / da``
-    for a point source, 0 for a straight front): its unit normal ``g`` at ``a`` solves
-    ``(b - a) . g = D + k (D^2 - l^2) / 2``, ``D = db - da`` (the circle intersection written
-    without cancellation); the distance at ``c = a + y`` is
-    ``da + (k |y|^2 + 2 y . g) / (1 + |k y + g|)``.
+    The triangle is unfolded with ``a`` at the origin, ``b = (lab, 0)`` and ``c = (cx, cy)``,
+    ``cy > 0``. The front reaches ``a`` and ``b`` at distances ``da``, ``db`` with curvature
+    ``k`` (``1 / da`` for a point source, 0 for a straight front): its unit normal ``g`` at ``a``
+    solves ``(b - a) . g = D + k (D^2 - lab^2) / 2``, ``D = db - da`` (the circle intersection
+    written without cancellation); the distance at ``c = a + y`` is
+    ``da + (k |y|^2 + 2 y . g) / (1 + |k y + g|)``, when the ray to ``c`` crosses ``ab``.
     """
-    abx = P[b, 0] - P[a, 0]
-    aby = P[b, 1] - P[a, 1]
-    abz = P[b, 2] - P[a, 2]
-    acx = P[c, 0] - P[a, 0]
-    acy = P[c, 1] - P[a, 1]
-    acz = P[c, 2] - P[a, 2]
-    lab2 = abx * abx + aby * aby + abz * abz
-    lac2 = acx * acx + acy * acy + acz * acz
-    if lab2 <= 0.0 or not k < np.inf:
+    if lab <= 0.0 or cy <= 0.0 or not k < np.inf:
         return np.inf
-    lab = np.sqrt(lab2)
-    cx = (acx * abx + acy * aby + acz * abz) / lab
-    cy2 = lac2 - cx * cx
-    if cy2 <= 0.0:
-        return np.inf
-    cy = np.sqrt(cy2)
     delta = db - da
-    gx = (delta + 0.5 * k * (delta * delta - lab2)) / lab
+    gx = (delta + 0.5 * k * (delta * delta - lab * lab)) / lab
     if gx * gx > 1.0:
         return np.inf
     gy = np.sqrt(1.0 - gx * gx)
@@ -132,9 +118,9 @@ def _triangle_update(P, a, b, c, da, db, k):
         return np.inf
     t = -cy / ry
     xc = cx - t * qx / nq
-    if xc < 0.0 or xc > lab:  # the ray from the source to c misses the edge ab
+    if xc < 0.0 or xc > lab:  # the ray from the front to c misses the edge ab
         return np.inf
-    return da + (k * lac2 + 2.0 * (cx * gx + cy * gy)) / (1.0 + nq)
+    return da + (k * (cx * cx + cy * cy) + 2.0 * (cx * gx + cy * gy)) / (1.0 + nq)
 
 
 _triangle_update = _compile(_triangle_update)
@@ -152,7 +138,7 @@ def _push(heap, pos, d, size, v):
 _push = _compile(_push)
 
 
-def _propagate(P, vt_ptr, vt_pair, e_ptr, e_idx, src, d0, targets):
+def _propagate(P, vt_ptr, vt_pair, vt_geom, e_ptr, e_idx, e_len, src, d0, targets):
     n = P.shape[0]
     d = np.full(n, np.inf)
     o = np.zeros(n)  # the offset of the source each particle's front comes from
@@ -191,42 +177,39 @@ def _propagate(P, vt_ptr, vt_pair, e_ptr, e_idx, src, d0, targets):
         sv = sid[v]
         for q in range(e_ptr[v], e_ptr[v + 1]):
             w = e_idx[q]
-            ex = P[w, 0] - P[v, 0]
-            ey = P[w, 1] - P[v, 1]
-            ez = P[w, 2] - P[v, 2]
-            cand = dv + np.sqrt(ex * ex + ey * ey + ez * ez)
+            cand = dv + e_len[q]
             if cand < d[w] * (1.0 - 1e-12):
                 d[w] = cand
                 o[w] = ov
                 sid[w] = sv
                 size = _push(heap, pos, d, size, w)
         for q in range(vt_ptr[v], vt_ptr[v + 1]):
-            x = vt_pair[q, 0]
-            y = vt_pair[q, 1]
             for r in range(2):
-                if r == 1:
-                    x, y = y, x
-                if d[x] < np.inf:
-                    sx = sid[x]
-                    if sx == sv:  # both corners' fronts come from one point source
-                        cand = _triangle_update(P, v, x, y, dv - ov, d[x] - ov, 1.0 / (dv - ov) if dv > ov else np.inf) + ov
-                    else:
-                        ax = P[sx, 0] - P[sv, 0]
-                        ay = P[sx, 1] - P[sv, 1]
-                        az = P[sx, 2] - P[sv, 2]
-                        bx = P[x, 0] - P[v, 0]
-                        by = P[x, 1] - P[v, 1]
-                        bz = P[x, 2] - P[v, 2]
-                        if ax * ax + ay * ay + az * az <= 9.0 * (bx * bx + by * by + bz * bz) and o[x] == ov:
-                            # neighbouring sources of a set (a curve, a boundary): one straight front
-                            cand = _triangle_update(P, v, x, y, dv, d[x], 0.0)
-                        else:  # fronts of distinct sources meet here (a kink): no front spans them
-                            cand = np.inf
-                    if cand < d[y] * (1.0 - 1e-12):
-                        d[y] = cand
-                        o[y] = ov
-                        sid[y] = sv
-                        size = _push(heap, pos, d, size, y)
+                x = vt_pair[q, r]
+                y = vt_pair[q, 1 - r]
+                dx = d[x]
+                if dx == np.inf:
+                    continue
+                lab = vt_geom[q, 3 * r]
+                cx = vt_geom[q, 3 * r + 1]
+                cy = vt_geom[q, 3 * r + 2]
+                sx = sid[x]
+                if sx == sv:  # both corners' fronts come from one point source
+                    cand = _triangle_update(lab, cx, cy, dv - ov, dx - ov, 1.0 / (dv - ov) if dv > ov else np.inf) + ov
+                else:
+                    ax = P[sx, 0] - P[sv, 0]
+                    ay = P[sx, 1] - P[sv, 1]
+                    az = P[sx, 2] - P[sv, 2]
+                    if ax * ax + ay * ay + az * az <= 9.0 * lab * lab and o[x] == ov:
+                        # neighbouring sources of a set (a curve, a boundary): one straight front
+                        cand = _triangle_update(lab, cx, cy, dv, dx, 0.0)
+                    else:  # fronts of distinct sources meet here (a kink): no front spans them
+                        cand = np.inf
+                if cand < d[y] * (1.0 - 1e-12):
+                    d[y] = cand
+                    o[y] = ov
+                    sid[y] = sv
+                    size = _push(heap, pos, d, size, y)
     return d
 
 
@@ -241,21 +224,26 @@ def propagate(P, incidence, edges, sources, offsets, targets=None) -> np.ndarray
     P : ndarray, shape (N, 3)
         Coordinates (best of size about 1: :class:`LocalTriangles` keeps the cloud so scaled).
     incidence : tuple of ndarray
-        ``(ptr (N + 1,), pairs (3 T, 2))``: for particle ``v``, ``pairs[ptr[v]:ptr[v + 1]]``
-        are the two other corners of every triangle at ``v``.
+        :meth:`LocalTriangles.incidence`: ``(ptr (N + 1,), pairs (3 T, 2), unfolded (3 T, 6))``;
+        for particle ``v``, ``pairs[ptr[v]:ptr[v + 1]]`` are the two other corners ``x, y`` of
+        every triangle at ``v``, ``unfolded`` the triangle laid flat from ``v`` along ``vx``
+        (``|vx|`` and ``y``'s coordinates) and along ``vy`` (``|vy|`` and ``x``'s).
     edges : tuple of ndarray
-        ``(ptr (N + 1,), idx (E,))``: the edge neighbours of every particle (CSR).
+        :meth:`LocalTriangles.adjacency`: ``(ptr (N + 1,), idx (E,), length (E,))``, the edge
+        neighbours of every particle (CSR) and the edges' lengths.
     sources : ndarray of int, shape (S,)
     offsets : ndarray, shape (S,)
         Distance each source starts with (0 for a point source). Each particle remembers the
-        offset of the source its front comes from: a triangle update needs both corners'
-        fronts from one source, and places the virtual source at their distances less it.
+        source its front comes from and that source's offset: a triangle update from one
+        source places the virtual source at the corners' distances less the offset; corners
+        reached from neighbouring sources of a set (sources closer than 3 edge lengths, same
+        offset) carry one straight front; others (fronts of distinct sources meeting) none.
     targets : ndarray of int, optional
         Stop once all of these are final; the others may be left larger or inf.
     """
     targets = np.zeros(0, np.int64) if targets is None else np.ascontiguousarray(targets, dtype=np.int64)
-    return _propagate(P, incidence[0], incidence[1], edges[0], edges[1], np.ascontiguousarray(sources, dtype=np.int64),
-                      np.ascontiguousarray(offsets, dtype=np.float64), targets)
+    return _propagate(P, incidence[0], incidence[1], incidence[2], edges[0], edges[1], edges[2],
+                      np.ascontiguousarray(sources, dtype=np.int64), np.ascontiguousarray(offsets, dtype=np.float64), targets)
 
 
 # ----------------------------------------------------------------------------- triangles
@@ -291,29 +279,42 @@ class LocalTriangles(Result):
     edges: np.ndarray
     open: np.ndarray
 
-    def incidence(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(ptr, pairs)`` for :func:`propagate`: the two other corners of each triangle at each particle."""
-        n, tri = self.points.shape[0], self.triangles
+    def incidence(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(ptr, pairs, unfolded)`` for :func:`propagate`: the two other corners of each triangle at each
+        particle, and the triangle laid flat from the particle along each of its two sides."""
+        n, tri, P = self.points.shape[0], self.triangles, self.points
         corner = tri.ravel()
         other = np.stack([tri[:, [1, 2]], tri[:, [2, 0]], tri[:, [0, 1]]], axis=1).reshape(-1, 2)
         order = np.argsort(corner, kind="stable")
         ptr = np.concatenate([[0], np.cumsum(np.bincount(corner, minlength=n))]).astype(np.int64)
-        return ptr, np.ascontiguousarray(other[order], dtype=np.int64)
+        v, pairs = corner[order], np.ascontiguousarray(other[order], dtype=np.int64)
+        geom = np.empty((v.size, 6))
+        for r in range(2):
+            ab = P[pairs[:, r]] - P[v]
+            ac = P[pairs[:, 1 - r]] - P[v]
+            lab = np.sqrt(np.einsum("pd,pd->p", ab, ab))
+            cx = np.einsum("pd,pd->p", ac, ab) / np.where(lab > 0, lab, 1.0)
+            cy = np.sqrt(np.maximum(np.einsum("pd,pd->p", ac, ac) - cx * cx, 0.0))
+            geom[:, 3 * r], geom[:, 3 * r + 1], geom[:, 3 * r + 2] = lab, cx, cy
+        return ptr, pairs, geom
 
-    def adjacency(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(ptr, idx)`` for :func:`propagate`: the edge neighbours of each particle (CSR, both directions)."""
+    def adjacency(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(ptr, idx, length)`` for :func:`propagate`: the edge neighbours of each particle (CSR, both
+        directions) and the edges' lengths."""
         n, e = self.points.shape[0], self.edges
         both = np.concatenate([e, e[:, ::-1]])
         order = np.argsort(both[:, 0], kind="stable")
         ptr = np.concatenate([[0], np.cumsum(np.bincount(both[:, 0], minlength=n))]).astype(np.int64)
-        return ptr, np.ascontiguousarray(both[order, 1], dtype=np.int64)
+        idx = np.ascontiguousarray(both[order, 1], dtype=np.int64)
+        length = np.linalg.norm(self.points[idx] - self.points[np.repeat(np.arange(n), np.diff(ptr))], axis=1)
+        return ptr, idx, length
 
 
 def _delaunay_pairs(P, nrm, u, v, tree, rows, k):
     """Delaunay neighbours of ``rows`` among their ``k`` nearest points in their tangent planes:
     ``(row, col, angle, distance)`` of every pair, and the cells' flags."""
     m = rows.size
-    dist, idx = tree.query(P[rows], k=k, workers=-1)
+    dist, idx = tree.query(P[rows], k=k, workers=-1 if m > 50_000 else 1)
     if k == 1:
         dist, idx = dist[:, None], idx[:, None]
     off = P[idx] - P[rows][:, None, :]
@@ -326,6 +327,20 @@ def _delaunay_pairs(P, nrm, u, v, tree, rows, k):
     owner = np.repeat(rows, k)
     keep = (cells.weights > 0) & (idx.ravel() != owner)
     return owner[keep], idx.ravel()[keep], np.arctan2(xy[keep, 1], xy[keep, 0]), dist.ravel()[keep], cells.flags, dist[:, -1]
+
+
+def _unique_rows(a: np.ndarray, n: int) -> np.ndarray:
+    """Distinct rows of a non-negative int array of 2 or 3 columns (values < n), sorted: one 1-D sort of keys."""
+    a = a.astype(np.int64)
+    if a.shape[0] == 0:
+        return a.reshape(0, a.shape[1])
+    if a.shape[1] == 3 and n > 2_000_000:  # n^3 would overflow int64: the slower row-wise unique
+        return np.unique(a, axis=0)
+    key = a[:, 0]
+    for c in range(1, a.shape[1]):
+        key = key * n + a[:, c]
+    _, first = np.unique(key, return_index=True)
+    return a[first]
 
 
 def _fans(rows, cols, ang, n):
@@ -371,7 +386,7 @@ def local_triangles(points: np.ndarray, normals: np.ndarray | None = None, *, ne
     tree = cKDTree(P)
     k = min(int(neighbors), n)
     if normals is None:
-        nrm = pca_normals(P, tree.query(P, k=k, workers=-1)[1])
+        nrm = pca_normals(P, tree.query(P, k=k, workers=-1 if n > 50_000 else 1)[1])
     else:
         nrm = np.asarray(normals, dtype=np.float64)
     helper = np.where(np.abs(nrm[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
@@ -404,11 +419,10 @@ def local_triangles(points: np.ndarray, normals: np.ndarray | None = None, *, ne
     is_open = ~has
     is_open[rows[~closed]] = True
     is_open &= ~interior
-    tri = np.sort(np.stack([rows[closed], cols[closed], cols[nxt][closed]], axis=1), axis=1)
-    tri = np.unique(tri, axis=0) if tri.size else np.zeros((0, 3), np.int64)
+    tri = _unique_rows(np.sort(np.stack([rows[closed], cols[closed], cols[nxt][closed]], axis=1), axis=1), n)
     pairs = np.concatenate([np.stack([rows, cols], axis=1), tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [0, 2]]])
     lonely = np.flatnonzero(~has & (k > 1))  # no Delaunay neighbour (a degenerate cell): its nearest point
     if lonely.size:
         pairs = np.concatenate([pairs, np.stack([lonely, tree.query(P[lonely], k=2)[1][:, 1]], axis=1)])
-    edges = np.unique(np.sort(pairs, axis=1), axis=0) if pairs.size else np.zeros((0, 2), np.int64)
+    edges = _unique_rows(np.sort(pairs, axis=1), n)
     return LocalTriangles(points=P, scale=scale, triangles=tri.astype(np.int64), edges=edges.astype(np.int64), open=is_open)
