@@ -13,7 +13,7 @@ the normals (estimated by jet fits; :meth:`manifold_sph.Surface.mean_curvature`,
 ``method="auto"``; ``method="laplacian"`` takes it from ``Lap_S x = -2 H n``); the
 geodesic distance from one particle (the highest one of a scan, up as guessed by
 :func:`manifold_sph.viz.render.detect_up_axis`: the tip of the bunny's ear; a point on the
-torus' outer equator) by the heat method (:meth:`manifold_sph.Surface.geodesic_distance`).
+torus' outer equator) by wavefront propagation (:meth:`manifold_sph.Surface.geodesic_distance`).
 Writes ``scan_geometry_mean_curvature.png`` and ``scan_geometry_geodesic.png``
 when off-screen rendering works (curvature coloured over its 2nd-98th percentiles:
 a scan has a few extreme values at creases and holes), and always

@@ -17,7 +17,7 @@ Tangent vectors at particle ``i`` are complex numbers in its frame ``(u_i, v_i)`
 - **Logarithmic map** (:func:`log_map`). The geodesic distance ``r`` (a
   :class:`~manifold_sph.geometry.GeodesicSolver`) and the angle, at each particle, between
   the direction of increasing distance and the transported frame vector ``u_source``:
-  ``log(x) = r (cos theta, sin theta)`` in the source's frame. The direction of increasing
+  ``log(x) = r (cos theta, sin theta)`` in the frame of the source particle. The direction of increasing
   distance is the gradient of ``r`` from quadric fits over the 24 nearest points
   (:func:`~manifold_sph.geometry.jets.field_gradient`), smoother on irregular clouds than
   the scheme's gradient.
@@ -154,7 +154,7 @@ class VectorHeatSolver:
             raise ValueError(f"vector must have a non-zero component in the tangent plane of particle {i}, got {vec.tolist()}")
         n = self.surface.n_points
         b = np.zeros(2 * n)
-        b[i], b[n + i] = z.real, z.imag  # M delta X in units of the mean cell: the source's own mass cancels
+        b[i], b[n + i] = z.real, z.imag  # an impulse at the source: its size does not change the directions
         y = self._solve(b)
         return y[:n] + 1j * y[n:]
 

@@ -249,8 +249,10 @@ def propagate(P, incidence, edges, sources, offsets, targets=None) -> np.ndarray
 # ----------------------------------------------------------------------------- triangles
 def pca_normals(points: np.ndarray, idx: np.ndarray) -> np.ndarray:
     """Unit normals (unoriented), shape (N, 3): the least-variance direction of each row of ``points[idx]``."""
-    q = points[idx] - points[idx].mean(axis=1, keepdims=True)
-    _, vec = np.linalg.eigh(np.einsum("rkd,rke->rde", q, q))
+    q = points[idx]
+    mean = q.mean(axis=1)
+    C = np.einsum("rki,rkj->rij", q, q) / idx.shape[1] - np.einsum("ri,rj->rij", mean, mean)
+    _, vec = np.linalg.eigh(C)
     return np.ascontiguousarray(vec[:, :, 0])
 
 
@@ -310,13 +312,17 @@ class LocalTriangles(Result):
         return ptr, idx, length
 
 
-def _delaunay_pairs(P, nrm, u, v, tree, rows, k):
-    """Delaunay neighbours of ``rows`` among their ``k`` nearest points in their tangent planes:
-    ``(row, col, angle, distance)`` of every pair, and the cells' flags."""
+def _knn(tree, X, k):
+    dist, idx = tree.query(X, k=k, workers=-1 if X.shape[0] > 50_000 else 1)
+    return (dist[:, None], idx[:, None]) if k == 1 else (dist, idx)
+
+
+def _delaunay_pairs(P, nrm, u, v, tree, rows, k, knn=None):
+    """Delaunay neighbours of ``rows`` among their ``k`` nearest points (``knn``: that query's result, if
+    made) in their tangent planes: ``(row, col, angle, distance)`` of every pair, the cells' flags and the
+    distance to the farthest of the ``k``."""
     m = rows.size
-    dist, idx = tree.query(P[rows], k=k, workers=-1 if m > 50_000 else 1)
-    if k == 1:
-        dist, idx = dist[:, None], idx[:, None]
+    dist, idx = _knn(tree, P[rows], k) if knn is None else knn
     off = P[idx] - P[rows][:, None, :]
     xy = np.stack([np.einsum("rkd,rd->rk", off, u[rows]), np.einsum("rkd,rd->rk", off, v[rows])], axis=-1).reshape(-1, 2)
     z = np.einsum("rkd,rd->rk", off, nrm[rows]).ravel()
@@ -346,7 +352,7 @@ def _unique_rows(a: np.ndarray, n: int) -> np.ndarray:
 def _fans(rows, cols, ang, n):
     """Sort pairs into fans (by row, then angle); the next neighbour of each pair round its fan, and
     whether the angle to it closes (below :data:`OPEN_GAP`)."""
-    order = np.lexsort((ang, rows))
+    order = np.argsort(rows + (ang + np.pi) / (2.0 * np.pi + 1e-9), kind="stable")  # by row, then angle
     rows, cols, ang = rows[order], cols[order], ang[order]
     count = np.bincount(rows, minlength=n)
     start = np.concatenate([[0], np.cumsum(count)])
@@ -385,15 +391,17 @@ def local_triangles(points: np.ndarray, normals: np.ndarray | None = None, *, ne
     P = np.ascontiguousarray((points - (lo + 0.5 * (hi - lo))) / scale)
     tree = cKDTree(P)
     k = min(int(neighbors), n)
+    knn = _knn(tree, P, k)
     if normals is None:
-        nrm = pca_normals(P, tree.query(P, k=k, workers=-1 if n > 50_000 else 1)[1])
+        nrm = pca_normals(P, knn[1])
     else:
         nrm = np.asarray(normals, dtype=np.float64)
     helper = np.where(np.abs(nrm[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
     u = np.cross(nrm, helper)
     u /= np.linalg.norm(u, axis=1)[:, None]
     v = np.cross(nrm, u)
-    rows, cols, ang, _, flags, reach = _delaunay_pairs(P, nrm, u, v, tree, np.arange(n), k)
+    rows, cols, ang, _, flags, reach = _delaunay_pairs(P, nrm, u, v, tree, np.arange(n), k, knn)
+    del knn
     redo = np.flatnonzero((flags & INCOMPLETE) != 0)
     interior = np.zeros(n, bool)  # fans that close only in the wider search
     if redo.size and k < n:
