@@ -221,7 +221,6 @@ def smooth_table(quick):
         return
     try:
         from CGAL import CGAL_Point_set_processing_3 as psp
-        from CGAL.CGAL_Kernel import Point_3
     except ImportError:
         psp = None
         print("(CGAL is not installed: its column is skipped)")
@@ -236,7 +235,7 @@ def smooth_table(quick):
         h = float(np.mean(np.linalg.norm(U[F] - U[np.roll(F, 1, axis=1)], axis=2)))  # mean edge length
         noisy = U + 0.5 * h * np.random.default_rng(0).standard_normal(U.shape)
 
-        def dist(X):
+        def dist(X, U=U, F=F, h=h):
             return np.sqrt(igl.point_mesh_squared_distance(X, U, F)[0]) / h
 
         outs = {
@@ -303,7 +302,7 @@ def big_table():
     solver, tb = timed(GeodesicSolver, P)
     d, tq = timed(solver.distance, 0)
     cpu = time.process_time() - c0
-    d2, tq2 = timed(solver.distance, 777)
+    _, tq2 = timed(solver.distance, 777)
     ex = np.arccos(np.clip(P @ P[0], -1, 1))
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20
     print(f"\nFibonacci sphere N = {n}: wavefront build {tb:.1f} s, first query {tq:.1f} s (CPU of both, all threads: "

@@ -188,7 +188,9 @@ class Surface(OperatorSet, PointViews):
 
         return principal_curvatures(self, scale=scale)
 
-    def geodesic_distance(self, sources: ArrayLike, *, to: ArrayLike | None = None, method: str = "wavefront"):
+    def geodesic_distance(
+        self, sources: ArrayLike, *, to: ArrayLike | None = None, method: str = "wavefront"
+    ) -> np.ndarray | float:
         """(N,) geodesic distance from ``sources`` (or to ``to`` only); see :func:`manifold_sph.geometry.geodesic_distance`."""
         from .geometry import geodesic_distance
 

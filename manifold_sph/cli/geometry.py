@@ -9,7 +9,14 @@ from pathlib import Path
 
 import numpy as np
 
-from .common import UserError, add_picture_options, check_free, pair_arg, percent_arg, positive_int_arg
+from .common import (
+    UserError,
+    add_picture_options,
+    check_free,
+    pair_arg,
+    percent_arg,
+    positive_int_arg,
+)
 
 __all__ = ["add_parsers"]
 
@@ -298,7 +305,7 @@ def _cmd_geodesic(args) -> int:
     if out:
         _write_field(out, cloud.points, cloud.normals, "distance", d)
     summary = {
-        "command": "geodesic", "file": str(args.file), "n": int(len(cloud)), "method": args.method,
+        "command": "geodesic", "file": str(args.file), "n": len(cloud), "method": args.method,
         "sources": "boundary" if args.boundary else sorted(set(args.source)), "n_sources": int(np.unique(sources).size),
         "max": float(d[reached].max()), "mean": float(d[reached].mean()),
         "unreached": int((~reached).sum()), "pieces": int(solver.n_components), "seconds": round(seconds, 3),
@@ -393,7 +400,7 @@ def _cmd_smooth(args) -> int:
     write(out, res, overwrite=True)  # checked free before any work
     moved = np.linalg.norm(res.points - cloud.points, axis=1)
     seconds = time.perf_counter() - t0
-    summary = {"command": "smooth", "file": str(args.file), "n": int(len(cloud)), "method": args.method,
+    summary = {"command": "smooth", "file": str(args.file), "n": len(cloud), "method": args.method,
                "features": bool(args.features), "iterations": args.iterations, "mean_move": float(moved.mean()),
                "max_move": float(moved.max()), "seconds": round(seconds, 3)}
     text = (f"smoothed {args.file} (N = {summary['n']}, {args.method}{', features kept' if args.features else ''}): "

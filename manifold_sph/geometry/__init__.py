@@ -31,29 +31,35 @@ from .curvature import (
 from .geodesics import GEODESIC_METHODS, GeodesicSolver, geodesic_distance
 from .signatures import heat_kernel_signature, wave_kernel_signature
 from .smoothing import SMOOTH_METHODS, smooth
-from .vector_heat import VectorHeatSolver, connection_laplacian, karcher_mean, log_map, transport
+from .vector_heat import (
+    VectorHeatSolver,
+    connection_laplacian,
+    karcher_mean,
+    log_map,
+    transport,
+)
 
 __all__ = [
     "AUTO_RADII",
     "CURVATURE_METHODS",
     "GEODESIC_METHODS",
     "SCALE_RANGE",
+    "SMOOTH_METHODS",
     "WAVEFRONT_SCALE_RANGE",
     "GeodesicSolver",
-    "SMOOTH_METHODS",
     "VectorHeatSolver",
     "connection_laplacian",
-    "karcher_mean",
-    "log_map",
-    "smooth",
-    "transport",
     "curvature_method",
     "curvature_scale",
     "gaussian_curvature",
     "geodesic_distance",
     "heat_kernel_signature",
+    "karcher_mean",
+    "log_map",
     "mean_curvature",
     "principal_curvatures",
     "shape_operator",
+    "smooth",
+    "transport",
     "wave_kernel_signature",
 ]

@@ -19,7 +19,7 @@ from ..operators import OperatorSet
 if TYPE_CHECKING:
     from ..surface import Surface
 
-__all__ = ["check_surface", "is_surface", "as_cloud_points", "length_scale", "SCALE_RANGE", "WAVEFRONT_SCALE_RANGE", "check_scale"]
+__all__ = ["SCALE_RANGE", "WAVEFRONT_SCALE_RANGE", "as_cloud_points", "check_scale", "check_surface", "is_surface", "length_scale"]
 
 #: Extent of the coordinates (largest bounding-box side) accepted by what uses a Surface's mass matrix
 #: (cell areas, ``L^2``) or squared lengths: the heat method, the vector heat method, smoothing. Beyond
@@ -54,7 +54,7 @@ def as_cloud_points(cloud: Any, name: str = "cloud") -> tuple[np.ndarray, np.nda
 
     if isinstance(cloud, PointCloud):
         return cloud.points, cloud.normals
-    if isinstance(cloud, np.ndarray) or isinstance(cloud, (list, tuple)):
+    if isinstance(cloud, (np.ndarray, list, tuple)):
         return as_points(name, cloud), None
     try:
         pc = PointCloud(cloud)

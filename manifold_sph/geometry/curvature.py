@@ -38,14 +38,14 @@ if TYPE_CHECKING:
     from ..surface import Surface
 
 __all__ = [
-    "shape_operator",
-    "mean_curvature",
-    "gaussian_curvature",
-    "principal_curvatures",
+    "AUTO_RADII",
+    "CURVATURE_METHODS",
     "curvature_method",
     "curvature_scale",
-    "CURVATURE_METHODS",
-    "AUTO_RADII",
+    "gaussian_curvature",
+    "mean_curvature",
+    "principal_curvatures",
+    "shape_operator",
 ]
 
 CURVATURE_METHODS = ("auto", "normals", "laplacian")

@@ -29,13 +29,19 @@ from scipy.spatial import cKDTree
 
 from .._validation import check_in, check_int, check_positive
 from ..exceptions import ManifoldSPHWarning
-from .common import SCALE_RANGE, WAVEFRONT_SCALE_RANGE, as_cloud_points, check_scale, is_surface
+from .common import (
+    SCALE_RANGE,
+    WAVEFRONT_SCALE_RANGE,
+    as_cloud_points,
+    check_scale,
+    is_surface,
+)
 from .wavefront import local_triangles, propagate
 
 if TYPE_CHECKING:
     from ..surface import Surface
 
-__all__ = ["GeodesicSolver", "geodesic_distance", "GEODESIC_METHODS", "PAIRWISE_MAX_BYTES"]
+__all__ = ["GEODESIC_METHODS", "PAIRWISE_MAX_BYTES", "GeodesicSolver", "geodesic_distance"]
 
 GEODESIC_METHODS = ("wavefront", "heat")
 #: Largest all-pairs matrix :meth:`GeodesicSolver.pairwise` builds (bytes of float64).
@@ -189,7 +195,7 @@ class GeodesicSolver:
     >>> solver = GeodesicSolver(c)
     >>> d = solver.distance(0)                                # to every particle
     >>> exact = np.arccos(np.clip(c.points @ c.points[0], -1, 1))
-    >>> bool(np.abs(d - exact).max() < 0.02)
+    >>> bool(np.linalg.norm(d - exact) / np.linalg.norm(exact) < 6e-3)    # measured 4.5e-3
     True
     >>> round(float(solver.distance(0, to=1234)), 3) == round(float(d[1234]), 3)   # point to point
     True
@@ -256,7 +262,9 @@ class GeodesicSolver:
         return arr.astype(np.int64)
 
     # ------------------------------------------------------------------ queries
-    def distance(self, sources: ArrayLike, *, to: ArrayLike | None = None, offsets: ArrayLike | None = None):
+    def distance(
+        self, sources: ArrayLike, *, to: ArrayLike | None = None, offsets: ArrayLike | None = None
+    ) -> np.ndarray | float:
         """Geodesic distance from the nearest of ``sources``.
 
         Parameters
@@ -339,7 +347,7 @@ def geodesic_distance(
     *,
     to: ArrayLike | None = None,
     method: str = "wavefront",
-) -> np.ndarray:
+) -> np.ndarray | float:
     """Geodesic distance from ``sources`` (a particle, particles or a mask); see :class:`GeodesicSolver`.
 
     On a Surface the solver is cached per method, so later queries reuse its triangles

@@ -23,7 +23,7 @@ from scipy.spatial import cKDTree
 
 from ..results import Result
 
-__all__ = ["Jets", "fit_jets", "tangent_basis", "field_gradient", "mean_spacing"]
+__all__ = ["Jets", "field_gradient", "fit_jets", "mean_spacing", "tangent_basis"]
 
 _ROWS = 4096  # particles a chunk
 

@@ -41,7 +41,7 @@ if TYPE_CHECKING:
     from ..pointcloud import PointCloud
     from ..surface import Surface
 
-__all__ = ["smooth", "SMOOTH_METHODS"]
+__all__ = ["SMOOTH_METHODS", "smooth"]
 
 SMOOTH_METHODS = ("jet", "flow")
 

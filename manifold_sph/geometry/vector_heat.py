@@ -45,7 +45,7 @@ from .jets import field_gradient
 if TYPE_CHECKING:
     from ..surface import Surface
 
-__all__ = ["connection_laplacian", "transport", "log_map", "karcher_mean", "VectorHeatSolver"]
+__all__ = ["VectorHeatSolver", "connection_laplacian", "karcher_mean", "log_map", "transport"]
 
 #: Heat time of the vector diffusion, in units of the mean cell area.
 VECTOR_HEAT_TIME = 16.0

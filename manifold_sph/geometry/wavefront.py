@@ -43,7 +43,7 @@ from .. import _jit
 from ..results import Result
 from ..voronoi import INCOMPLETE, voronoi_cells
 
-__all__ = ["LocalTriangles", "local_triangles", "pca_normals", "propagate", "OPEN_GAP"]
+__all__ = ["OPEN_GAP", "LocalTriangles", "local_triangles", "pca_normals", "propagate"]
 
 #: A fan whose consecutive Delaunay neighbours leave an angular gap of at least this is open (a boundary).
 OPEN_GAP = 0.95 * np.pi
@@ -216,7 +216,14 @@ def _propagate(P, vt_ptr, vt_pair, vt_geom, e_ptr, e_idx, e_len, src, d0, target
 _propagate = _compile(_propagate)
 
 
-def propagate(P, incidence, edges, sources, offsets, targets=None) -> np.ndarray:
+def propagate(
+    P: np.ndarray,
+    incidence: tuple[np.ndarray, np.ndarray, np.ndarray],
+    edges: tuple[np.ndarray, np.ndarray, np.ndarray],
+    sources: np.ndarray,
+    offsets: np.ndarray,
+    targets: np.ndarray | None = None,
+) -> np.ndarray:
     """Run the wavefront sweep (see the module notes); distances in the units of ``P``, inf where not reached.
 
     Parameters
