@@ -39,7 +39,7 @@ import dataclasses
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .. import _jit
+from .._jit.compile import ENABLED, njit
 from ..results import Result
 from ..voronoi import INCOMPLETE, voronoi_cells
 
@@ -50,10 +50,9 @@ OPEN_GAP = 0.95 * np.pi
 
 
 def _compile(fn):
-    """``fn`` compiled by numba (cached on disk, GIL released) when the compiled kernels are on, else ``fn``."""
-    if _jit.ENABLED:
-        return _jit.numba.njit(cache=True, nogil=True)(fn)
-    return fn
+    """``fn`` compiled by numba (the package's options: cached on disk, GIL released) when the compiled
+    kernels are on, else ``fn`` itself (plain Python: the same numbers, slowly)."""
+    return njit(fn) if ENABLED else fn
 
 
 # ----------------------------------------------------------------------------- kernels
