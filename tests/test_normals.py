@@ -762,7 +762,7 @@ def test_part_inside_another_shell_keeps_its_propagated_sign(monkeypatch):
 
 
 def test_best_signs_margin_keeps_an_entry():
-    from manifold_sph.normals.orientation import _best_signs
+    from manifold_sph.normals.winding import best_signs as _best_signs
 
     # two independent entries that both want to flip (g < 0); an infinite margin keeps the second
     H = np.zeros((2, 2))

@@ -286,3 +286,42 @@ def jet_normals(points: ArrayLike, k: int | None = None, *, degree: int = 2, nei
         _, neighbors = knn(pts, k)
     _, v = covariance(pts, neighbors[:, : min(tuning.PCA_K, neighbors.shape[1])])
     return jet_fit(pts, neighbors, v[:, :, 0], degree)
+
+
+def jet_fit_per_row(pts: np.ndarray, neighbors: np.ndarray, frame: np.ndarray, ks: np.ndarray, degree: int = 2,
+                    residual: np.ndarray | None = None) -> np.ndarray:
+    """Degree-``degree`` jet normals with a neighbourhood size of its own for every row (uniform weights).
+
+    ``ks`` (N,) holds each row's ``k`` (at most ``neighbors.shape[1]``); rows sharing a ``k`` are
+    fitted together, each on its own ``k`` nearest, in the tangent frame of ``frame``.
+    """
+    out = frame.copy()
+    for k in np.unique(ks):
+        rows = np.flatnonzero(ks == k)
+        res = None if residual is None else np.zeros(rows.size)
+        out[rows] = jet_fit(pts, neighbors[rows, : int(k)], frame[rows], degree, residual=res, centers=pts[rows])
+        if residual is not None:
+            residual[rows] = res
+    return out
+
+
+def smooth_normals(pts: np.ndarray, neighbors: np.ndarray, normals: np.ndarray, strength: np.ndarray,
+                   degrees: float | None = None) -> np.ndarray:
+    """Normals averaged over their neighbours with a similar normal line (bilateral, sign-free).
+
+    Neighbour ``j`` of particle ``i`` weighs ``exp(-2 (r_ij / r_k)^2) exp(-((1 - |n_i . n_j|) /
+    (1 - cos degrees))^2)``, its normal taken with the sign of ``n_i``: noise averages out while
+    creases (normals turning by more than ``degrees``) are kept. ``strength`` (N,) in [0, 1] blends
+    each particle's own normal (0) with the average (1).
+    """
+    degrees = tuning.SMOOTH_DEGREES if degrees is None else degrees
+    nb = normals[neighbors]
+    d = np.einsum("nkj,nj->nk", nb, normals)
+    nb = nb * np.where(d < 0, -1.0, 1.0)[..., None]
+    L = pts[neighbors] - pts[:, None, :]
+    r2 = np.einsum("nkj,nkj->nk", L, L)
+    rmax = r2.max(axis=1, keepdims=True)
+    ws = np.exp(-2.0 * r2 / np.where(rmax > 0, rmax, 1.0))
+    wn = np.exp(-(((1.0 - np.abs(d)) / (1.0 - np.cos(np.radians(degrees)))) ** 2))
+    avg = unit(np.einsum("nk,nkj->nj", ws * wn, nb))
+    return unit((1.0 - strength)[:, None] * normals + strength[:, None] * avg)

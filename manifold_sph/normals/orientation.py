@@ -23,7 +23,7 @@ from .fitting import knn, unit
 from .graph import graph_edges, orientation_graph, spanning_forest
 from .shells import closed_sheets
 from .visibility import visible_signs
-from .winding import winding_numbers
+from .winding import best_signs, winding_numbers
 
 
 def _patches(N, ta, tb, tconf, flag):
@@ -51,35 +51,6 @@ def _patches(N, ta, tb, tconf, flag):
         keep[cut[np.argsort(-prio, kind="stable")[: n_p - tuning.MAX_PATCHES]]] = True
         n_p, lab = comps(keep)
     return n_p, lab.astype(np.int64)
-
-
-def _best_signs(H, g, blocks, margin=None):
-    """Greedy minimum of ``s^T H s - 2 g^T s`` over s in {-1, 1}^n from s = 1 (diagonal of H ignored).
-
-    Moves: single entries, and whole blocks (rows of the 0/1 matrix ``blocks``). An entry
-    with a ``margin`` leaves +1 only where that lowers the energy by more than its margin.
-    """
-    H = H.copy()
-    np.fill_diagonal(H, 0.0)
-    s = np.ones(H.shape[0])
-    tol = 1e-12 * (np.abs(H).sum() + np.abs(g).sum() + 1e-300)
-    for _ in range(4 * H.shape[0] + 20):
-        Hs = H @ s
-        d1 = 4.0 * s * (g - Hs)  # energy change of flipping one entry
-        if margin is not None:
-            d1 = d1 + np.where(s > 0, margin, 0.0)
-        j = int(np.argmin(d1))
-        if d1[j] < -tol:
-            s[j] = -s[j]
-            continue
-        X = blocks * s[None, :]
-        dB = -4.0 * X @ Hs + 4.0 * np.einsum("bi,bi->b", X @ H, X) + 4.0 * X @ g
-        b = int(np.argmin(dB)) if dB.size else -1
-        if b >= 0 and dB[b] < -tol:
-            s[blocks[b] > 0] *= -1.0
-            continue
-        break
-    return s
 
 
 def _outward(pts, nrm, neighbors, distances, noise=0.0):
@@ -158,7 +129,7 @@ def _outward(pts, nrm, neighbors, distances, noise=0.0):
         blocks = np.zeros((n_comp, n_p)) if n_comp > 1 else np.zeros((0, n_p))
         if n_comp > 1:
             blocks[comp_of_patch, np.arange(n_p)] = 1.0
-        sP = _best_signs(H, g, blocks)
+        sP = best_signs(H, g, blocks)
         if tuning.FLAG_S_HIGH is not None and rnd > 0:
             # patches cut for both probes inside (flag 2) flip only where the flip explains it, i.e. their
             # probes are then no longer both inside (a part inside another shell reads both inside either way)
@@ -172,7 +143,7 @@ def _outward(pts, nrm, neighbors, distances, noise=0.0):
                 excess_old = np.bincount(pp, weights=omega * (s_old - 1.0), minlength=n_p)
                 stay = high & (excess_new > np.where(excess_old > 0, tuning.FLAG_S_EXPLAIN * excess_old, 0.0))
                 if stay.any():
-                    sP = _best_signs(H, g, blocks, np.where(stay, np.inf, 0.0))
+                    sP = best_signs(H, g, blocks, np.where(stay, np.inf, 0.0))
         n = n * sP[lab][:, None]
         # field of the new orientation at the (possibly swapped) probes
         sw = sP[pp] < 0

@@ -114,3 +114,28 @@ SCALE_K = (8, 20)  #: neighbourhoods of the scale term (a plane, a quadric)
 SCALE_COS = (np.cos(np.radians(30.0)), np.cos(np.radians(10.0)))  #: its 0 and 1
 THIN_K = 16  #: thickness term: the nearest point steeply across among these
 THIN_NOISE = 4.0  #: ... and higher than this many times the cloud's noise level
+
+# ----------------------------------------------------------------- k="auto": the scale that follows the noise
+NOISE_K = 12  #: the noise level is read from degree-2 fits to the NOISE_K and 2 NOISE_K nearest
+NOISE_REGION = 32  #: ... their residuals averaged (median) over this many nearest
+NOISE_CLEAN = 0.1  #: below this relative noise (sigma / spacing) a cloud is clean: weighted fits on DEFAULT_JET_K
+AUTO_K0 = 16  #: noisy regions: k = AUTO_K0 + AUTO_K_GAIN (sigma / spacing)^2,
+AUTO_K_GAIN = 160.0  #: ...
+AUTO_K_LADDER = (16, 20, 24, 32, 40, 48, 64, 80, 96)  #: ... rounded to one of these
+SMOOTH_K = 16  #: noisy regions: normals averaged over this many nearest with a similar normal line
+SMOOTH_DEGREES = 20.0  #: (the similarity weight exp(-((1 - |n_i . n_j|) / (1 - cos this))^2))
+
+# ----------------------------------------------------------------- global orientation (patches.py)
+TILT_NOISE = 1.0  #: edge tilts are read beyond this many noise levels over the edge length
+SAFE_DOT = 0.85  #: safe edges: |n_i . n_j| above this
+SAFE_TILT = 0.3  #: ... and tilts beyond the noise below this
+UNSAFE_K = 16  #: unsafe particles: a point steeply across among this many nearest,
+UNSAFE_STEEP = 0.7  #: ... its height above the tangent plane over its distance above this,
+UNSAFE_NOISE = 3.0  #: ... and above this many noise levels;
+UNSAFE_RESIDUAL = 2.0  #: or a fit residual above this many noise levels
+PATCH_MIN = 20  #: patches of at least this many particles are signed by the winding number
+PROBE_NOISE = 3.0  #: probes at least this many noise levels off the surface
+ATTACH_K = 32  #: the rest: signs from the dipoles of this many nearest oriented neighbours
+ATTACH_ROUNDS = 10  #: rings of the rest oriented from the oriented ones
+REPAIR_ROUNDS = 3  #: rounds of the repair of regions whose probes read the field far from 1
+REPAIR_MIN = 10  #: regions of at least this many particles

@@ -19,7 +19,7 @@ try:
 except ImportError:  # pragma: no cover - numba is a dependency
     numba = None
 
-__all__ = ["winding_numbers", "winding_rows"]
+__all__ = ["best_signs", "objective", "winding_numbers", "winding_rows"]
 
 
 def winding_numbers(queries: np.ndarray, points: np.ndarray, normals: np.ndarray, area: np.ndarray, eps: np.ndarray, label: np.ndarray, n_labels: int, theta: float = 0.5, per_cell: int = 32) -> np.ndarray:
@@ -76,6 +76,52 @@ def winding_numbers(queries: np.ndarray, points: np.ndarray, normals: np.ndarray
 
     run_chunks(job, n_chunks)
     return out
+
+
+def best_signs(H: np.ndarray, g: np.ndarray, blocks: np.ndarray, margin: np.ndarray | None = None) -> np.ndarray:
+    """Greedy minimum of ``s^T H s - 2 g^T s`` over s in {-1, 1}^n from s = 1 (diagonal of H ignored).
+
+    Moves: single entries, and whole blocks (rows of the 0/1 matrix ``blocks``). An entry
+    with a ``margin`` leaves +1 only where that lowers the energy by more than its margin.
+    """
+    H = H.copy()
+    np.fill_diagonal(H, 0.0)
+    s = np.ones(H.shape[0])
+    tol = 1e-12 * (np.abs(H).sum() + np.abs(g).sum() + 1e-300)
+    for _ in range(4 * H.shape[0] + 20):
+        Hs = H @ s
+        d1 = 4.0 * s * (g - Hs)  # energy change of flipping one entry
+        if margin is not None:
+            d1 = d1 + np.where(s > 0, margin, 0.0)
+        j = int(np.argmin(d1))
+        if d1[j] < -tol:
+            s[j] = -s[j]
+            continue
+        X = blocks * s[None, :]
+        dB = -4.0 * X @ Hs + 4.0 * np.einsum("bi,bi->b", X @ H, X) + 4.0 * X @ g
+        b = int(np.argmin(dB)) if dB.size else -1
+        if b >= 0 and dB[b] < -tol:
+            s[blocks[b] > 0] *= -1.0
+            continue
+        break
+    return s
+
+
+def objective(W: np.ndarray, label: np.ndarray, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``H, g`` of ``sum_p omega_p [(w_in - w_out - 1)^2 + (w_in + w_out - 1)^2]`` in the signs of the labels.
+
+    ``W`` (2 m, L): the winding number of every label at the inner probes (first ``m`` rows) and
+    the outer probes of ``m`` particles of labels ``label`` (m,), weights ``omega`` (m,). Flipping
+    label ``l`` negates its field and swaps the probes of its own particles, so the objective is
+    ``s^T H s - 2 g^T s`` plus a constant in the signs ``s`` (:func:`best_signs`).
+    """
+    m = label.size
+    w_in, w_out = W[:m], W[m:]
+    D, S = w_in - w_out, w_in + w_out
+    M = np.zeros((W.shape[1], W.shape[1]))
+    np.add.at(M, label, omega[:, None] * D)
+    H = D.T @ (omega[:, None] * D) + S.T @ (omega[:, None] * S) - (M + M.T)
+    return H, omega @ S
 
 
 @(numba.njit(nogil=True, cache=True, fastmath=True, error_model="numpy") if numba is not None else (lambda f: f))
