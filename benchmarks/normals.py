@@ -1,680 +1,295 @@
-"""Normals from bare points against mesh normals, and convergence orders on analytic shapes.
+"""Normals from bare points: manifold_sph against Open3D and CGAL, in one run.
 
-Every model of ../shared/data/models plus the bunny and Igea of ../shared/data/scans
-(missing files are skipped): the VERTICES are the point cloud (faces dropped, exact
-duplicate positions merged), the faces give the reference (area-weighted vertex
-normals, outward). Columns, for the default and for ``degree=4``: points, share of
-normals within 10 degrees of the mesh's, median angle (unsigned), particles more than
-30 degrees off, and for closed meshes the share pointing inward, for open or
-multi-shell ones the share agreeing in sign with the mesh; the sign agreement among
-the particles within 30 degrees; then the median angle to a second reference, the normals
-of the mesh's Loop subdivision limit surface at the vertices (``limit med``, and the count
-more than 30 degrees off), and to a third, the normals with Max's weights (``Max med``);
-time of :func:`manifold_sph.estimate_normals`.
+Every cloud is estimated by the three libraries with their usual settings:
 
-The references. The area-weighted vertex normal is itself a first-order estimate of the
-surface normal on a coarse mesh. The second reference, :func:`loop_limit_normals`, is exact:
-the normal at each vertex of the limit surface of Loop subdivision (trimesh's rules:
-Loop's interior masks, cubic B-spline boundary curves), the cross product of the two limit
-tangents given by the tangent masks over the vertex's one-ring (cos/sin masks inside; on the
-boundary the along-boundary mask and the cross-boundary left eigenvector of the one-ring
-subdivision matrix); vertices that are not one manifold fan keep the area-weighted normal
-(cow 1, teapot 1, beetle 45, suzanne 4, beetle-alt 2, beast 4; none elsewhere). Checked
-against trimesh's subdivision (``--check-loop``): the area-weighted normal of an original
-vertex after m levels converges to it, interior median 0.19 / 0.046 / 0.011 / 0.0028 deg at
-m = 1..4 on the cow (max 21 -> 7.7 at a valence-3 vertex), boundary median 0.70 / 0.35 / 0.17
-/ 0.087 deg on the teapot (first order there, as expected). The limit surface approximates,
-it does not interpolate: its normal at a vertex is that of the smoothed surface near it.
-Max's weights (Max 1999, :func:`max_normals`) are exact when a vertex and its one-ring lie on
-a sphere; a second-order interpolating reference, but from one ring, noisy on skinny
-triangles. Spread of the references (area-weighted against limit: median / 90th percentile;
-against Max: median / 90th percentile, deg): cow 0.81 / 3.06, 4.05 / 15.7; homer 0.31 / 1.30,
-1.55 / 6.08; rocker-arm 0.72 / 2.35, 2.84 / 9.35; cheburashka 0.11 / 0.72, 0.86 / 3.76; teapot
-0.18 / 0.86, 1.02 / 4.90; beetle 1.20 / 6.35, 6.97 / 47.9; bunny 0.02 / 0.73, 0.49 / 2.12; Igea 0.06 /
-0.49, 0.28 / 1.52; limit only: spot 0.22, suzanne 2.37, beetle-alt 0.05; beast 0.41.
+- **ours**: ``manifold_sph.estimate_normals(points)`` (the defaults: ``k="auto"``, outward);
+- **Open3D**: ``estimate_normals(KDTreeSearchParamKNN(30))`` then
+  ``orient_normals_consistent_tangent_plane(15)`` (a minimum spanning tree);
+- **CGAL** (the ``cgal`` package of the ``bench`` extra): ``jet_estimate_normals(k=18)`` then
+  ``mst_orient_normals(k=18)``.
 
-Then (``--limit`` alone) smooth surfaces with the models' coarse sampling and exact normals:
-the Loop limit positions of the vertices, with the limit normals there (:func:`limit_table`).
-Median angle / more than 30 degrees off / wrong sign, default before -> after the sharper
-refit weights of step 5 (module notes), and the mesh's own area-weighted and Max-weighted
-normals at those points: cow 5.26 / 110 / 52 -> 4.71 / 111 / 52 (area 2.85 / 4 / 0, Max 3.46 /
-21 / 2); homer 2.13 / 12 / 0 -> 1.80 / 10 / 0 (0.95, 1.54); rocker-arm 2.79 / 1 -> 2.28 / 1 (1.27,
-2.45); cheburashka 1.24 / 108 / 15 -> 0.90 / 109 / 15 (0.55, 0.71); teapot 2.21 / 120 / 45 -> 2.01 /
-118 / 44 (0.49, 1.05); beetle 7.42 / 126 / 25 -> 7.19 / 115 / 25 (3.52 / 39, 4.86 / 53); bunny 1.36
--> 1.08 (0.87, 0.87). The estimate from points alone stays behind the mesh, which knows its
-connectivity, on the coarse models: the sampling, not the reference, keeps the cow and the
-beetle above 3 degrees.
+The peers orient consistently but do not choose outward; their signs are taken as they come
+(what a user gets). Columns per library: right signs (normal within 90 degrees of the
+reference, %), unoriented angle RMSE (degrees), PGP10 (share within 10 degrees, %), seconds of
+estimation and orientation (reading and conversions excluded).
 
-Sharper refit weights of step 5 (this session; model table, default, before -> after: median
-to the mesh / to the limit normals, more than 30 degrees off, inward or disagreeing): cow 5.40
-/ 5.59 / 211 / 50 -> 5.18 / 5.45 / 207 / 51; homer 1.98 / 2.13 / 19 / 1 -> 1.74 / 1.90 / 21 / 1;
-rocker-arm 3.00 / 3.14 / 9 / 0 -> 2.77 / 2.92 / 12 / 0; cheburashka 1.23 / 1.24 / 185 / 45 -> 1.03 /
-1.04 / 184 / 45; teapot 2.17 / 2.09 / 138 / 39 -> 1.95 / 2.05 / 133 / 40; beetle 8.75 / 8.95 / 155 /
-33 -> 8.82 / 9.06 / 154 / 35; alligator 0; bunny 0.97 / 1.02 / 25 / 0 -> 0.82 / 0.88 / 24 / 0; Igea
-0.52 / 0.56 / 36 / 4 -> 0.42 / 0.46 / 39 / 4; extra models: spot 1.35 / 7 / 3 -> 1.07 / 5 / 1,
-suzanne 19.4 / 173 / 30 -> 19.9 / 177 / 32, beetle-alt 0.33 / 167 / 144 -> 0.30 / 185 / 142, woody
-0, beast 2.78 / 1867 / 2868 -> 2.49 / 1893 / 2871 (91.1 % agree either way). Orders: default
-2.92 / 3.04 / 2.05 (spheres unchanged, torus error 0.134 / 0.032 / 0.0078 deg, was 0.19 / 0.047 /
-0.012), degree 3 2.95 / 3.05 / 3.06, degree 4 6.1 / 6.3 / 4.4; synthetic clouds below unchanged
-(slabs 537 / 473, 160 / 86, 7 / 8 inward); uniformly random clouds: sphere +3 to +7 % mean error
-(1.47e-4 -> 1.52e-4 deg at 16,000 points; quadrics are fitted exactly at degree 2, sharper weights
-only lose points), order 3.03 -> 3.06, torus -25 % (1.43e-2 -> 1.03e-2 deg at 32,000), order 2.06 ->
-2.10, none inward. degree=4 (median / >30deg / inward or disagreeing): cow 5.58 / 235 / 1.58 % ->
-5.45 / 221 / 1.83 %, homer 1.93 / 29 -> 1.83 / 24, rocker-arm 2.91 / 25 -> 2.82 / 24, cheburashka
-1.05 / 185 -> 1.04 / 185, teapot 2.24 / 242 / 98.80 % -> 2.24 / 241 / 98.67 %, beetle 9.27 / 173 /
-97.04 % -> 9.46 / 177 / 97.13 %. Time: bunny 5.5 -> 7.2 s, Igea 17-26 -> 25-27 s (loaded machine,
-interleaved runs).
+The clouds:
 
-Then the normal error (mean angle) against resolution on the Fibonacci sphere, a
-Poisson-disk sphere and a Poisson-disk torus, with the fitted order, for the default
-(jet, degree 2), degree 3 and 4 and ``method="pca"``.
+- **published**: the PCPNet-style clouds with reference normals of the ``data/`` folder of
+  github.com/galmetzer/dipole-normal-prop (MIT; fandisk, hand, ok, vase; see data/README.md).
+  Give their folder with ``--data DIR`` or ``MANIFOLD_SPH_NORMALS_DATA``; skipped when absent.
+  Each also with Gaussian noise of 0.12 % and 0.6 % of its bounding-box diagonal, and resampled
+  non-uniformly: ``gradient`` (kept with probability falling linearly from 1 to 0.1 along the
+  longest axis) and ``stripes`` (every other band of 1/8 of the longest axis kept at 1/3); seed 0;
+- **models**: the vertices of the test meshes (``MANIFOLD_SPH_DATA``, default ``../shared/data``
+  beside the repository), against the area-weighted vertex normals of their faces;
+- **parts**: synthetic multi-part models of 24 closed parts that touch, cross and nest (a
+  character: body, head, eyes and teeth through the head, limbs through the body, buttons and a
+  hat touching, organs nested inside; and a scene of random primitives), sampled area-uniformly
+  (seeds 0 and 1), against each part's own outward normals (a part inside another is a part of
+  its own);
+- **time**: the 100,000-point clouds of the same folder (boxunion, flower, galera; no reference
+  normals): seconds only.
 
-Last, thin and anisotropically sampled synthetic clouds with exact normals (a torus tube
-5 points around, a sphere sampled on latitude rings 6x denser along them, a thin torus
-sampled on 40 meridian circles of 16 points, thin closed slabs: flat ellipsoids with a
-third semi-axis of 0.5, 1 and 2 spacings, 2000 area-uniform random points): median
-angle, particles more than 30 degrees off and pointing inward, with everything ("all"),
-without the consensus of step 7 and without the row normals of step 2b (module notes of
-manifold_sph.normals). The slabs with the default, inward (seeds 0, 1): 540 / 472,
-160 / 86 and 7 / 9 of 2000 (a band of one face next to the rim); with
-``orient="visible"`` (step 8) 11 / 5, 7 / 7 and 4 / 1.
-
-``--poles`` adds ``poles=True`` (Voronoi poles: step-7 candidates and a sign check by the
-winding number at the two poles; module notes, step 9) to the model table; with ``--models``
-for any meshes. Measured (this session, one run; median / >30deg / orientation, default ->
-poles, time): cow 5.18 / 207 / 1.76 % inward -> 5.17 / 201 / 1.34 % (1.98 -> 1.70 s), homer
-1.74 / 21 / 0.02 % -> 1.74 / 20 / 0.02 %, rocker-arm 2.77 / 12 / 0 -> 2.77 / 11 / 0, cheburashka
-1.03 / 184 / 0.67 % -> 1.03 / 184 / 0.67 %, teapot 1.95 / 133 / 98.77 % agree -> 1.95 / 134 /
-99.11 %, beetle 8.82 / 154 / 96.95 % -> 8.82 / 152 / 97.21 %, alligator 0 / 0 / 100 % unchanged,
-bunny 0.82 / 24 / 100 % unchanged (6.47 -> 16.43 s); extra models: spot 1.07 / 5 / 0.03 % ->
-1.07 / 7 / 0.03 %, suzanne 19.91 / 177 / 93.65 % -> 20.45 / 182 / 93.45 %, beetle-alt 0.30 / 185
-/ 99.29 % -> 0.30 / 185 / 99.63 % (7.7 -> 13.2 s), woody unchanged, beast 2.49 / 1893 / 91.11 %
--> 2.49 / 1889 / 91.27 % (12.2 -> 23.2 s).
-
-``--random`` prints, instead, area-uniform random samples of the models (or of the
-``--models`` meshes; as many points as vertices, at least 2000, seeds 0 and 1, or those of
-``--seeds=0-7`` / ``--seeds=0,3``) against the
-normals of the faces sampled: median angle, more than 30 degrees off, inward (closed) or
-disagreeing (open); with ``--poles`` / ``--visible`` for those variants too. Measured (wrong
-normals, seeds 0 / 1, default -> poles): cow 74 / 59 -> 67 / 57, homer 6 / 71 -> 8 / 63,
-rocker-arm 1 / 0 unchanged, cheburashka 42 / 48 -> 37 / 46, teapot 70 / 112 -> 66 / 107, beetle
-24 / 15 -> 22 / 16, alligator 0; medians 6.7-6.8 (cow), 3.1-3.2, 2.9, 2.2, 2.5-2.7, 5.7 deg
-either way. Random samples are harder than the vertices (cow 51, homer 1 wrong there); on
-homer with 6000 random points (seed=1) 49 of the 54 inward normals form one flipped patch
-whose directions are right (74 % within 30 degrees): a sign error, not a line error. Its
-probes read both inside (w_in + w_out about 2, the outer probe in a narrow gap); such regions
-are now patches of their own in step 4, flipped where that explains them (module notes, "Both
-probes inside"). Wrong normals, seeds 0-7 (0-3 for the extra models), before -> after: homer
-6 / 71 / 22 / 24 / 9 / 6 / 67 / 43 -> 6 / 8 / 22 / 24 / 9 / 6 / 2 / 4, cheburashka 42 / 48 / 48 /
-58 / 47 / 56 / 35 / 37 -> 42 / 47 / 48 / 58 / 47 / 59 / 35 / 37, beast 379 / 613 / 430 / 426 -> 354 /
-382 / 430 / 335; cow, rocker-arm, teapot, beetle, alligator, spot, suzanne, beetle-alt and woody
-unchanged; the model (vertex) table unchanged but the beast (91.11 -> 92.55 % agreeing).
-
-orient="visible" on the models (inward or disagreeing normals, default -> visible): cow
-50 -> 50, cheburashka 68 -> 65, homer 1 -> 1, rocker-arm 0 -> 1, teapot 45 -> 33, beetle
-33 -> 65 (seen from inside through its openings); spot 3 -> 3, suzanne 30 -> 42. About
-3 s more on 10,000 points (48 convex hulls).
-
-Run: ``python benchmarks/normals.py`` (a few minutes on 2 busy cores; ``--check-loop`` prints
-the limit-normal check and the spread of the references only, ``--limit`` the limit-surface
-table only; ``--quick`` skips
-Igea and the largest analytic clouds; ``--visible`` prints the model table (and with
-``--models`` that of the given meshes) for the default and ``orient="visible"``, ``--poles``
-for the default and ``poles=True``). ``python benchmarks/normals.py --models a.obj b.ply``
-prints the model table (default settings) for any meshes instead: your own, or other public
-test models. Measured on five of alecjacobson/common-3d-test-models that are not in
-../shared (median / >30deg / orientation): spot 1.35 / 7 / 0.10 % inward; beetle-alt
-(19,885 points) 0.33 / 167 / 99.3 % agree; woody 0.00 / 0 / 100 %; suzanne (504 points,
-three shells) 19.4 / 173 / 94.1 % agree; beast (32,311) 2.78 / 1884 / 90.0 % agree, where a
-densely sampled thin region at the mouth (spacing 0.4 against 1.3 elsewhere, the other side
-about 2 spacings away) is oriented half one way, half the other already by propagation.
-
-Thickness-adapted probes of step 4 (commit 087d074; module notes): cheburashka 1.02 ->
-0.67 % inward (68 -> 45 normals), teapot 98.61 -> 98.80 % agreeing, beast 90.0 -> 91.1 %;
-cow (1.72 %), homer, rocker-arm, beetle (97.1 %), alligator, bunny, Igea, spot, suzanne,
-beetle-alt unchanged; Igea 29 s, bunny 5.4 s on a loaded machine. Confidence with the
-thickness term (share of doubtful normals flagged / of the others): teapot 0.53 / 0.24 ->
-0.88 / 0.24, beetle 0.57 / 0.21 -> 0.61 / 0.22, cheburashka 0.80 / 0.04 -> 0.85 / 0.04, cow
-0.86 / 0.21 -> 0.88 / 0.22.
-
-Measured (default; median angle / normals more than 30 degrees off / orientation),
-before (commit 9401b37) -> after the distance-weighted base fit, the row normals of step
-2b, the area rescaling and the patch flags of step 4:
-
-    model         before                      after
-    cow           6.15 / 238 / 2.69 % in      5.40 / 211 / 1.72 % in
-    homer         2.19 / 22 / 0.03 % in       1.98 / 19 / 0.02 % in
-    rocker-arm    3.19 / 18 / 0.01 % in       3.00 / 9 / 0.00 % in
-    cheburashka   1.33 / 205 / 1.06 % in      1.25 / 187 / 1.02 % in
-    teapot        2.63 / 663 / 88.7 % agree   2.17 / 139 / 98.6 % agree
-    beetle        10.40 / 186 / 96.9 % agree  8.75 / 155 / 97.1 % agree
-    alligator     0 / 0 / 100 % agree         0 / 0 / 100 % agree
-    bunny         1.18 / 26 / 100 % agree     0.97 / 25 / 100 % agree
-    Igea          0.60 / 35 / 0.00 % in       0.52 / 36 / 0.00 % in
-
-degree=4: cow 6.27 / 280 -> 5.58 / 235, teapot 3.09 / 711 -> 2.26 / 240 (98.6 % agree),
-beetle 11.16 / 214 -> 9.27 / 173. Orders unchanged (default 2.9-3.0 on the spheres, 2.0
-on the torus, whose error dropped by a quarter: 0.25 / 0.062 / 0.015 -> 0.19 / 0.047 /
-0.012 deg; degree 3 unchanged, degree 4 within 6 %). Ring sphere: 160 of 960 inward ->
-none; meridian torus (40 x 16): 37 / 2 normals more than 30 degrees off and none
-inward (without step 2b 281 / 343, 39 / 60 inward). Time (single-threaded BLAS, best of
-3, old -> new (commit 8226fc4, same work as now) on a loaded machine):
-cow 0.38 -> 0.45 s, homer 0.82 -> 0.87, rocker-arm 1.84 -> 2.37, cheburashka 1.93 -> 1.72,
-teapot 0.81 -> 0.97, beetle 0.33 -> 0.50, alligator 0.53 -> 0.57, bunny 6.10 -> 6.85,
-Igea 25.8 -> 32.8 (one run).
+Run: ``python benchmarks/normals.py`` (all; about half an hour on 2 busy cores), or a subset:
+``--only published,models,parts,time``; ``--peers none`` skips Open3D and CGAL.
+The older studies of the clean path (limit surfaces, orders, thin synthetic clouds) are in
+``benchmarks/normals_studies.py``.
 """
 
 from __future__ import annotations
 
-import sys
+import argparse
+import os
 import time
 from pathlib import Path
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse import csgraph
 
-from manifold_sph.reference import shapes
+from manifold_sph.normals import estimate_normals
 from manifold_sph.reference.sampling import sample_triangles
-from manifold_sph.scans.io import read_mesh
-from manifold_sph.normals import estimate, estimate_normals, tuning
+from normals_studies import MODELS, SCANS, mesh_reference
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
-MODELS = [DATA / "models" / f for f in ("cow.obj", "homer.obj", "rocker-arm.obj", "cheburashka.obj", "teapot.obj", "beetle.obj", "alligator.obj")]
-SCANS = [DATA / "scans" / "stanford-bunny.obj", DATA / "scans" / "igea.ply"]
+__all__ = ["MODELS", "SCANS", "mesh_reference", "published_clouds", "multi_part", "metrics"]
 
-
-def _welded(path):
-    """The mesh's distinct vertices and its faces on them, degenerate faces dropped."""
-    V, F = read_mesh(str(path))
-    U, inv = np.unique(V, axis=0, return_inverse=True)
-    F = inv.ravel()[F]
-    return U, F[(F[:, 0] != F[:, 1]) & (F[:, 1] != F[:, 2]) & (F[:, 0] != F[:, 2])]
+PUBLISHED = ("fandisk", "hand", "ok", "vase")
+LARGE = ("boxunion", "flower", "galera")
+NOISE = (0.0012, 0.006)
 
 
-def _area_normals(X, F):
-    """Area-weighted vertex normals of the faces ``F`` on the vertices ``X`` (unit; zero where undefined)."""
-    c = np.cross(X[F[:, 1]] - X[F[:, 0]], X[F[:, 2]] - X[F[:, 0]])
-    N = np.zeros_like(X)
-    for a in range(3):
-        np.add.at(N, F[:, a], c)
-    return N / np.maximum(np.linalg.norm(N, axis=1), 1e-300)[:, None]
+# ----------------------------------------------------------------------------- peers
+def ours(P):
+    t = time.perf_counter()
+    n = estimate_normals(P)
+    return n, time.perf_counter() - t
 
 
-def mesh_reference(path, limit=False):
-    """Distinct vertex positions (those used by faces), area-weighted unit normals, closed?, shells.
+def open3d_normals(P, k=30, k_orient=15):
+    import open3d as o3d
 
-    With ``limit=True`` also the Loop limit normals at those vertices (:func:`loop_limit_normals`;
-    area-weighted where the vertex is not a manifold fan) and the mask of those that are limit
-    normals; with ``limit="all"`` then also the normals with Max's weights (:func:`max_normals`).
-    """
-    U, F = _welded(path)
-    c = np.cross(U[F[:, 1]] - U[F[:, 0]], U[F[:, 2]] - U[F[:, 0]])  # twice the area times the normal
-    N = np.zeros_like(U)
-    for a in range(3):
-        np.add.at(N, F[:, a], c)
-    length = np.linalg.norm(N, axis=1)
-    used = np.zeros(len(U), bool)
-    used[F.ravel()] = True
-    keep = used & (length > 0)
-    e = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
-    _, counts = np.unique(e, axis=0, return_counts=True)
-    closed = bool(np.all(counts == 2))
-    A = sp.coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(len(U), len(U)))
-    shells = csgraph.connected_components(A, directed=False)[0] - int((~used).sum())
-    ref = N / np.where(length > 0, length, 1.0)[:, None]
-    if not limit:
-        return U[keep], ref[keep], closed, shells
-    lim, good, _, _ = loop_limit_normals(U, F, ref)
-    if limit == "all":
-        return U[keep], ref[keep], closed, shells, lim[keep], good[keep], max_normals(U, F)[keep]
-    return U[keep], ref[keep], closed, shells, lim[keep], good[keep]
+    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(P))
+    t = time.perf_counter()
+    pcd.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(k))
+    pcd.orient_normals_consistent_tangent_plane(k_orient)
+    return np.asarray(pcd.normals).copy(), time.perf_counter() - t
 
 
-def max_normals(U, F):
-    """Vertex normals with Max's weights (1999): each face's ``u x v / (|u|^2 |v|^2)`` at the vertex,
-    ``u``, ``v`` its two edges from the vertex; exact when the vertex and its one-ring lie on a
-    sphere (the area-weighted normal is not). Unit; zero where undefined."""
-    N = np.zeros_like(U)
-    for a in range(3):
-        u = U[F[:, (a + 1) % 3]] - U[F[:, a]]
-        v = U[F[:, (a + 2) % 3]] - U[F[:, a]]
-        den = np.einsum("ij,ij->i", u, u) * np.einsum("ij,ij->i", v, v)
-        np.add.at(N, F[:, a], np.cross(u, v) / np.where(den > 0, den, np.inf)[:, None])
-    length = np.linalg.norm(N, axis=1)
-    return N / np.where(length > 0, length, 1.0)[:, None]
+def cgal_normals(P, k=18):
+    from CGAL import CGAL_Point_set_processing_3 as psp
+    from CGAL.CGAL_Kernel import Point_3
+    from CGAL.CGAL_Point_set_3 import Point_set_3
+
+    ps = Point_set_3()
+    for p in P:
+        ps.insert(Point_3(float(p[0]), float(p[1]), float(p[2])))
+    ps.add_normal_map()
+    index = ps.add_int_map("index")
+    for i in range(len(P)):
+        index.set(i, i)
+    t = time.perf_counter()
+    psp.jet_estimate_normals(ps, k)
+    psp.mst_orient_normals(ps, k)  # unoriented points are removed: they keep a zero normal here
+    el = time.perf_counter() - t
+    n = np.zeros_like(P)
+    for j in ps.indices():
+        v = ps.normal(j)
+        n[index.get(j)] = (v.x(), v.y(), v.z())
+    return n, el
 
 
-def loop_limit_normals(U, F, area_normals, positions=False):
-    """Unit normals of the Loop subdivision limit surface at the vertices, exactly (limit tangent masks).
-
-    Loop subdivision as trimesh's ``subdivide_loop`` does it (Loop's interior rules; boundary
-    edges and vertices follow the cubic B-spline of the boundary: 1/2 1/2 and 1/8 3/4 1/8).
-    The limit normal at a vertex is the cross product of its two limit tangents, each a mask
-    over the vertex's one-ring: at an interior vertex of valence ``n`` with the ring
-    ``p_0 .. p_{n-1}`` in order, ``sum_j cos(2 pi j / n) p_j`` and ``sum_j sin(2 pi j / n) p_j``
-    (whatever Loop's centre weight beta); at a boundary vertex with ``k`` faces and the ring
-    ``r_0 .. r_k`` (``r_0``, ``r_k`` on the boundary) ``r_0 - r_k`` along the boundary, and
-    across it the left eigenvector, of the largest eigenvalue other than 1 and that of the
-    along mask, of the one-ring subdivision matrix (k = 1: ``r_0 + r_1 - 2 v``; k = 2:
-    ``r_1 - v``, as in Hoppe et al. 1994; k >= 3 differs from their mask, which is no
-    eigenvector of these rules). Signs follow the area-weighted normals ``area_normals``.
-    Vertices whose faces do not form one fan (non-manifold, or an edge used twice in one
-    direction) keep ``area_normals``. Checked against repeated subdivision
-    (``--check-loop``): the area-weighted normal of the original vertex after ``m`` levels
-    converges to this one, by 4x per level inside and 2x per level on the boundary.
-
-    Returns the normals, the mask of vertices with a limit normal, the mask of boundary
-    vertices among them, and the mask of those whose limit normal opposed ``area_normals``;
-    with ``positions=True`` also the limit positions (``v`` itself where there is no limit
-    normal): inside ``(1 - n w) v + w sum p_j``, ``w = 1 / (3 / (8 beta) + n)`` with Loop's
-    ``beta``; on the boundary ``(r_0 + 4 v + r_k) / 6``.
-    """
-    nv = len(U)
-    # directed ring pairs: at vertex v of face (a, b, c) (counter-clockwise), b -> c
-    v = F.ravel()
-    fr = F[:, [1, 2, 0]].ravel()
-    to = F[:, [2, 0, 1]].ravel()
-    key = v.astype(np.int64) * nv + fr
-    order = np.argsort(key, kind="stable")
-    key, fr_s, to_s, v_s = key[order], fr[order], to[order], v[order]
-    dup_out = np.zeros(nv, bool)
-    dup_out[v_s[1:][key[1:] == key[:-1]]] = True
-    ikey = v.astype(np.int64) * nv + to
-    ik = np.sort(ikey)
-    dup_in = np.zeros(nv, bool)
-    dup_in[(ik[1:][ik[1:] == ik[:-1]]) // nv] = True
-    faces_at = np.bincount(v, minlength=nv)
-    # number of distinct neighbours
-    nb = np.unique(np.r_[key, ikey])
-    valence = np.bincount(nb // nv, minlength=nv)
-    # start of each ring: for boundary vertices the neighbour with an outgoing but no incoming pair
-    has_in = np.isin(key, ik)  # (v, from) with from also a 'to' of v
-    start = np.full(nv, -1)
-    bstart = ~has_in
-    nstart = np.bincount(v_s[bstart], minlength=nv)
-    start[v_s[bstart]] = fr_s[bstart]
-    first = np.full(nv, -1)
-    first[v_s[::-1]] = fr_s[::-1]
-    boundary = nstart == 1
-    interior = (nstart == 0) & (valence == faces_at)
-    boundary &= valence == faces_at + 1
-    ok = (interior | boundary) & ~dup_out & ~dup_in & (faces_at > 0)
-    start = np.where(boundary, start, first)
-    K = int(valence[ok].max()) + 1
-    ring = np.full((nv, K), -1)
-    cur = start.copy()
-    ring[:, 0] = cur
-    for j in range(1, K):
-        q = np.where(cur >= 0, np.arange(nv) * nv + np.maximum(cur, 0), -1)
-        pos = np.clip(np.searchsorted(key, q), 0, len(key) - 1)
-        hit = (key[pos] == q) & (cur >= 0)
-        cur = np.where(hit, to_s[pos], -1)
-        ring[:, j] = cur
-    # ring length check: interior rings close after valence steps
-    length = (ring >= 0).sum(axis=1)
-    ok &= np.where(interior, (length >= valence + 1) & (ring[np.arange(nv), np.minimum(valence, K - 1)] == start), length == valence)
-    nrm = area_normals.copy()
-    P = np.vstack([U, np.zeros((1, 3))])
-    R = P[np.where(ring >= 0, ring, nv)]
-    j = np.arange(K)[None, :]
-    # interior: t1 = sum cos(2 pi j / n) p_j, t2 = sum sin(2 pi j / n) p_j over j < n
-    n_int = np.maximum(valence, 1)[:, None]
-    wmask = (j < n_int)
-    t1 = np.einsum("nk,nki->ni", np.where(wmask, np.cos(2 * np.pi * j / n_int), 0.0), R)
-    t2 = np.einsum("nk,nki->ni", np.where(wmask, np.sin(2 * np.pi * j / n_int), 0.0), R)
-    ni = np.cross(t1, t2)
-    # boundary: ring r_0..r_k (k faces); along r_0 - r_k; across: the left eigenvector of the
-    # largest other eigenvalue of the one-ring subdivision matrix (boundary B-spline rules)
-    kf = faces_at
-    rk = R[np.arange(nv), np.clip(kf, 0, K - 1)]
-    along = R[:, 0] - rk
-    across = np.zeros((nv, 3))
-    for k in np.unique(kf[boundary]):
-        m = _across_mask(int(k))
-        rows = np.flatnonzero(boundary & (kf == k))
-        across[rows] = m[0] * U[rows] + np.einsum("k,nki->ni", m[1:], R[rows, : k + 1])
-    nb_ = np.cross(along, across)
-    lim = np.where(boundary[:, None], nb_, ni)
-    L = np.linalg.norm(lim, axis=1)
-    good = ok & (L > 0)
-    lim = lim / np.where(L > 0, L, 1)[:, None]
-    s = np.sign(np.einsum("ij,ij->i", lim, area_normals))
-    flipped = good & (s < 0)
-    nrm[good] = lim[good] * np.where(s[good] < 0, -1.0, 1.0)[:, None]
-    if not positions:
-        return nrm, good, boundary & good, flipped
-    beta = (40.0 - (2.0 * np.cos(2 * np.pi / n_int[:, 0]) + 3) ** 2) / (64 * n_int[:, 0])
-    w = 1.0 / (3.0 / (8.0 * beta) + n_int[:, 0])
-    ring_sum = np.einsum("nk,nki->ni", wmask.astype(np.float64), R)
-    pos = (1.0 - n_int * w[:, None]) * U + w[:, None] * ring_sum
-    pos = np.where(boundary[:, None], (R[:, 0] + 4.0 * U + rk) / 6.0, pos)
-    pos = np.where(good[:, None], pos, U)
-    return nrm, good, boundary & good, flipped, pos
+METHODS = {"ours": ours, "Open3D": open3d_normals, "CGAL": cgal_normals}
 
 
-def _across_mask(k):
-    """Cross-boundary limit tangent mask (v, r_0..r_k) of Loop subdivision with boundary B-spline rules."""
-    m = k + 2
-    S = np.zeros((m, m))
-    S[0, 0], S[0, 1], S[0, k + 1] = 0.75, 0.125, 0.125
-    for i in range(k + 1):
-        row = 1 + i
-        if i == 0 or i == k:
-            S[row, 0] = S[row, row] = 0.5
-        else:
-            S[row, 0] = S[row, row] = 0.375
-            S[row, row - 1] = S[row, row + 1] = 0.125
-    w, vl = np.linalg.eig(S.T)
-    w, vl = w.real, vl.real
-    along = np.zeros(m); along[1], along[k + 1] = 1.0, -1.0
-    along /= np.linalg.norm(along)
-    other = np.abs(w - 1.0) > 1e-9
-    vl = vl / np.linalg.norm(vl, axis=0)
-    par = np.abs(along @ vl) > 1 - 1e-9
-    cand = np.flatnonzero(other & ~par)
-    lam = w[cand].max()
-    top = cand[np.abs(w[cand] - lam) < 1e-9]
-    j = top[np.argmin(np.abs(along @ vl[:, top]))]
-    return vl[:, j]
+def metrics(n, ref):
+    """Right signs (%), unoriented angle RMSE (degrees), PGP10 (%)."""
+    length = np.linalg.norm(n, axis=1) * np.linalg.norm(ref, axis=1)
+    d = np.einsum("ij,ij->i", n, ref) / np.where(length > 0, length, 1.0)
+    ang = np.degrees(np.arccos(np.clip(np.abs(d), 0.0, 1.0)))
+    ang[length == 0] = 90.0
+    return 100.0 * np.mean(d > 0), float(np.sqrt(np.mean(ang**2))), 100.0 * np.mean(ang < 10.0)
 
 
-def reference_table(paths):
-    """How far the references are apart: the area-weighted vertex normals against the Loop limit
-    normals (vertices with a limit normal, boundary ones among them, area-weighted fallbacks;
-    median, 90th percentile, count beyond 10 degrees) and against the normals with Max's weights."""
-    print(f"{'model':14s} {'points':>7s} {'limit':>7s} {'boundary':>8s} {'fallback':>8s} {'median':>7s} {'p90':>7s} {'>10deg':>7s} "
-          f"{'Max med':>8s} {'Max p90':>8s}")
-    for path in paths:
-        if not path.exists():
-            continue
-        P, ref, _, _, lim, good, mx = mesh_reference(path, limit="all")
-        U, G = _welded(path)
-        nb = int(loop_limit_normals(U, G, np.ones_like(U))[2].sum())
-        a = np.degrees(np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", ref, lim)), 0.0, 1.0)))
-        b = np.degrees(np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", ref, mx)), 0.0, 1.0)))
-        print(f"{path.stem:14s} {len(P):7d} {int(good.sum()):7d} {nb:8d} {int((~good).sum()):8d} {np.median(a):6.2f}d "
-              f"{np.percentile(a, 90):6.2f}d {int((a > 10).sum()):7d} {np.median(b):7.2f}d {np.percentile(b, 90):7.2f}d", flush=True)
+# ----------------------------------------------------------------------------- clouds
+def data_dir(arg=None):
+    d = arg or os.environ.get("MANIFOLD_SPH_NORMALS_DATA")
+    return Path(d) if d else None
 
 
-def limit_table(paths, variants=(("default", {}),)):
-    """Smooth surfaces with the models' coarse sampling and exact normals: the points are the
-    limit positions of the mesh vertices on the Loop limit surface, the exact normals its limit
-    normals there (:func:`loop_limit_normals`). Median angle to the exact normals, count more
-    than 30 degrees off and inward / disagreeing, for :func:`estimate_normals` and, for
-    comparison, the area-weighted and Max-weighted normals of the mesh with its vertices moved
-    to those positions (the mesh knows its connectivity; the points do not). Vertices with no
-    limit normal stay in the cloud and out of the statistics."""
-    print(f"{'model':14s} {'normals':>12s} {'points':>7s} {'median':>7s} {'>30deg':>7s} {'wrong sign':>10s}")
-    for path in paths:
-        if not path.exists():
-            continue
-        U, F = _welded(path)
-        used = np.zeros(len(U), bool)
-        used[F.ravel()] = True
-        F = (np.cumsum(used) - 1)[F]
-        U = U[used]
-
-        def area_normals(X):
-            return _area_normals(X, F)
-
-        exact, good, _, _, pos = loop_limit_normals(U, F, area_normals(U), positions=True)
-        good &= np.linalg.norm(area_normals(pos), axis=1) > 0
-        rows = [(label, lambda kw=kw: estimate_normals(pos, **kw)) for label, kw in variants]
-        rows += [("mesh area", lambda: area_normals(pos)), ("mesh Max", lambda: max_normals(pos, F))]
-        for label, make in rows:
-            n = make()[good]
-            d = np.einsum("ij,ij->i", n, exact[good])
-            ang = np.degrees(np.arccos(np.clip(np.abs(d), 0.0, 1.0)))
-            print(f"{path.stem:14s} {label:>12s} {int(good.sum()):7d} {np.median(ang):6.2f}d {int((ang > 30).sum()):7d} "
-                  f"{int((d < 0).sum()):10d}", flush=True)
+def _read_xyz(path):
+    X = np.loadtxt(path)
+    return X[:, :3], (X[:, 3:6] if X.shape[1] >= 6 else None)
 
 
-def check_loop(paths, levels=4):
-    """The exact limit normals against the area-weighted normals of the original vertices after
-    ``levels`` rounds of trimesh's Loop subdivision (meshes with no edge shared by more than
-    two faces: trimesh renumbers the vertices of the others). Median and largest angle, interior and boundary."""
-    import trimesh.remesh
-
-    for path in paths:
-        if not path.exists():
-            continue
-        U, F = _welded(path)
-        area_normals = _area_normals
-        _, counts = np.unique(np.sort(np.r_[F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]], axis=1), axis=0, return_counts=True)
-        if counts.max() > 2:
-            print(f"{path.stem:14s} edges shared by more than 2 faces: trimesh subdivides piece by piece and renumbers; skipped")
-            continue
-        lim, good, bnd, _ = loop_limit_normals(U, F, area_normals(U, F))
-        X, G = U, F
-        for m in range(1, levels + 1):
-            X, G = trimesh.remesh.subdivide_loop(X, G)
-            a = np.degrees(np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", area_normals(X, G)[: len(U)], lim)), 0.0, 1.0)))
-            inner, edge = good & ~bnd, good & bnd
-            line = f"{path.stem:14s} level {m}: interior median {np.median(a[inner]):.4f} max {a[inner].max():.4f} deg"
-            if edge.any():
-                line += f"; boundary median {np.median(a[edge]):.4f} max {a[edge].max():.4f} deg"
-            print(line, flush=True)
-
-
-def model_table(paths, variants=(("default", {}), ("degree=4", {"degree": 4}))):
-    """One row per model and variant of :func:`estimate_normals`; ``>30deg`` counts the
-    particles whose direction is more than 30 degrees off (their sign is moot: thin or
-    coarsely sampled parts), ``sign ok`` the orientation among the others."""
-    print(f"{'model':14s} {'normals':>9s} {'points':>7s} {'shells':>6s} {'<10deg':>7s} {'median':>7s} {'>30deg':>7s} "
-          f"{'orientation':>22s} {'sign ok':>8s} {'limit med':>9s} {'>30deg':>6s} {'Max med':>7s} {'time':>7s}")
-    for path in paths:
-        if not path.exists():
-            print(f"{path.stem:14s} (missing, skipped)")
-            continue
-        P, ref, closed, shells, lim, _, mx = mesh_reference(path, limit="all")
-        for label, kw in variants:
-            t = time.perf_counter()
-            n = estimate_normals(P, **kw)
-            t = time.perf_counter() - t
-            d = np.einsum("ij,ij->i", n, ref)
-            ang = np.degrees(np.arccos(np.clip(np.abs(d), 0.0, 1.0)))
-            orient = f"{100 * np.mean(d < 0):6.2f} % inward" if closed and shells == 1 else f"{100 * np.mean(d > 0):6.2f} % agree (open)"
-            sure = ang <= 30
-            a_lim = np.degrees(np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", n, lim)), 0.0, 1.0)))
-            a_max = np.degrees(np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", n, mx)), 0.0, 1.0)))
-            print(f"{path.stem:14s} {label:>9s} {len(P):7d} {shells:6d} {100 * np.mean(ang < 10):6.1f}% {np.median(ang):6.2f}d "
-                  f"{int((~sure).sum()):7d} {orient:>22s} {100 * np.mean(d[sure] > 0):7.2f}% {np.median(a_lim):8.2f}d "
-                  f"{int((a_lim > 30).sum()):6d} {np.median(a_max):6.2f}d {t:6.2f}s", flush=True)
-
-
-def random_table(paths, variants=(("default", {}),), seeds=(0, 1)):
-    """Area-uniform random samples of each mesh (as many points as it has vertices, at least
-    2000), against the normals of the faces sampled: median angle, particles more than 30
-    degrees off, inward (closed) or disagreeing (open) normals, per seed and variant."""
-    print(f"\n{'random samples':14s} {'normals':>9s} {'points':>7s} {'seed':>5s} {'median':>7s} {'>30deg':>7s} {'wrong':>6s} {'time':>7s}")
-    for path in paths:
-        if not path.exists():
-            print(f"{path.stem:14s} (missing, skipped)")
-            continue
-        U, F = _welded(path)
-        c = np.cross(U[F[:, 1]] - U[F[:, 0]], U[F[:, 2]] - U[F[:, 0]])
-        A = np.linalg.norm(c, axis=1)
-        fn = c / np.maximum(A, 1e-300)[:, None]
-        e = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
-        closed = bool(np.all(np.unique(e, axis=0, return_counts=True)[1] == 2))
-        m = max(2000, int(np.unique(F).size))
-        for seed in seeds:
-            P, f = sample_triangles(U, F, m, seed)
-            for label, kw in variants:
-                t = time.perf_counter()
-                d = np.einsum("ij,ij->i", estimate_normals(P, **kw), fn[f])
-                t = time.perf_counter() - t
-                ang = np.degrees(np.arccos(np.clip(np.abs(d), 0.0, 1.0)))
-                wrong = int((d < 0).sum()) if closed else int((d <= 0).sum())
-                print(f"{path.stem:14s} {label:>9s} {m:7d} {seed:5d} {np.median(ang):6.2f}d {int((ang > 30).sum()):7d} "
-                      f"{wrong:6d} {t:6.2f}s", flush=True)
-
-
-def orders(quick=False):
-    cases = [
-        ("sphere fibonacci", lambda n: shapes.sphere(n), (1000, 4000, 16000)),
-        ("sphere poisson", lambda n: shapes.sphere(n, sampling="poisson"), (1000, 4000, 16000)),
-        ("torus poisson", lambda n: shapes.torus(n), (2000, 8000, 32000)),
-    ]
-    variants = [("jet d2 (default)", {}), ("jet d3", {"degree": 3}), ("jet d4", {"degree": 4}), ("pca", {"method": "pca"})]
-    print(f"\n{'cloud':18s} {'normals':18s} {'mean angle error (deg) at N':>40s} {'order':>6s}")
-    for name, make, ns in cases:
-        ns = ns[:2] if quick else ns
-        clouds = [make(n) for n in ns]
-        h = np.array([n**-0.5 for n in ns])
-        for label, kw in variants:
-            err = []
-            for c in clouds:
-                n = estimate_normals(c.points, **kw)
-                err.append(np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", n, c.normals), -1.0, 1.0))).mean())
-            slope = np.polyfit(np.log(h), np.log(err), 1)[0]
-            print(f"{name:18s} {label:18s} {' '.join(f'{e:.2e}' for e in err):>40s} {slope:6.2f}", flush=True)
-
-
-def meridian_torus(meridians=40, per=16, R=1.0, r=0.08, seed=0):
-    """A thin torus on planar meridian circles of ``per`` points (a rolled lip; as in tests/test_normals.py)."""
+def resample(P, ref, kind, seed=0):
+    """Non-uniform resampling: ``gradient`` (kept with probability 1 -> 0.1 along the longest axis)
+    or ``stripes`` (bands of 1/8 of the longest axis, every other one kept at 1/3)."""
     rng = np.random.default_rng(seed)
-    phi = np.repeat((np.arange(meridians) + 0.3 * rng.random(meridians)) * 2 * np.pi / meridians, per)
-    th = ((np.arange(per)[None, :] + 0.3 * rng.random((meridians, per))) * 2 * np.pi / per).ravel()
-    n = np.c_[np.cos(th) * np.cos(phi), np.cos(th) * np.sin(phi), np.sin(th)]
-    return np.c_[R * np.cos(phi), R * np.sin(phi), np.zeros_like(phi)] + r * n, n
+    ax = int(np.argmax(np.ptp(P, axis=0)))
+    t = (P[:, ax] - P[:, ax].min()) / max(np.ptp(P[:, ax]), 1e-300)
+    keep = 1.0 - 0.9 * t if kind == "gradient" else np.where(np.floor(8 * t) % 2 == 0, 1.0, 1.0 / 3.0)
+    sel = rng.random(len(P)) < keep
+    return P[sel], ref[sel]
 
 
-def flat_ellipsoid(n=2000, thickness=1.0, seed=0):
-    """A thin closed slab (:func:`manifold_sph.reference.shapes.flat_ellipsoid`): points, exact normals."""
-    c = shapes.flat_ellipsoid(n, thickness, seed)
-    return c.points, c.normals
-
-
-def synthetic():
-    clouds = [(f"thin torus seed {s}", shapes.thin_torus(seed=s)) for s in range(3)]
-    clouds += [(f"ring sphere seed {s}", shapes.ring_sphere(seed=s)) for s in range(3)]
-    cases = [(name, (c.points, c.normals)) for name, c in clouds]
-    cases += [(f"meridian torus {s}", meridian_torus(seed=s)) for s in range(2)]
-    cases += [(f"slab {t:g} sp seed {s}", flat_ellipsoid(thickness=t, seed=s)) for t in (0.5, 1.0, 2.0) for s in range(2)]
-    print(f"\n{'cloud':20s} {'points':>7s} {'steps':>10s} {'median':>7s} {'>30deg':>7s} {'inward':>7s}")
-    original, steep = estimate.consensus_normals, tuning.ROW_STEEP
-    for name, (p, exact) in cases:
-        for label in ("all", "no step 7", "no 2b"):
-            if label == "no step 7":
-                estimate.consensus_normals = lambda pts, nb, n, fixed=None: (n, None)
-            if label == "no 2b":
-                tuning.ROW_STEEP = 0
-            try:
-                d = np.einsum("ij,ij->i", estimate_normals(p), exact)
-            finally:
-                estimate.consensus_normals, tuning.ROW_STEEP = original, steep
-            ang = np.degrees(np.arccos(np.clip(np.abs(d), 0.0, 1.0)))
-            print(f"{name:20s} {len(p):7d} {label:>10s} {np.median(ang):6.2f}d {int((ang > 30).sum()):7d} {int((d < 0).sum()):7d}", flush=True)
-
-
-def _crossing_cloud(name, sampling, seed, noise):
-    """Closed surfaces that pass through each other; points, exact outward normals of each surface."""
-    parts = {"2 spheres": [(shapes.sphere, 4000, dict(radius=1.0)), (shapes.sphere, 2560, dict(radius=0.8, center=(1.2, 0, 0)))],
-             "3 spheres": [(shapes.sphere, 4000, dict(radius=1.0)), (shapes.sphere, 2560, dict(radius=0.8, center=(1.2, 0, 0))),
-                           (shapes.sphere, 1440, dict(radius=0.6, center=(0, 1.1, 0.3)))],
-             "torus through sphere": [(shapes.sphere, 3000, dict(radius=0.8)),
-                                      (shapes.torus, 4000, dict(R=1.0, r=0.25, center=(0.9, 0, 0)))],
-             "2 unequal spheres": [(shapes.sphere, 3000, dict(radius=1.0)), (shapes.sphere, 3000, dict(radius=0.9, center=(0.9, 0.3, 0)))],
-             "nested spheres": [(shapes.sphere, 4000, dict(radius=1.0)), (shapes.sphere, 1000, dict(radius=0.5, center=(0.1, 0, 0)))],
-             # a head (12,000 points) with two eyes half out of it and six teeth across its surface
-             "head, eyes, teeth": [(shapes.sphere, 12000, dict(radius=1.0))]
-             + [(shapes.sphere, 400, dict(radius=0.18, center=(x, 0.3, np.sqrt(1 - x * x - 0.09) - 0.08))) for x in (-0.35, 0.35)]
-             + [(shapes.sphere, 150, dict(radius=0.06, center=(x, -0.5, np.sqrt(1 - x * x - 0.25)))) for x in np.linspace(-0.25, 0.25, 6)]}[name]
-    clouds = [f(n, sampling=sampling, seed=seed + 10 * i, **kw) for i, (f, n, kw) in enumerate(parts)]
-    P = np.vstack([c.points for c in clouds])
-    spacing = np.sqrt(4 * np.pi / 4000)
-    P = P + noise * spacing * np.random.default_rng(seed).normal(size=P.shape)
-    return P, np.vstack([c.normals for c in clouds])
-
-
-def crossing(seeds=(0, 1, 2)):
-    """Closed surfaces passing through each other (the parts of artists' models, assemblies):
-    normals disagreeing with each surface's own outward normal, without and with the closed
-    sheets of step 4 (``tuning.SHEETS``). Nested spheres: the inner one wholly inside keeps the
-    whole field's answer (inward, the inner wall of a hollow ball)."""
-    print(f"\n{'crossing surfaces':22s} {'sampling':>8s} {'noise':>5s} {'points':>6s} {'wrong, sheets off':>22s} {'wrong, on (default)':>22s}")
-    for name in ("2 spheres", "3 spheres", "torus through sphere", "2 unequal spheres", "head, eyes, teeth", "nested spheres"):
-        for sampling in ("random", "poisson"):
-            for noise in (0.0, 0.1):
-                res = {}
-                for flag in (False, True):
-                    tuning.SHEETS, wrong = flag, []
-                    try:
-                        for seed in seeds:
-                            P, exact = _crossing_cloud(name, sampling, seed, noise)
-                            wrong.append(int((np.einsum("ij,ij->i", estimate_normals(P), exact) < 0).sum()))
-                    finally:
-                        tuning.SHEETS = True
-                    res[flag] = "/".join(map(str, wrong))
-                print(f"{name:22s} {sampling:>8s} {noise:5.1f} {len(P):6d} {res[False]:>22s} {res[True]:>22s}", flush=True)
-
-
-def noisy(paths, noises=(0.1, 0.3), seeds=(0, 1)):
-    """The models' vertices with Gaussian noise of ``noise`` nearest-neighbour spacings (per
-    coordinate, seeded): normals disagreeing in sign with the mesh's, with the thin-part cuts of
-    step 3 (``tuning.CUT_THIN``) off and on (the default)."""
-    from scipy.spatial import cKDTree
-
-    print(f"\n{'noisy vertices':14s} {'points':>7s} " + " ".join(f"{f'{z:g} sp, seed {s}':>16s}" for z in noises for s in seeds))
-    print(f"{'':14s} {'':>7s} " + " ".join(f"{'off -> on':>16s}" for _ in noises for _ in seeds))
-    for path in paths:
+def published_clouds(folder, names=PUBLISHED, seed=0):
+    """(name, points, reference normals) of the published clouds, their noisy and resampled variants."""
+    for name in names:
+        path = folder / f"{name}.xyz"
         if not path.exists():
-            print(f"{path.stem:14s} (missing, skipped)")
+            print(f"{name}: {path} not found, skipped")
             continue
-        P, ref, _, _ = mesh_reference(path)
-        h = np.median(cKDTree(P).query(P, 2)[0][:, 1])
-        cells = []
-        for z in noises:
-            for seed in seeds:
-                Q = P + z * h * np.random.default_rng(seed).normal(size=P.shape)
-                wrong = []
-                for cut in (0.0, tuning.CUT_THIN):
-                    saved, tuning.CUT_THIN = tuning.CUT_THIN, cut
-                    try:
-                        wrong.append(int((np.einsum("ij,ij->i", estimate_normals(Q), ref) < 0).sum()))
-                    finally:
-                        tuning.CUT_THIN = saved
-                cells.append(f"{wrong[0]:>7d} -> {wrong[1]:<5d}")
-        print(f"{path.stem:14s} {len(P):7d} " + " ".join(f"{c:>16s}" for c in cells), flush=True)
+        P, ref = _read_xyz(path)
+        yield name, P, ref
+        diag = float(np.linalg.norm(np.ptp(P, axis=0)))
+        for z in NOISE:
+            yield f"{name} {100 * z:.2f} %", P + z * diag * np.random.default_rng(seed).normal(size=P.shape), ref
+        for kind in ("gradient", "stripes"):
+            yield (f"{name} {kind}", *resample(P, ref, kind, seed))
+
+
+def _rotation(rng):
+    q = rng.normal(size=4)
+    q /= np.linalg.norm(q)
+    a, b, c, d = q
+    return np.array([[a * a + b * b - c * c - d * d, 2 * (b * c - a * d), 2 * (b * d + a * c)],
+                     [2 * (b * c + a * d), a * a - b * b + c * c - d * d, 2 * (c * d - a * b)],
+                     [2 * (b * d - a * c), 2 * (c * d + a * b), a * a - b * b - c * c + d * d]])
+
+
+def _primitive(kind, size, rng):
+    """A closed trimesh primitive of about ``size`` (vertices, faces), randomly rotated."""
+    import trimesh
+
+    if kind == "sphere":
+        m = trimesh.creation.icosphere(subdivisions=4, radius=size)
+    elif kind == "ellipsoid":
+        m = trimesh.creation.icosphere(subdivisions=4, radius=1.0)
+        m.vertices *= size * np.array([1.0, rng.uniform(0.5, 0.9), rng.uniform(0.3, 0.7)])
+    elif kind == "torus":
+        m = trimesh.creation.torus(major_radius=size, minor_radius=size * rng.uniform(0.25, 0.4), major_sections=64, minor_sections=24)
+    elif kind == "capsule":
+        m = trimesh.creation.capsule(height=2.0 * size, radius=size * rng.uniform(0.25, 0.45), count=[32, 32])
+    else:
+        m = trimesh.creation.box(extents=size * rng.uniform(0.8, 1.6, 3))
+    if m.volume < 0:  # faces wound outward: the cross products of their edges point out
+        m.invert()
+    return np.asarray(m.vertices) @ _rotation(rng).T, np.asarray(m.faces)
+
+
+def _character(rng):
+    """Parts (kind, size, centre) of a character: 24 closed parts that cross, touch and nest."""
+    parts = [("ellipsoid", 1.0, (0.0, 0.0, 0.0)), ("sphere", 0.55, (0.0, 0.0, 1.15))]  # body, head (crossing)
+    parts += [("sphere", 0.12, (x, -0.45, 1.3)) for x in (-0.2, 0.2)]  # eyes through the head
+    parts += [("box", 0.06, (x, -0.5, 0.95)) for x in np.linspace(-0.15, 0.15, 4)]  # teeth through the head
+    parts += [("capsule", 0.45, (s * 0.95, 0.0, 0.2)) for s in (-1, 1)]  # arms through the body
+    parts += [("capsule", 0.45, (s * 0.4, 0.0, -1.05)) for s in (-1, 1)]  # legs through the body
+    parts += [("sphere", 0.08, (0.0, -0.45 - 0.08 * 0.9, z)) for z in (0.25, 0.0, -0.25)]  # buttons touching
+    parts += [("torus", 0.35, (0.0, 0.0, 1.72))]  # a hat ring resting on the head
+    parts += [("sphere", 0.2, (0.3, 0.1, -0.1)), ("sphere", 0.15, (-0.3, 0.15, 0.1)), ("box", 0.2, (0.0, 0.2, -0.45))]  # nested
+    parts += [("sphere", 0.25, (1.7, 0.0, -1.2)), ("box", 0.5, (-1.8, 0.3, -1.2)), ("torus", 0.3, (1.6, 0.8, 0.6)),
+              ("sphere", 0.1, (1.6, 0.8, 0.6)), ("ellipsoid", 0.4, (-1.6, -0.9, 0.8))]  # props, one nested in a ring
+    return [(k, s * rng.uniform(0.9, 1.1), np.asarray(c) + rng.normal(scale=0.02, size=3)) for k, s, c in parts]
+
+
+def _scene(rng, n_parts=24):
+    """Random primitives in a box; about a third placed to cross, touch or sit inside an earlier one."""
+    parts = []
+    for i in range(n_parts):
+        kind = rng.choice(["sphere", "ellipsoid", "torus", "capsule", "box"])
+        size = rng.uniform(0.2, 0.6)
+        c = rng.uniform(-2.0, 2.0, 3)
+        if i and rng.random() < 0.6:
+            pk, ps, pc = parts[rng.integers(len(parts))]
+            u = rng.normal(size=3)
+            u /= np.linalg.norm(u)
+            how = rng.choice(["cross", "touch", "inside"])
+            if how == "inside" and pk in ("sphere", "ellipsoid", "box"):
+                size = 0.25 * ps
+                c = pc + 0.1 * ps * u
+            else:
+                c = pc + u * (ps + (0.5 if how == "cross" else 1.0) * size)
+        parts.append((kind, size, c))
+    return parts
+
+
+def multi_part(kind="character", seed=0, density=1200.0, noise=0.0):
+    """Points, each part's outward normals, the part of every point and the parts' kinds (area-uniform samples)."""
+    rng = np.random.default_rng(seed)
+    pts, nrm, names = [], [], []
+    for i, (k, size, c) in enumerate(_character(rng) if kind == "character" else _scene(rng)):
+        V, F = _primitive(k, size, rng)
+        tri = V[F]
+        area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1).sum()
+        p, f = sample_triangles(V, F, max(int(density * area), 60), seed=seed * 100 + i)
+        fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        pts.append(p + c)
+        names.append(k)
+        nrm.append(fn[f] / np.linalg.norm(fn[f], axis=1)[:, None])
+    P = np.vstack(pts)
+    if noise:
+        P = P + noise * np.linalg.norm(np.ptp(P, axis=0)) * rng.normal(size=P.shape)
+    part = np.repeat(np.arange(len(pts)), [len(p) for p in pts])
+    return P, np.vstack(nrm), part, names
+
+
+# ----------------------------------------------------------------------------- table
+def _row(name, P, ref, methods):
+    cells = []
+    for label in methods:
+        try:
+            n, el = METHODS[label](P)
+        except RuntimeError as exc:  # a peer that refuses the cloud (Open3D's qhull on a planar one)
+            cells.append(f"{'failed: ' + str(exc).split(':')[0]:>26s}")
+            continue
+        if ref is None:
+            cells.append(f"{'':>6s} {'':>5s} {'':>4s} {el:6.1f}s")
+        else:
+            s, r, g = metrics(n, ref)
+            cells.append(f"{s:6.2f} {r:5.1f} {g:4.0f} {el:6.1f}s")
+    print(f"{name:22s} {len(P):7d} | " + " | ".join(cells), flush=True)
+
+
+def _header(title, methods):
+    print(f"\n{title:22s} {'points':>7s} | " + " | ".join(f"{m + ': signs RMSE PGP10 time':>26s}" for m in methods))
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--data", help="folder of the published clouds (default: $MANIFOLD_SPH_NORMALS_DATA)")
+    ap.add_argument("--only", default="published,models,parts,time")
+    ap.add_argument("--peers", default="Open3D,CGAL")
+    args = ap.parse_args(argv)
+    methods = ["ours"] + [m for m in args.peers.split(",") if m in METHODS and m != "ours"]
+    only = set(args.only.split(","))
+    folder = data_dir(args.data)
+    if "published" in only:
+        _header("published clouds", methods)
+        if folder is None or not folder.exists():
+            print("(no data: give --data DIR or MANIFOLD_SPH_NORMALS_DATA; skipped)")
+        else:
+            for name, P, ref in published_clouds(folder):
+                _row(name, P, ref, methods)
+    if "models" in only:
+        _header("model vertices", methods)
+        for path in MODELS + SCANS[:1]:
+            if not path.exists():
+                print(f"{path.stem}: not found, skipped")
+                continue
+            P, ref, *_ = mesh_reference(path)
+            _row(path.stem, P, ref, methods)
+    if "parts" in only:
+        _header("multi-part models", methods)
+        for kind in ("character", "scene"):
+            for seed in (0, 1):
+                P, ref, part, _ = multi_part(kind, seed)
+                _row(f"{kind} ({part.max() + 1} parts) {seed}", P, ref, methods)
+    if "time" in only and folder is not None and folder.exists():
+        _header("100,000 points (time)", methods)
+        for name in LARGE:
+            path = folder / f"{name}.xyz"
+            if path.exists():
+                _row(name, _read_xyz(path)[0], None, methods)
 
 
 if __name__ == "__main__":
-    if "--noisy" in sys.argv:  # the models' vertices with noise, thin-part cuts of step 3 off and on
-        noisy([Path(a) for a in sys.argv[sys.argv.index("--models") + 1:] if not a.startswith("--")] if "--models" in sys.argv
-              else MODELS + SCANS[:1])
-        raise SystemExit
-    if "--crossing" in sys.argv:  # closed surfaces passing through each other, sheets of step 4 off and on
-        crossing()
-        raise SystemExit
-    variants = (("default", {}),) + ((("visible", {"orient": "visible"}),) if "--visible" in sys.argv else ())
-    variants += (("poles", {"poles": True}),) if "--poles" in sys.argv else ()
-    if "--check-loop" in sys.argv:  # the limit normals against repeated subdivision, and the two references
-        check_loop(MODELS, levels=4)
-        reference_table(MODELS + SCANS)
-        raise SystemExit
-    if "--limit" in sys.argv:  # estimated normals on the limit positions of the vertices, exact normals
-        limit_table(MODELS + SCANS[:1])
-        raise SystemExit
-    if "--random" in sys.argv:  # area-uniform random samples of the models (and --models meshes), face normals
-        paths = [Path(a) for a in sys.argv[sys.argv.index("--models") + 1:] if not a.startswith("--")] if "--models" in sys.argv else MODELS
-        seeds = (0, 1)
-        for a in sys.argv:  # --seeds=0-7 or --seeds=0,3,5
-            if a.startswith("--seeds="):
-                v = a.split("=", 1)[1]
-                lo, _, hi = v.partition("-")
-                seeds = tuple(range(int(lo), int(hi) + 1)) if hi else tuple(int(x) for x in v.split(","))
-        random_table(paths, variants=variants, seeds=seeds)
-        raise SystemExit
-    if "--models" in sys.argv:  # any meshes: python benchmarks/normals.py --models a.obj b.ply ...
-        model_table([Path(a) for a in sys.argv[sys.argv.index("--models") + 1:] if not a.startswith("--")], variants=variants)
-        raise SystemExit
-    if "--visible" in sys.argv or "--poles" in sys.argv:  # --visible / --poles: the models with orient="visible" / poles=True too
-        model_table(MODELS + SCANS[:1], variants=variants)
-        raise SystemExit
-    quick = "--quick" in sys.argv
-    model_table(MODELS + SCANS[: 1 if quick else 2])
-    limit_table(MODELS + SCANS[:1])
-    orders(quick)
-    synthetic()
+    main()

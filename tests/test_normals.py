@@ -540,6 +540,9 @@ def test_confidence_thickness_term_ignores_noise(monkeypatch):
     # (module notes); measured 1.4 % below 0.5 (0.9 % without the term, 11.5 % without the guard)
     c = shapes.sphere(3000, sampling="poisson")
     p = c.points + 0.3 * np.sqrt(4 * np.pi / 3000) * np.random.default_rng(2).standard_normal(c.points.shape)
+    _, conf = estimate_normals(p, return_confidence=True)  # the noisy path
+    assert np.mean(conf < 0.5) < 0.03
+    monkeypatch.setattr(tuning, "NOISE_CLEAN", np.inf)  # the clean path
     _, conf = estimate_normals(p, return_confidence=True)
     assert np.mean(conf < 0.5) < 0.03
     monkeypatch.setattr(tuning, "THIN_NOISE", 0.0)
@@ -789,11 +792,16 @@ def test_closed_surfaces_passing_through_each_other_face_out(monkeypatch, sampli
     assert (dots(estimate_normals(P), exact) < 0).sum() >= 0.1 * len(P)  # the test can tell
 
 
-def test_sphere_wholly_inside_another_keeps_the_whole_fields_answer():
-    # nested closed spheres: the inner one is the inner wall of a hollow ball (normals into the
-    # cavity), as without the closed sheets; a sheet wholly inside another keeps the whole field
+@pytest.mark.parametrize("noise", [0.0, 0.3])
+def test_sphere_wholly_inside_another_is_a_part_or_a_cavity(noise):
+    # nested closed spheres: by default the inner one is a part of its own (normals out of it);
+    # nested="cavity" reads it as the inner wall of a hollow ball (normals into the cavity).
+    # Clean and noisy (0.3 spacings: the noisy path)
     P, exact = _crossing_spheres([(4000, 1.0, (0, 0, 0)), (1000, 0.5, (0.1, 0, 0))])
+    P = P + noise * np.sqrt(4 * np.pi / 4000) * np.random.default_rng(0).normal(size=P.shape)
     d = dots(estimate_normals(P), exact)
+    assert (d[:4000] < 0).sum() == 0 and (d[4000:] < 0).sum() == 0
+    d = dots(estimate_normals(P, nested="cavity"), exact)
     assert (d[:4000] < 0).sum() == 0 and (d[4000:] < 0).sum() == 1000
 
 
@@ -836,6 +844,128 @@ def test_noise_is_not_a_thin_part(monkeypatch, name, seed, before, after):
     P, ref = _mesh_reference(name)
     h = np.median(cKDTree(P).query(P, 2)[0][:, 1])
     Q = P + 0.3 * h * np.random.default_rng(seed).normal(size=P.shape)
+    assert (dots(estimate_normals(Q), ref) < 0).sum() <= after  # the default: the noisy path (alligator 0, teapot 235)
+    monkeypatch.setattr(tuning, "NOISE_CLEAN", np.inf)  # the clean path, where the cuts of step 3 act
     assert (dots(estimate_normals(Q), ref) < 0).sum() <= after
     monkeypatch.setattr(tuning, "CUT_THIN", 0.0)
     assert (dots(estimate_normals(Q), ref) < 0).sum() >= 0.8 * before  # the test can tell
+
+
+# ----------------------------------------------------------------------------- k="auto", global orientation
+def _noisy_sphere(n=4000, noise=0.3, seed=0):
+    """Area-uniform random points of the unit sphere with Gaussian noise of ``noise`` spacings
+    (per coordinate); the exact normals of the points before the noise."""
+    c = shapes.sphere(n, sampling="random", seed=seed)
+    h = np.sqrt(4 * np.pi / n)
+    return c.points + noise * h * np.random.default_rng(seed + 100).normal(size=c.points.shape), c.normals, h
+
+
+@pytest.mark.parametrize("noise", [0.0, 0.2, 0.5])
+def test_noise_level_reads_the_noise_not_the_shape(noise):
+    # Gaussian noise of s per coordinate puts s along the normal: the two-scale residual
+    # decomposition reads it within 25 %, and about 0 on a clean, strongly curved cloud
+    # (a torus of tube radius 0.25 on 3000 points: its quadric fits are biased, not noisy)
+    from manifold_sph.normals.fitting import covariance, knn
+    from manifold_sph.normals.scale import noise_level
+
+    P, _, h = _noisy_sphere(4000, noise)
+    dist, idx = knn(P, 32)
+    sigma, spacing = noise_level(P, idx, dist, covariance(P, idx[:, :10])[1][:, :, 0])
+    if noise:
+        assert abs(np.median(sigma) / (noise * h) - 1.0) < 0.25
+    else:
+        assert np.median(sigma) < 0.02 * h
+    T = shapes.torus(3000, R=1.0, r=0.25).points
+    dist, idx = knn(T, 32)
+    sigma, spacing = noise_level(T, idx, dist, covariance(T, idx[:, :10])[1][:, :, 0])
+    assert np.median(sigma / spacing) < 0.05
+
+
+def test_auto_scale_follows_the_noise():
+    # the neighbourhood grows with the relative noise: 16 on a clean cloud, more on a noisy one,
+    # and the noisy sphere's normals are more accurate than with the clean default (k=16)
+    from manifold_sph.normals import tuning
+    from manifold_sph.normals.scale import auto_k
+
+    sp = np.ones(5)
+    assert list(auto_k(np.array([0.0, 0.1, 0.3, 0.5, 1.0]), sp, 10000)) == [16, 16, 32, 64, 96]
+    assert auto_k(np.array([1.0]), np.ones(1), 50)[0] <= 50
+    P, exact, h = _noisy_sphere(4000, 0.5)
+    err_auto = np.degrees(np.arccos(np.clip(dots(estimate_normals(P), exact), -1, 1)))
+    err_16 = np.degrees(np.arccos(np.clip(np.abs(dots(estimate_normals(P, k=tuning.DEFAULT_JET_K[2]), exact)), 0, 1)))
+    assert err_auto.max() < 90  # all outward (with k=16, some are not)
+    assert np.sqrt(np.mean(err_auto**2)) < 0.6 * np.sqrt(np.mean(err_16**2))  # unsigned angles; measured 0.4
+
+
+@pytest.mark.parametrize("noise", [0.3, 0.6])
+def test_global_orientation_of_random_signs_on_noisy_clouds(noise):
+    # exact directions with random signs on a noisy sphere and a noisy torus next to it (two
+    # closed parts): the patches, their winding-number signs and the attached rest give every
+    # normal its outward sign
+    from manifold_sph.normals.fitting import knn
+    from manifold_sph.normals.patches import global_orientation
+
+    a = shapes.sphere(3000, sampling="random", seed=1)
+    b = shapes.torus(4000, center=(3.5, 0.0, 0.0), sampling="random", seed=2)
+    P = np.vstack([a.points, b.points])
+    exact = np.vstack([a.normals, b.normals])
+    h = np.sqrt(4 * np.pi / 3000)
+    P = P + noise * h * np.random.default_rng(3).normal(size=P.shape)
+    signs = np.where(np.random.default_rng(4).random(len(P)) < 0.5, -1.0, 1.0)[:, None]
+    dist, idx = knn(P, 32)
+    n, _ = global_orientation(P, signs * exact, idx, dist, np.full(len(P), noise * h))
+    assert (dots(n, exact) < 0).sum() <= 0.002 * len(P)
+
+
+def test_dipole_agreement_on_a_sheet_and_across_a_thin_part():
+    from manifold_sph.normals.patches import dipole_agreement
+
+    P = np.array([[0.0, 0, 0], [1, 0, 0], [0, 0, 0.5]])
+    up = np.array([0.0, 0, 1])
+    n = np.array([up, up, -up])  # a sheet (0, 1) and the other side of a thin plate (2, facing away)
+    a, b = np.array([0, 0]), np.array([1, 2])
+    assert np.all(dipole_agreement(P, n, a, b, np.zeros(3)) > 0)
+    assert np.all(dipole_agreement(P, -n * np.array([[1], [-1], [-1]]), a, b, np.zeros(3)) < 0)
+    # noise larger than the thickness: the edge across reads as lying in the plane (the sign of n . n)
+    assert dipole_agreement(P, n, a[1:], b[1:], np.full(3, 1.0))[0] < 0
+
+
+def test_integer_signs_recover_crossing_spheres():
+    # two spheres through each other, cut into 8 patches, three flipped: the field counting whole
+    # parts (1 inside one sphere, 2 inside both) is restored by flipping them back
+    from manifold_sph.normals.fitting import knn
+    from manifold_sph.normals.winding import integer_signs, winding_numbers
+
+    a = shapes.sphere(3000, sampling="random", seed=0)
+    b = shapes.sphere(2000, radius=0.7, center=(1.0, 0, 0), sampling="random", seed=1)
+    P = np.vstack([a.points, b.points])
+    exact = np.vstack([a.normals, b.normals])
+    lab = (np.arange(len(P)) >= 3000) * 4 + (P[:, 1] > 0) * 2 + (P[:, 2] > 0)
+    s0 = np.ones(8)
+    s0[[1, 5, 6]] = -1.0
+    n = exact * s0[lab][:, None]
+    dist, _ = knn(P, 8)
+    area = np.pi * dist[:, 7] ** 2 / 7.5
+    h = np.sqrt(area)
+    W = winding_numbers(np.vstack([P - h[:, None] * n, P + h[:, None] * n]), P, n, area, 0.2 * h, lab, 8)
+    assert np.array_equal(integer_signs(W, lab, np.ones(8), area), s0)
+
+
+def test_point_like_input_everywhere():
+    from manifold_sph import PointCloud
+    from manifold_sph.normals import jet_normals, voronoi_poles
+
+    c = shapes.sphere(500)
+    pc = PointCloud(c.points)
+    np.testing.assert_array_equal(estimate_normals(pc), estimate_normals(c.points))
+    np.testing.assert_array_equal(pca_normals(pc)[0], pca_normals(c.points)[0])
+    np.testing.assert_array_equal(jet_normals(pc), jet_normals(c.points))
+    np.testing.assert_array_equal(orient_normals(pc, c.normals)[0], orient_normals(c.points, c.normals)[0])
+    np.testing.assert_array_equal(voronoi_poles(pc)[0], voronoi_poles(c.points)[0])
+
+
+@pytest.mark.parametrize("kwargs, match", [({"k": "wide"}, "k must be a positive integer or 'auto'"),
+                                           ({"nested": "hollow"}, "nested must be one of")])
+def test_bad_auto_arguments(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        estimate_normals(shapes.sphere(200).points, **kwargs)

@@ -1,12 +1,20 @@
-"""The entry point: :func:`estimate_normals`, fitted, oriented and outward normals of a bare cloud."""
+"""The entry point: :func:`estimate_normals`, fitted, oriented and outward normals of a bare cloud.
+
+With the default ``k="auto"`` the noise level of every region is measured first
+(:func:`~manifold_sph.normals.scale.noise_level`). A clean cloud (mesh vertices, analytic
+samples) takes the weighted jet fits on ``tuning.DEFAULT_JET_K`` neighbours, the propagation of
+:mod:`.orientation` and the refinements of ``docs/normals.md`` (steps 1-9). A noisy cloud (a scan)
+takes fits whose neighbourhood grows with the local noise (:func:`~manifold_sph.normals.scale.auto_k`),
+normals averaged over neighbours with a similar normal line, and the global orientation of
+:mod:`.patches`. Last, every closed part is turned outward on its own (:mod:`.shells`).
+"""
+
 
 from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .._validation import as_points
-from ..pointcloud import as_cloud, is_point_array
 from . import tuning
 from .confidence import scale_confidence, thin_confidence
 from .consensus import consensus_normals
@@ -17,21 +25,28 @@ from .fitting import (
     distance_weights,
     high_order,
     jet_fit,
+    jet_fit_per_row,
     knn,
     n_coefficients,
+    point_array,
     refit,
     shape_confidence,
     sharpened_weights,
+    smooth_normals,
 )
-from .orientation import apply_orientation, check_orient
+from .orientation import apply_orientation, check_orient, orient_to_view
+from .patches import attach_agreement, correct_parts, global_orientation
 from .poles import pole_signs
 from .rows import rows_step, steep_counts
+from .scale import auto_k, noise_level
+from .shells import separate_parts
 from .visibility import visible_signs
 
 
-def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: str | ArrayLike = "outward",
-                     return_confidence: bool = False, method: str = "jet", degree: int | None = None,
-                     refine: bool = True, poles: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+def estimate_normals(points: ArrayLike, k: int | str | None = "auto", *, orient: str | ArrayLike = "outward",
+                     nested: str = "separate", return_confidence: bool = False, method: str = "jet",
+                     degree: int | None = None, refine: bool = True,
+                     poles: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """Estimate unit normals of a point cloud: fitted, consistently oriented and outward.
 
     Parameters
@@ -40,17 +55,22 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: str | A
         At least 3 distinct points; N >= k. A PointCloud, Surface, file path or Open3D /
         PyVista / trimesh object gives its points (:func:`manifold_sph.as_cloud`; their
         own normals are not used).
-    k : int, optional
-        Nearest neighbours per particle, itself included. Default: for
-        ``method="jet"`` :data:`~manifold_sph.normals.tuning.DEFAULT_JET_K` of the degree (16 for degree 2; at
-        least the number of coefficients plus 2), for ``method="pca"`` 16
-        (capped at N). Use more on noisy clouds.
+    k : int or "auto"
+        Nearest neighbours per particle, itself included. "auto" (the default, also ``None``):
+        the scale follows the noise, region by region (module notes): clean clouds take
+        :data:`~manifold_sph.normals.tuning.DEFAULT_JET_K` of the degree (16 for degree 2),
+        noisy ones up to 96. An int is honoured as given (uniform weights; at least the number
+        of coefficients plus 2). For ``method="pca"``, "auto" is 16 (capped at N).
     orient : {"outward", "visible", "consistent", "none"} or array_like, shape (3,)
-        See :func:`orient_normals`. "outward" (the default) propagates a consistent
-        orientation and checks it globally with the winding number, so that every
-        component points out. "visible" then corrects the signs by visibility from
-        outside (after steps 5-7): for closed surfaces with thin parts; wrong on open
-        or nested surfaces seen from inside through an opening (docs/normals.md, step 8).
+        See :func:`orient_normals`. "outward" (the default) orients the whole cloud
+        consistently and checks it with the winding number, so that every part points out.
+        "visible" then corrects the signs by visibility from outside: for closed surfaces
+        with thin parts; wrong on open or nested surfaces seen from inside through an opening
+        (docs/normals.md, step 8). A point (3,): every normal towards that viewpoint.
+    nested : {"separate", "cavity"}
+        A closed part inside another: "separate" (the default) reads it as a part of its own,
+        normals out of it; "cavity" as the inner wall of a hollow body, normals into the
+        cavity. Only with ``orient="outward"`` or ``"visible"``.
     return_confidence : bool
         Also return the per-particle confidence (docs/normals.md, confidence).
     method : {"jet", "pca"}
@@ -58,9 +78,9 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: str | A
         surfaces; "pca": the covariance normal (first order).
     degree : int, optional
         Degree of the jet, 1 to 4 (default 2: second order; 3 and 4 for
-        high-order schemes). Only with ``method="jet"``.
+        high-order schemes; noisy clouds are fitted at degree 2). Only with ``method="jet"``.
     refine : bool
-        After orientation, refit each particle with only the neighbours whose
+        On clean clouds, after orientation, refit each particle with only the neighbours whose
         normal agrees with its own (no averaging across creases or thin parts),
         then choose the direction of undetermined normals (thin or anisotropically
         sampled parts) among fits on several neighbourhoods by agreement with the
@@ -86,7 +106,7 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: str | A
     Raises
     ------
     ValueError
-        On a bad ``points`` array, ``k``, ``orient``, ``method`` or ``degree``.
+        On a bad ``points`` array, ``k``, ``orient``, ``nested``, ``method`` or ``degree``.
     TypeError
         On a ``k`` or ``degree`` that is not an integer, or a non-bool flag.
 
@@ -99,31 +119,82 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: str | A
     >>> float(np.einsum("ij,ij->i", n, cloud.normals).min().round(3)), bool(conf.min() > 0.9)
     (1.0, True)
     """
-    pts = as_points("points", points if is_point_array(points) else as_cloud(points).points)
+    pts = point_array(points)
     N = pts.shape[0]
     if N < 3:
         raise ValueError(f"points must hold at least 3 points to estimate normals, got {N}")
     if not isinstance(method, str) or method not in tuning.METHODS:
         raise ValueError(f"method must be one of {list(tuning.METHODS)}, got {method!r}")
+    if not isinstance(nested, str) or nested not in tuning.NESTED:
+        raise ValueError(f"nested must be one of {list(tuning.NESTED)}, got {nested!r}")
     for name, flag in (("return_confidence", return_confidence), ("refine", refine), ("poles", poles)):
         if not isinstance(flag, (bool, np.bool_)):
             raise TypeError(f"{name} must be a bool, got {type(flag).__name__} {flag!r}")
+    auto = k is None or (isinstance(k, str) and k == "auto")
+    if isinstance(k, str) and not auto:
+        raise ValueError(f"k must be a positive integer or 'auto', got {k!r}")
+    orient = check_orient(orient)
     if method == "pca":
         if degree is not None:
             raise ValueError(f"degree applies only to method='jet', got degree={degree!r} with method='pca'")
-        k = check_k(min(tuning.DEFAULT_K, N) if k is None else k, N)
-    else:
-        degree = check_degree(2 if degree is None else degree)
-        weighted = k is None  # an explicit k (e.g. a larger one for noise) is fitted with uniform weights
-        if k is None:
-            k = tuning.DEFAULT_JET_K[degree]
-            if k > N:
-                raise ValueError(f"points must hold at least {k} points for a degree-{degree} jet fit with the default k, got {N}")
-        k = check_k(k, N, degree)
-    orient = check_orient(orient)
+        k = check_k(min(tuning.DEFAULT_K, N) if auto else k, N)
+        return _clean(pts, k, orient, nested, return_confidence, method, None, refine, poles, True)
+    degree = check_degree(2 if degree is None else degree)
+    if not auto:  # an explicit k (e.g. a larger one for noise) is fitted with uniform weights
+        return _clean(pts, check_k(k, N, degree), orient, nested, return_confidence, method, degree, refine, poles, False)
+    k = tuning.DEFAULT_JET_K[degree]
+    if k > N:
+        raise ValueError(f"points must hold at least {k} points for a degree-{degree} jet fit with the default k, got {N}")
+    if N < max(2 * tuning.NOISE_K, tuning.NOISE_REGION, tuning.ATTACH_K):  # too few to read the noise
+        return _clean(pts, k, orient, nested, return_confidence, method, degree, refine, poles, True)
+    dist, idx = knn(pts, max(tuning.NOISE_REGION, 2 * tuning.NOISE_K, tuning.ATTACH_K, tuning.ROW_K))
+    _, v = covariance(pts, idx[:, : tuning.PCA_K])
+    sigma, spacing = noise_level(pts, idx, dist, v[:, :, 0])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        nu = np.where(spacing > 0, sigma / spacing, 0.0)
+    if np.mean(nu >= tuning.NOISE_CLEAN) < tuning.NOISY_SHARE:
+        return _clean(pts, k, orient, nested, return_confidence, method, degree, refine, poles, True, (dist, idx))
+    return _noisy(pts, dist, idx, sigma, spacing, nu, orient, nested, return_confidence)
+
+
+def _noisy(pts, dist, idx, sigma, spacing, nu, orient, nested, return_confidence):
+    """Scale that follows the noise, smoothing of similar normal lines, global orientation (module notes)."""
+    N = pts.shape[0]
+    ks = auto_k(sigma, spacing, N)
+    if ks.max() > idx.shape[1]:
+        dist, idx = knn(pts, int(ks.max()))
+    w, v = covariance(pts, idx[:, : tuning.NOISY_FRAME_K])
+    res = np.zeros(N)
+    nrm = jet_fit_per_row(pts, idx, v[:, :, 0], ks, 2, residual=res)
+    res = res * dist[np.arange(N), ks - 1]  # a length
+    strength = np.clip((nu - tuning.NOISE_CLEAN) / tuning.NOISE_CLEAN, 0.0, 1.0)
+    nrm = smooth_normals(pts, idx[:, : tuning.SMOOTH_K], nrm, strength)
+    good = np.ones(N, dtype=bool)
+    if not isinstance(orient, str):
+        nrm = orient_to_view(pts, nrm, orient)
+    elif orient != "none":
+        nrm, good = global_orientation(pts, nrm, idx, dist, sigma, res)
+        if orient in ("outward", "visible"):
+            nrm = separate_parts(pts, nrm, idx, dist, nested, sigma)
+        if orient == "visible":
+            nrm, _ = visible_signs(pts, nrm)
+    if not return_confidence:
+        return nrm
+    noise = float(np.median(sigma / np.maximum(dist[:, tuning.THIN_K - 1], 1e-300)))
+    oconf = np.where(good, 1.0, attach_agreement(pts, nrm, idx[:, : tuning.ATTACH_K], sigma))
+    return nrm, shape_confidence(w) * oconf * thin_confidence(pts, idx[:, : tuning.THIN_K], dist[:, : tuning.THIN_K], nrm, noise)
+
+
+def _clean(pts, k, orient, nested, return_confidence, method, degree, refine, poles, weighted, knn_result=None):
+    """Jet (or PCA) fits on ``k`` neighbours, propagation and the refinements of docs/normals.md (steps 1-9)."""
+    N = pts.shape[0]
     consensus = method == "jet" and bool(refine) and not (isinstance(orient, str) and orient == "none")
     k_consensus = max(max(kc for kc, _ in tuning.CONSENSUS_CANDIDATES), tuning.ROW_K) if consensus else 0
-    dist, idx = knn(pts, min(max(k, tuning.ORIENT_K, tuning.SCALE_K[-1] if return_confidence else 0, k_consensus), N))
+    kq = min(max(k, tuning.ORIENT_K, tuning.SCALE_K[-1] if return_confidence else 0, k_consensus), N)
+    if knn_result is not None and knn_result[1].shape[1] >= kq:
+        dist, idx = knn_result[0][:, :kq], knn_result[1][:, :kq]
+    else:
+        dist, idx = knn(pts, kq)
     refine = bool(refine) and not (isinstance(orient, str) and orient == "none")
     vor = None
     if poles and isinstance(orient, str) and orient in ("outward", "visible"):
@@ -168,6 +239,10 @@ def estimate_normals(points: ArrayLike, k: int | None = None, *, orient: str | A
                 nrm, before = consensus_normals(pts, idx, nrm, one_sided, pole=vor[0])
     if vor is not None:  # step 9: signs from the winding number at the Voronoi poles
         nrm, _ = pole_signs(pts, nrm, dist, vor)
+    if isinstance(orient, str) and orient in ("outward", "visible"):
+        if tuning.CORRECT_PARTS and idx.shape[1] >= tuning.ATTACH_K:
+            nrm = correct_parts(pts, nrm, idx, dist)
+        nrm = separate_parts(pts, nrm, idx, dist, nested)
     if isinstance(orient, str) and orient == "visible":
         nrm, _ = visible_signs(pts, nrm)
     if not return_confidence:

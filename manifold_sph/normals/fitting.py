@@ -18,8 +18,15 @@ from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 
 from .._validation import as_points, check_int
+from ..pointcloud import as_cloud, is_point_array
 from ..threads import get_num_threads
 from . import tuning
+
+
+def point_array(points: object) -> np.ndarray:
+    """The (N, 3) points of an array or of anything point-like (PointCloud, Surface, path, Open3D /
+    PyVista / trimesh object; :func:`manifold_sph.as_cloud`), validated."""
+    return as_points("points", points if is_point_array(points) else as_cloud(points).points)
 
 
 def unit(v: np.ndarray) -> np.ndarray:
@@ -72,12 +79,15 @@ def n_coefficients(degree: int) -> int:
 
 
 def jet_fit(pts: np.ndarray, neighbors: np.ndarray, frame: np.ndarray, degree: int | np.ndarray, weights: np.ndarray | None = None, residual: np.ndarray | None = None,
-             centers: np.ndarray | None = None) -> np.ndarray:
+            centers: np.ndarray | None = None, kurtosis: np.ndarray | None = None) -> np.ndarray:
     """Normals of degree-``degree`` height-function fits in the tangent frames of ``frame``.
 
     ``degree`` is an int or a per-particle int array (0 keeps the frame normal);
     ``weights`` (N, k) zero out neighbours. Rows are batched by degree. Row ``r`` is
     centred on ``pts[r]``, or on ``centers[r]`` when given (fits of a subset of rows).
+    ``residual`` (N,) receives the weighted RMS residual over the fit radius, ``kurtosis`` (N,)
+    the weighted ``mean(r^4) / mean(r^2)^2`` of the residuals (3 for Gaussian noise, near 1 for
+    two layers: the two sides of a part thinner than the neighbourhood).
     """
     centers = pts if centers is None else centers
     N = frame.shape[0]
@@ -110,9 +120,14 @@ def jet_fit(pts: np.ndarray, neighbors: np.ndarray, frame: np.ndarray, degree: i
             n = frame[r] - gx[:, None] * t1[r] - gy[:, None] * t2[r]
             ok = np.all(np.isfinite(n), axis=1)
             out[r[ok]] = unit(n[ok])
-            if residual is not None:
+            if residual is not None or kurtosis is not None:
                 res = z - np.einsum("nkp,np->nk", V, c)
+            if residual is not None:
                 residual[r] = np.sqrt((w * res * res).sum(axis=1) / np.maximum(w.sum(axis=1), 1e-300)) / s[:, 0]
+            if kurtosis is not None:
+                m2 = (w * res**2).sum(axis=1)
+                m4 = (w * res**4).sum(axis=1) * w.sum(axis=1)
+                kurtosis[r] = np.where(m2 > 0, m4 / np.maximum(m2 * m2, 1e-300), 3.0)
     return out
 
 
@@ -218,7 +233,7 @@ def pca_normals(points: ArrayLike, k: int = tuning.DEFAULT_K, *, neighbors: Arra
 
     Parameters
     ----------
-    points : array_like, shape (N, 3)
+    points : array_like (N, 3), or anything point-like (a PointCloud, Surface, path, ...)
     k : int
         Neighbours per particle, itself included (at least 3, below N).
     neighbors : ndarray of int, shape (N, k), optional
@@ -240,7 +255,7 @@ def pca_normals(points: ArrayLike, k: int = tuning.DEFAULT_K, *, neighbors: Arra
     >>> float(np.abs(n[:, 2]).min().round(6)), float(c.min().round(6))
     (1.0, 1.0)
     """
-    pts = as_points("points", points)
+    pts = point_array(points)
     if neighbors is None:
         k = check_int("k", k, minimum=3)
         if k > pts.shape[0]:
@@ -255,7 +270,7 @@ def jet_normals(points: ArrayLike, k: int | None = None, *, degree: int = 2, nei
 
     Parameters
     ----------
-    points : array_like, shape (N, 3)
+    points : array_like (N, 3), or anything point-like (a PointCloud, Surface, path, ...)
     k : int, optional
         Neighbours per particle, itself included (default :data:`tuning.DEFAULT_JET_K`
         of the degree; at least the number of coefficients plus 2).
@@ -278,7 +293,7 @@ def jet_normals(points: ArrayLike, k: int | None = None, *, degree: int = 2, nei
     >>> bool(np.abs(np.einsum("ij,ij->i", n, c.normals)).min() > np.cos(np.radians(0.05)))
     True
     """
-    pts = as_points("points", points)
+    pts = point_array(points)
     degree = check_degree(degree)
     if neighbors is None:
         k = tuning.DEFAULT_JET_K[degree] if k is None else k

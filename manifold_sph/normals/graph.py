@@ -37,7 +37,8 @@ def tree_signs(n_nodes: int, mst: sp.csr_matrix, roots: np.ndarray, edge_sign_fn
     parent = np.where((pred >= 0) & (pred < n_nodes), pred, idx)
     sign = np.ones(n_nodes)
     nodes = np.flatnonzero(parent != idx)
-    sign[nodes] = edge_sign_fn(nodes, parent[nodes])
+    if nodes.size:
+        sign[nodes] = edge_sign_fn(nodes, parent[nodes])
     anc = parent
     while True:  # pointer jumping: sign relative to anc, whose distance doubles each step
         sign = sign * sign[anc]

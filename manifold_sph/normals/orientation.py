@@ -19,7 +19,7 @@ from scipy.spatial import cKDTree
 from .._validation import as_points, check_int
 from ..threads import get_num_threads
 from . import tuning
-from .fitting import knn, unit
+from .fitting import knn, point_array, unit
 from .graph import graph_edges, orientation_graph, spanning_forest
 from .shells import closed_sheets
 from .visibility import visible_signs
@@ -207,15 +207,19 @@ def check_orient(orient: str | np.ndarray) -> str | np.ndarray:
     return orient
 
 
+def orient_to_view(pts: np.ndarray, nrm: np.ndarray, view: np.ndarray) -> np.ndarray:
+    """Every normal flipped towards the viewpoint ``view`` (3,)."""
+    s = np.sign(np.einsum("ij,ij->i", view - pts, nrm))
+    s[s == 0] = 1.0
+    return nrm * s[:, None]
+
+
 def apply_orientation(pts: np.ndarray, nrm: np.ndarray, neighbors: np.ndarray, distances: np.ndarray, orient: str | np.ndarray, noise: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Orient unit normals; returns (normals, component labels, orientation confidence)."""
     N = pts.shape[0]
     if not isinstance(orient, str):
-        s = np.sign(np.einsum("ij,ij->i", orient - pts, nrm))
-        s[s == 0] = 1.0
-        return nrm * s[:, None], np.zeros(N, dtype=np.int64), np.ones(N)
+        return orient_to_view(pts, nrm, orient), np.zeros(N, dtype=np.int64), np.ones(N)
     if orient == "none":
-        _, _, _, _ = None, None, None, None
         n, comps = nrm.copy(), _consistent(pts, nrm, neighbors)[1]
         return n, comps, np.ones(N)
     if orient == "consistent":
@@ -230,7 +234,8 @@ def orient_normals(points: ArrayLike, normals: ArrayLike, k: int = tuning.DEFAUL
 
     Parameters
     ----------
-    points, normals : array_like, shape (N, 3)
+    points : array_like (N, 3), or anything point-like (a PointCloud, Surface, path, ...)
+    normals : array_like, shape (N, 3)
     k : int
         Neighbours per particle of the orientation graph (itself included).
     orient : {"outward", "visible", "consistent", "none"} or array_like, shape (3,)
@@ -261,7 +266,7 @@ def orient_normals(points: ArrayLike, normals: ArrayLike, k: int = tuning.DEFAUL
     >>> bool(np.allclose(n, cloud.normals)), int(labels.max()) + 1
     (True, 1)
     """
-    pts = as_points("points", points)
+    pts = point_array(points)
     nrm = as_points("normals", normals)
     N = pts.shape[0]
     if nrm.shape != pts.shape:

@@ -33,9 +33,9 @@ from scipy.spatial import cKDTree
 from ..threads import get_num_threads
 from . import tuning
 from .graph import tree_signs
-from .winding import best_signs, objective, winding_numbers
+from .winding import best_signs, integer_signs, objective, winding_numbers
 
-__all__ = ["global_orientation", "unsafe_particles", "dipole_agreement"]
+__all__ = ["attach_agreement", "correct_parts", "dipole_agreement", "global_orientation", "unsafe_particles"]
 
 
 def _edges(pts: np.ndarray, nrm: np.ndarray, neighbors: np.ndarray, sigma: np.ndarray):
@@ -123,6 +123,18 @@ def _attach(pts, out, neighbors, done, sigma):
     return out, done
 
 
+def attach_agreement(pts: np.ndarray, nrm: np.ndarray, neighbors: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+    """Share of the dipole predictions of the nearest (``neighbors``, itself first) that agree with each sign.
+
+    1 where all neighbours' dipoles agree, 0.5 where they are split: the orientation confidence
+    of particles outside the safe patches.
+    """
+    N, k = neighbors.shape
+    agree = dipole_agreement(pts, nrm, np.repeat(np.arange(N), k - 1), neighbors[:, 1:].ravel(), sigma).reshape(N, k - 1)
+    total = np.abs(agree).sum(axis=1)
+    return np.where(total > 0, 0.5 + 0.5 * agree.sum(axis=1) / np.maximum(total, 1e-300), 1.0).clip(0.0, 1.0)
+
+
 def _repair(pts, out, neighbors, sigma, area, h):
     """Regions whose probes read the field far from 1 are flipped where that lowers the objective."""
     N = pts.shape[0]
@@ -158,6 +170,61 @@ def _repair(pts, out, neighbors, sigma, area, h):
     return out
 
 
+def _areas(distances):
+    ka = min(8, distances.shape[1])
+    r = distances[:, ka - 1]
+    r = np.where(r > 0, r, np.median(r[r > 0]) if np.any(r > 0) else 1.0)
+    area = np.pi * r**2 / max(ka - 0.5, 1.0)
+    return area, np.sqrt(area)
+
+
+def _safe_patches(pts, nrm, neighbors, sigma, residual, h):
+    """Labels of the safe patches (components of the safe edges) and each particle's sign inside its patch."""
+    N = pts.shape[0]
+    ko = min(tuning.ORIENT_K, neighbors.shape[1])
+    a, b, d, tilt = _edges(pts, nrm, neighbors[:, :ko], sigma)
+    unsafe = unsafe_particles(pts, nrm, neighbors, sigma, residual, 1e-3 * float(np.median(h)))
+    safe = (np.abs(d) > tuning.SAFE_DOT) & (tilt < tuning.SAFE_TILT) & ~unsafe[a] & ~unsafe[b]
+    sa, sb, sg = a[safe], b[safe], np.where(d[safe] < 0, -1.0, 1.0)
+    G = sp.coo_matrix((np.ones(sa.size), (sa, sb)), shape=(N, N)).tocsr()
+    _, lab = csgraph.connected_components(G, directed=False)
+    T = csgraph.minimum_spanning_tree(G).tocsr()  # a spanning forest of the safe edges
+    Sg = sp.coo_matrix((sg, (sa, sb)), shape=(N, N)).tocsr()
+    Sg = Sg + Sg.T
+    roots = np.unique(lab, return_index=True)[1]
+    return lab, tree_signs(N, T + T.T, roots, lambda c, p: np.sign(np.asarray(Sg[c, p]).ravel()))
+
+
+def _calibrated(pts, nrm, neighbors, sigma, area, h):
+    """Areas divided by the measured jump of the winding number across each particle (clipped to [1, 4]).
+
+    The jump ``w_in - w_out`` does not depend on the orientation (the far field cancels in the
+    difference): it is the local dipole density over the true one, above 1 where the areas
+    ``pi r_8^2 / 7.5`` are too large (coarse, strongly curved parts: thin tubes, small parts).
+    """
+    N = pts.shape[0]
+    probes = _sample(np.arange(N), tuning.MAX_PROBES)
+    W = winding_numbers(_probes(pts, nrm, h, sigma, probes), pts, nrm, area, 0.2 * h, np.zeros(N, dtype=np.int64), 1)[:, 0]
+    jump = np.abs(W[: probes.size] - W[probes.size :])
+    near = np.arange(N) if probes.size == N else cKDTree(pts[probes]).query(pts, k=1, workers=get_num_threads())[1]
+    ko = min(tuning.ORIENT_K, neighbors.shape[1])
+    return area / np.clip(np.median(jump[near][neighbors[:, :ko]], axis=1), 1.0, 4.0)
+
+
+def _patch_fields(pts, out, lab, sigma, area, h):
+    """The patches of at least ``tuning.PATCH_MIN`` particles, their fields at the probes of their particles."""
+    size = np.bincount(lab)
+    good = size[lab] >= tuning.PATCH_MIN
+    big = np.flatnonzero(size >= tuning.PATCH_MIN)
+    ids = np.full(size.size, -1, dtype=np.int64)
+    ids[big] = np.arange(big.size)
+    plab = np.where(good, ids[lab], big.size)  # the last label: particles in no patch (no field)
+    probes = _sample(np.flatnonzero(good), tuning.MAX_PROBES)
+    W = winding_numbers(_probes(pts, out, h, sigma, probes), pts, np.where(good[:, None], out, 0.0), area, 0.2 * h,
+                        plab, big.size + 1)[:, : big.size]
+    return good, plab, probes, W
+
+
 def global_orientation(pts: np.ndarray, nrm: np.ndarray, neighbors: np.ndarray, distances: np.ndarray,
                        sigma: np.ndarray, residual: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Orient unit normals over the whole cloud at once (module notes); returns the normals and the safe mask.
@@ -173,42 +240,58 @@ def global_orientation(pts: np.ndarray, nrm: np.ndarray, neighbors: np.ndarray, 
     residual : ndarray, shape (N,), optional
         Fit residuals (lengths): particles far above their noise level are left out of the patches.
     """
-    N = pts.shape[0]
-    ka = min(8, distances.shape[1])
-    r = distances[:, ka - 1]
-    r = np.where(r > 0, r, np.median(r[r > 0]) if np.any(r > 0) else 1.0)
-    area = np.pi * r**2 / max(ka - 0.5, 1.0)
-    h = np.sqrt(area)
-    floor = 1e-3 * float(np.median(h))
-    ko = min(tuning.ORIENT_K, neighbors.shape[1])
-    a, b, d, tilt = _edges(pts, nrm, neighbors[:, :ko], sigma)
-    unsafe = unsafe_particles(pts, nrm, neighbors, sigma, residual, floor)
-    safe = (np.abs(d) > tuning.SAFE_DOT) & (tilt < tuning.SAFE_TILT) & ~unsafe[a] & ~unsafe[b]
-    sa, sb, sg = a[safe], b[safe], np.where(d[safe] < 0, -1.0, 1.0)
-    G = sp.coo_matrix((np.ones(sa.size), (sa, sb)), shape=(N, N)).tocsr()
-    _, lab = csgraph.connected_components(G, directed=False)
-    T = csgraph.minimum_spanning_tree(G).tocsr()  # a spanning forest of the safe edges
-    Sg = sp.coo_matrix((sg, (sa, sb)), shape=(N, N)).tocsr()
-    Sg = Sg + Sg.T
-    roots = np.unique(lab, return_index=True)[1]
-    out = nrm * tree_signs(N, T + T.T, roots, lambda c, p: np.sign(np.asarray(Sg[c, p]).ravel()))[:, None]
-    size = np.bincount(lab)
-    good = size[lab] >= tuning.PATCH_MIN
-    if good.any():
-        ids = np.full(size.size, -1, dtype=np.int64)
-        big = np.flatnonzero(size >= tuning.PATCH_MIN)
-        ids[big] = np.arange(big.size)
-        plab = np.where(good, ids[lab], big.size)  # the last label: particles not in a patch (no field)
-        gi = np.flatnonzero(good)
-        probes = _sample(gi, tuning.MAX_PROBES)
-        W = winding_numbers(_probes(pts, out, h, sigma, probes), pts, np.where(good[:, None], out, 0.0), area, 0.2 * h,
-                            plab, big.size + 1)[:, : big.size]
+    area, h = _areas(distances)
+    lab, gauge = _safe_patches(pts, nrm, neighbors, sigma, residual, h)
+    out = nrm * gauge[:, None]
+    if tuning.CALIBRATE:
+        area = _calibrated(pts, out, neighbors, sigma, area, h)
+    good, plab, probes, W = _patch_fields(pts, out, lab, sigma, area, h)
+    n_patches = W.shape[1]
+    if n_patches:
         H, g = objective(W, plab[probes], area[probes])
-        s = best_signs(H, g, np.zeros((0, big.size)))
-        out[gi] *= s[plab[gi]][:, None]
+        s = best_signs(H, g, np.zeros((0, n_patches)))
+        s = integer_signs(W, plab[probes], s, area[probes])
+        out[good] *= s[plab[good]][:, None]
     else:  # no patch: start from the first particle
-        good = np.zeros(N, dtype=bool)
         good[0] = True
     out, _ = _attach(pts, out, neighbors, good.copy(), sigma)
     out = _repair(pts, out, neighbors, sigma, area, h)
     return out, good
+
+
+def correct_parts(pts: np.ndarray, nrm: np.ndarray, neighbors: np.ndarray, distances: np.ndarray,
+                  sigma: np.ndarray | None = None) -> np.ndarray:
+    """Oriented normals with whole safe patches flipped where the field then counts whole parts.
+
+    For an oriented cloud (the propagation of :mod:`.orientation`): each safe patch starts with the
+    majority of its particles' signs, and :func:`~manifold_sph.normals.winding.integer_signs` flips
+    patches where the winding number then reads a whole number of parts (parts that cross each
+    other: eyes through a head, limbs through a body). Where a patch flips, the particles in no
+    patch that take their sign from it follow; elsewhere nothing changes.
+    """
+    N = pts.shape[0]
+    sigma = np.zeros(N) if sigma is None else sigma
+    area, h = _areas(distances)
+    lab, gauge = _safe_patches(pts, nrm, neighbors, sigma, None, h)
+    # the start sign of each patch: the majority of the oriented particles (in the patch's own gauge)
+    start = np.where(np.bincount(lab, weights=gauge) >= 0, 1.0, -1.0)
+    out = nrm * (gauge * start[lab])[:, None]  # patches consistent inside, majority sign kept
+    if tuning.CALIBRATE:
+        area = _calibrated(pts, out, neighbors, sigma, area, h)
+    good, plab, probes, W = _patch_fields(pts, out, lab, sigma, area, h)
+    if W.shape[1] == 0:
+        return nrm
+    s = integer_signs(W, plab[probes], np.ones(W.shape[1]), area[probes])
+    if np.all(s > 0):
+        return nrm
+    flipped = np.zeros(N, dtype=bool)
+    flipped[good] = s[plab[good]] < 0
+    res = nrm.copy()
+    res[good] = out[good] * s[plab[good]][:, None]
+    # particles in no patch whose nearest patch particle flipped are attached again
+    near = cKDTree(pts[good]).query(pts[~good], k=1, workers=get_num_threads())[1] if (~good).any() else np.zeros(0, dtype=np.int64)
+    redo = np.flatnonzero(~good)[flipped[np.flatnonzero(good)][near]]
+    done = np.ones(N, dtype=bool)
+    done[redo] = False
+    res, _ = _attach(pts, res, neighbors, done, sigma)
+    return res

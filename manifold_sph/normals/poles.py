@@ -18,9 +18,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.spatial import Delaunay
 
-from .._validation import as_points
 from . import tuning
-from .fitting import unit
+from .fitting import point_array, unit
 from .winding import winding_numbers
 
 __all__ = ["pole_signs", "voronoi_poles"]
@@ -43,7 +42,7 @@ def voronoi_poles(points: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray
 
     Parameters
     ----------
-    points : array_like, shape (N, 3)
+    points : array_like (N, 3), or anything point-like (a PointCloud, Surface, path, ...)
         At least 5 points, not all in one plane.
 
     Returns
@@ -74,7 +73,7 @@ def voronoi_poles(points: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray
     >>> bool(np.abs(np.einsum("ij,ij->i", u, c.normals)).min() > 0.99)
     True
     """
-    pts = as_points("points", points)
+    pts = point_array(points)
     N = pts.shape[0]
     if N < 5:
         raise ValueError(f"points must hold at least 5 points for Voronoi poles, got {N}")

@@ -35,7 +35,10 @@ def noise_level(pts: np.ndarray, neighbors: np.ndarray, distances: np.ndarray, f
     grows like ``r_k^6`` (third-order terms, ``r_k^2`` proportional to ``k``) where the fit is
     biased by the shape. Fitted at ``k`` and ``2k`` (``tuning.NOISE_K``; residuals averaged over the
     ``tuning.NOISE_REGION`` nearest, medians), the two equations give ``sigma`` apart from the bias:
-    a coarse, clean mesh reads near 0 and a scan its noise.
+    a coarse, clean mesh reads near 0 and a scan its noise. The residuals of noise are about
+    Gaussian (kurtosis near 3, about 2.7 after the fit); where they fall into two layers (kurtosis
+    below ``tuning.NOISE_KURTOSIS``: the two sides of a part about as thin as the spacing, a tube a
+    few points around) the residual is the shape, not noise, and the level is scaled down to 0.
 
     Parameters
     ----------
@@ -58,15 +61,18 @@ def noise_level(pts: np.ndarray, neighbors: np.ndarray, distances: np.ndarray, f
     m = min(tuning.NOISE_REGION, neighbors.shape[1])
     region = neighbors[:, :m]
     r2 = []
+    kurt = np.zeros(pts.shape[0])
     for k in (k1, k2):
         res = np.zeros(pts.shape[0])
-        jet_fit(pts, neighbors[:, :k], frame, 2, residual=res)
+        jet_fit(pts, neighbors[:, :k], frame, 2, residual=res, kurtosis=kurt if k == k2 else None)
         r2.append(np.median(((res * distances[:, k - 1]) ** 2)[region], axis=1))
+    lo, hi = tuning.NOISE_KURTOSIS
+    layered = np.clip((np.median(kurt[region], axis=1) - lo) / (hi - lo), 0.0, 1.0)
     p = n_coefficients(2)
     grow = 2.0**3  # (r_2k / r_k)^6 for r^2 proportional to k
     s2 = (grow * r2[0] - r2[1]) / (grow * (1.0 - p / k1) - (1.0 - p / k2))
     spacing = np.median(distances[:, 1:7].mean(axis=1)[region], axis=1)
-    return np.sqrt(np.maximum(s2, 0.0)), spacing
+    return np.sqrt(np.maximum(s2, 0.0)) * layered, spacing
 
 
 def auto_k(sigma: np.ndarray, spacing: np.ndarray, n_points: int) -> np.ndarray:

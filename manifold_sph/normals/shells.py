@@ -128,3 +128,41 @@ def closed_sheets(pts: np.ndarray, nrm: np.ndarray, neighbors: np.ndarray, probe
     ids = np.full(big.size + 1, -1, dtype=np.int64)
     ids[np.flatnonzero(closed)] = np.arange(int(closed.sum()))
     return ids[lab]
+
+
+def separate_parts(pts: np.ndarray, nrm: np.ndarray, neighbors: np.ndarray, distances: np.ndarray, nested: str,
+                   sigma: np.ndarray | None = None) -> np.ndarray:
+    """Every closed part outward by its own field (``nested="separate"``), or as oriented (``"cavity"``).
+
+    The parts are the connected components of the graph of the ``tuning.ORIENT_K`` nearest. A part
+    is closed where the mean of ``w_in + w_out`` of its own field at its probes is at least
+    ``tuning.PART_CLOSED`` in size; one whose own field reads it inward (a part inside another,
+    oriented as the wall of a cavity by the whole field) is flipped.
+    """
+    if nested == "cavity":
+        return nrm
+    N = pts.shape[0]
+    ko = min(tuning.ORIENT_K, neighbors.shape[1])
+    rows = np.repeat(np.arange(N, dtype=np.int64), ko - 1)
+    G = sp.coo_matrix((np.ones(rows.size), (rows, neighbors[:, 1:ko].ravel())), shape=(N, N))
+    n_parts, part = csgraph.connected_components(G, directed=False)
+    if n_parts < 2:
+        return nrm
+    ka = min(8, distances.shape[1])
+    r = distances[:, ka - 1]
+    r = np.where(r > 0, r, np.median(r[r > 0]) if np.any(r > 0) else 1.0)
+    area = np.pi * r**2 / max(ka - 0.5, 1.0)
+    h = np.sqrt(area)
+    probes = np.arange(N)
+    if N > tuning.MAX_PROBES:
+        probes = np.sort(np.random.default_rng(0).choice(N, tuning.MAX_PROBES, replace=False))
+    delta = h[probes] if sigma is None else np.maximum(h[probes], tuning.PROBE_NOISE * sigma[probes])
+    q = np.vstack([pts[probes] - delta[:, None] * nrm[probes], pts[probes] + delta[:, None] * nrm[probes]])
+    W = winding_numbers(q, pts, nrm, area, 0.2 * h, part, n_parts)
+    own = part[probes]
+    m = probes.size
+    S = W[np.arange(m), own] + W[m + np.arange(m), own]
+    wt = np.bincount(own, weights=area[probes], minlength=n_parts)
+    mean = np.bincount(own, weights=area[probes] * S, minlength=n_parts) / np.maximum(wt, 1e-300)
+    flip = (wt > 0) & (mean <= -tuning.PART_CLOSED)
+    return np.where(flip[part][:, None], -nrm, nrm)

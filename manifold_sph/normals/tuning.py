@@ -118,7 +118,8 @@ THIN_NOISE = 4.0  #: ... and higher than this many times the cloud's noise level
 # ----------------------------------------------------------------- k="auto": the scale that follows the noise
 NOISE_K = 12  #: the noise level is read from degree-2 fits to the NOISE_K and 2 NOISE_K nearest
 NOISE_REGION = 32  #: ... their residuals averaged (median) over this many nearest
-NOISE_CLEAN = 0.1  #: below this relative noise (sigma / spacing) a cloud is clean: weighted fits on DEFAULT_JET_K
+NOISE_KURTOSIS = (1.9, 2.4)  #: residual kurtosis from which the residual counts as noise (0 below the first, 1 above the second)
+NOISE_CLEAN = 0.15  #: below this relative noise (sigma / spacing) a cloud is clean: weighted fits on DEFAULT_JET_K
 AUTO_K0 = 16  #: noisy regions: k = AUTO_K0 + AUTO_K_GAIN (sigma / spacing)^2,
 AUTO_K_GAIN = 160.0  #: ...
 AUTO_K_LADDER = (16, 20, 24, 32, 40, 48, 64, 80, 96)  #: ... rounded to one of these
@@ -139,3 +140,11 @@ ATTACH_K = 32  #: the rest: signs from the dipoles of this many nearest oriented
 ATTACH_ROUNDS = 10  #: rings of the rest oriented from the oriented ones
 REPAIR_ROUNDS = 3  #: rounds of the repair of regions whose probes read the field far from 1
 REPAIR_MIN = 10  #: regions of at least this many particles
+NOISY_SHARE = 0.5  #: the noisy path where at least this share of the particles reads noisy
+NOISY_FRAME_K = 24  #: noisy path: the PCA frame of the fits on this many nearest
+
+# ----------------------------------------------------------------- parts (shells.py)
+#: Readings of a closed part inside another: its own part (normals out of it) or a cavity wall.
+NESTED = ("separate", "cavity")
+PART_CLOSED = 0.5  #: a part is closed where |mean(w_in + w_out)| of its own field is at least this
+CORRECT_PARTS = False  #: clean path: whole safe patches flipped where the field then counts whole parts (off: the eyes through a head 1 -> 508 wrong of 800, measured)

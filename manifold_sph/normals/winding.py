@@ -19,7 +19,7 @@ try:
 except ImportError:  # pragma: no cover - numba is a dependency
     numba = None
 
-__all__ = ["best_signs", "objective", "winding_numbers", "winding_rows"]
+__all__ = ["best_signs", "integer_signs", "objective", "winding_numbers", "winding_rows"]
 
 
 def winding_numbers(queries: np.ndarray, points: np.ndarray, normals: np.ndarray, area: np.ndarray, eps: np.ndarray, label: np.ndarray, n_labels: int, theta: float = 0.5, per_cell: int = 32) -> np.ndarray:
@@ -122,6 +122,76 @@ def objective(W: np.ndarray, label: np.ndarray, omega: np.ndarray) -> tuple[np.n
     np.add.at(M, label, omega[:, None] * D)
     H = D.T @ (omega[:, None] * D) + S.T @ (omega[:, None] * S) - (M + M.T)
     return H, omega @ S
+
+
+def integer_signs(W: np.ndarray, label: np.ndarray, s0: np.ndarray, weight: np.ndarray, blocks: np.ndarray | None = None,
+                  max_moves: int | None = None) -> np.ndarray:
+    """Signs of the labels that make the winding number a whole number of parts at the probes, greedily.
+
+    For outward normals of closed parts that may cross each other, the winding number at a point
+    is the number of parts containing it: across a particle it drops by 1 (``w_in - w_out = 1``)
+    and just outside it is a whole number (``w_out`` in 0, 1, 2, ...). Each probe pair costs
+    ``(w_in - w_out - 1)^2 + dist(w_out, {0, 1, 2, ...})^2``. Unlike the target ``w_in + w_out = 1``
+    of :func:`objective`, a part crossing another is not pushed to flip where it lies inside it.
+
+    Parameters
+    ----------
+    W : ndarray, shape (2 m, L)
+        Field of every label, with the signs ``s0``, at the inner probes (first ``m`` rows) and the
+        outer probes of ``m`` particles.
+    label : ndarray of int, shape (m,)
+        The label of each probed particle (a flipped label swaps its own probes).
+    s0 : ndarray, shape (L,)
+        The starting signs (+1: as in ``W``); moves flip single labels, or the rows of ``blocks``.
+    weight : ndarray, shape (m,)
+        Weight of each probe pair (its particle's area).
+
+    Returns
+    -------
+    ndarray, shape (L,)
+        The signs (+1 or -1) relative to those of ``W``.
+    """
+    m = label.size
+    Win, Wout = W[:m], W[m:]
+    n_labels = W.shape[1]
+    s = np.asarray(s0, dtype=np.float64).copy()
+    blocks = np.zeros((0, n_labels)) if blocks is None else blocks
+    moves = np.vstack([np.eye(n_labels), blocks]) if blocks.size else np.eye(n_labels)
+    own = np.zeros((m, moves.shape[0]), dtype=bool)
+    own[np.arange(m)] = moves[:, label].T > 0
+
+    def cost(a, b):
+        whole = np.maximum(np.round(b), 0.0)
+        return (a - b - 1.0) ** 2 + (b - whole) ** 2
+
+    def fields(signs):
+        a = Win @ signs
+        b = Wout @ signs
+        flipped = signs[label] < 0  # a flipped label's probes swap sides
+        return np.where(flipped, b, a), np.where(flipped, a, b)
+
+    a, b = fields(s)
+    current = weight @ cost(a, b)
+    for _ in range(moves.shape[0] if max_moves is None else max_moves):
+        # the field after each move: minus twice the moved labels' contributions, own probes swapped
+        dA = np.hstack([Win * s[None, :], Win @ (blocks * s[None, :]).T])
+        dB = np.hstack([Wout * s[None, :], Wout @ (blocks * s[None, :]).T])
+        fa = s[label] < 0
+        raw_in = np.where(fa, b, a)  # the field at the (fixed) inner and outer probe locations
+        raw_out = np.where(fa, a, b)
+        new_in = raw_in[:, None] - 2.0 * dA
+        new_out = raw_out[:, None] - 2.0 * dB
+        flip_own = own ^ fa[:, None]  # the probe's particle flipped after the move
+        A = np.where(flip_own, new_out, new_in)
+        B = np.where(flip_own, new_in, new_out)
+        total = weight @ cost(A, B)
+        j = int(np.argmin(total))
+        if total[j] >= current - 1e-12 * (abs(current) + 1e-300):
+            break
+        s[moves[j] > 0] *= -1.0
+        a, b = fields(s)
+        current = weight @ cost(a, b)
+    return s
 
 
 @(numba.njit(nogil=True, cache=True, fastmath=True, error_model="numpy") if numba is not None else (lambda f: f))
