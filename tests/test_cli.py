@@ -104,11 +104,15 @@ def test_heat_and_wave_against_exact_solutions(cmd, bound, capsys):
 
 
 def test_heat_pictures_and_maximum_principle(tmp_path, capsys, gl):
-    assert main(["heat", "--n", "600", "--steps", "10", "--dt", "0.002", "--out", str(tmp_path), "--json"]) == 0
+    outs = ["--out", str(tmp_path / "final.png"), "--out", str(tmp_path / "heat.gif")] if gl else []
+    assert main(["heat", "--n", "600", "--steps", "10", "--dt", "0.002", *outs, "--save", str(tmp_path / "u.npy"),
+                 "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert 0.0 <= out["min"] and out["max"] <= 1.0 + 1e-9  # hot spot diffuses, no new extrema
+    u = np.load(tmp_path / "u.npy")
+    assert u.shape == (600,) and abs(float(u.max()) - out["max"]) < 1e-12
     if gl:
-        assert (tmp_path / "heat_final.png").exists() and (tmp_path / "heat.gif").exists()
+        assert (tmp_path / "final.png").exists() and (tmp_path / "heat.gif").exists()
 
 
 def test_poisson(capsys):
@@ -146,7 +150,7 @@ def test_render_missing_file_exit_2(capsys):
 
 def test_convergence_plot_file(tmp_path, capsys):
     plot = tmp_path / "c.png"
-    assert main(["convergence", "--sizes", "500,1002", "--scheme", "cspm", "--plot", str(plot), "--json"]) == 0
+    assert main(["convergence", "--sizes", "500,1002", "--scheme", "cspm", "--out", str(plot), "--json"]) == 0
     assert plot.stat().st_size > 1000
     json.loads(capsys.readouterr().out)
 
@@ -157,10 +161,10 @@ def test_operators_from_file(tmp_path, capsys):
 
     src = tmp_path / "s.ply"
     write(src, shapes.sphere(1002))
-    assert main(["operators", "--file", str(src), "--scheme", "msph", "--json"]) == 0
+    assert main(["operators", str(src), "--scheme", "msph", "--json"]) == 0
     (row,) = json.loads(capsys.readouterr().out)["rows"]
     assert row["n"] == 1002 and row["lap_l2"] < 0.05
-    assert main(["operators", "--file", str(src), "--shape", "torus"]) == 2
+    assert main(["operators", str(src), "--shape", "torus"]) == 2
     assert "do not lie on the default torus" in capsys.readouterr().err
 
 
@@ -246,15 +250,14 @@ def test_geometry_user_mistakes_exit_2(unit_sphere_file, tmp_path, capsys):
     src = str(unit_sphere_file)
     assert main(["curvature", src, "--quantity", "gaussian", "--method", "laplacian"]) == 2
     assert "--method applies to --quantity mean only" in capsys.readouterr().err
-    assert main(["curvature", src, "--png", str(tmp_path / "c.jpg")]) == 2
-    assert "--png must name a .png file" in capsys.readouterr().err
-    assert main(["curvature", src, "--png", str(tmp_path / "no" / "c.png")]) == 2
+    assert main(["curvature", src, "--out", str(tmp_path / "c.jpg")]) == 2
+    assert "--out must name a .png file" in capsys.readouterr().err
+    assert main(["curvature", src, "--out", str(tmp_path / "no" / "c.png")]) == 2
     assert "does not exist" in capsys.readouterr().err
     assert main(["geodesic", str(tmp_path / "missing.ply"), "--source", "0"]) == 2
     assert "no such file" in capsys.readouterr().err
-    with pytest.raises(SystemExit) as exc:
-        main(["geodesic", src])  # --source is required
-    assert exc.value.code == 2
+    assert main(["geodesic", src]) == 2  # a source is required
+    assert "give at least one source" in capsys.readouterr().err
 
 
 @pytest.mark.gl  # skipped by conftest.py without off-screen rendering
@@ -263,9 +266,9 @@ def test_geometry_png_and_overwrite(unit_sphere_file, tmp_path, capsys, cmd):
     from PIL import Image
 
     png = tmp_path / f"{cmd[0]}.png"
-    args = [cmd[0], str(unit_sphere_file), *cmd[1:], "--png", str(png), "--size", "160x120"]
+    args = [cmd[0], str(unit_sphere_file), *cmd[1:], "--out", str(png), "--size", "160x120"]
     assert main([*args, "--json"]) == 0
-    assert json.loads(capsys.readouterr().out)["png"] == str(png)
+    assert json.loads(capsys.readouterr().out)["out"] == str(png)
     img = np.asarray(Image.open(png))
     assert img.shape == (120, 160, 3) and img.std() > 10
     # an existing picture is not replaced without --overwrite: one line, exit 2, file untouched
@@ -288,7 +291,7 @@ def test_geometry_png_and_overwrite(unit_sphere_file, tmp_path, capsys, cmd):
         (["demo", "--out", "x", "--n", "10", "--json"], "at least 500"),
         (["operators", "--n", "5", "--json"], "at least 10 points"),
         (["convergence", "--sizes", "5,20", "--json"], "at least 10 points"),
-        (["heat", "--file", "missing.ply", "--json"], "no such file"),
+        (["heat", "missing.ply", "--json"], "no such file"),
         (["wave", "--n", "3", "--json"], "at least 10 points"),
         (["poisson", "--n", "3", "--json"], "at least 10 points"),
         (["render", "missing.ply", "--json"], "no such file"),
@@ -354,10 +357,10 @@ def test_png_into_missing_folder_fails_before_the_run(tmp_path, capsys, monkeypa
     for option in ("--png", "--gif"):
         assert main(["spem", "cavity", option, str(tmp_path / "no" / "x.png"), "--json"]) == 2
         assert "does not exist" in json.loads(capsys.readouterr().out)["error"]
-    assert main(["convergence", "--sizes", "1002,2012", "--plot", str(tmp_path / "no" / "c.png")]) == 2
+    assert main(["convergence", "--sizes", "1002,2012", "--out", str(tmp_path / "no" / "c.png")]) == 2
     assert "does not exist" in capsys.readouterr().err
     (tmp_path / "d.png").mkdir()
-    assert main(["convergence", "--sizes", "1002,2012", "--plot", str(tmp_path / "d.png"), "--overwrite"]) == 2
+    assert main(["convergence", "--sizes", "1002,2012", "--out", str(tmp_path / "d.png"), "--overwrite"]) == 2
     assert "is a folder" in capsys.readouterr().err
 
 
@@ -446,3 +449,115 @@ def test_spem_tez_cavities_on_poisson_layouts(capsys):
                       (["tez-disk", "--layout", "staggered"], "must be yee, jittered or poisson")):
         assert cli_main(["spem", *argv]) == 2
         assert msg in capsys.readouterr().err
+
+
+# --- one grammar (issue 34): FILE, --out, --save, --source-xyz, --duplicates, --area, --h, --up, notes -----------
+
+
+@pytest.fixture()
+def seam_obj(tmp_path):
+    """A mesh file whose seam vertices are repeated (9 exact duplicates, as a common OBJ has)."""
+    import trimesh.creation
+
+    ico = trimesh.creation.icosphere(subdivisions=3)
+    v, f = np.asarray(ico.vertices), np.asarray(ico.faces)
+    v2 = np.vstack([v, v[:9]])
+    lines = [f"v {a!r} {b!r} {c!r}" for a, b, c in v2.tolist()]
+    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in f.tolist()]
+    path = tmp_path / "seam.obj"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_a_common_obj_with_duplicates_is_read_and_said_once(seam_obj, tmp_path, capsys):
+    assert main(["curvature", str(seam_obj), "--save", str(tmp_path / "H.npy"), "--json"]) == 0
+    captured = capsys.readouterr()
+    res = json.loads(captured.out)
+    assert res["n"] == 642 and res["normals_estimated"] is False  # the faces gave the normals
+    notes = [ln for ln in captured.err.splitlines() if ln.startswith("manifold-sph: note:")]
+    assert sum("merged 9 exact duplicate" in ln for ln in notes) == 1
+    assert "Warning" not in captured.err and ".py:" not in captured.err  # no Python warning lines
+    assert np.load(tmp_path / "H.npy").shape == (642,)
+    assert main(["curvature", str(seam_obj), "--duplicates", "error"]) == 2
+    assert "9 exact duplicate point(s)" in capsys.readouterr().err
+
+
+def test_save_formats_and_source_xyz(unit_sphere_file, tmp_path, capsys):
+    from manifold_sph import read
+
+    src = str(unit_sphere_file)
+    assert main(["geodesic", src, "--source-xyz", "0,0,2", "--save", str(tmp_path / "d.vtp"), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    cloud = read(unit_sphere_file)
+    top = int(np.argmax(cloud.points[:, 2]))
+    assert out["sources"] == [top]  # the particle nearest to (0, 0, 2)
+    import pyvista as pv
+
+    mesh = pv.read(tmp_path / "d.vtp")
+    d = np.asarray(mesh.point_data["distance"])
+    assert mesh.n_points == 800 and d[top] == d.min() and abs(d.max() - np.pi) < 0.2
+    assert main(["geodesic", src, "--source", "0", "--save", str(tmp_path / "d.txt")]) == 2
+    assert "--save must name a .npy" in capsys.readouterr().err
+
+
+def test_surface_options_area_and_h(unit_sphere_file, capsys):
+    src = str(unit_sphere_file)
+    for extra in (["--area", "shepard"], ["--h", "adaptive"], ["--h", "0.2", "--neighbors", "30"]):
+        assert main(["curvature", src, *extra, "--json"]) == 0
+        assert abs(json.loads(capsys.readouterr().out)["median"] - 1.0) < 0.05, extra
+    with pytest.raises(SystemExit):
+        main(["curvature", src, "--h", "-1"])
+    assert "--h must be a positive number or 'adaptive'" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["curvature", src, "--up", "w"])
+    assert "--up must be auto, x, y, z" in capsys.readouterr().err
+
+
+def test_eigs_and_normals_commands(unit_sphere_file, tmp_path, capsys):
+    from manifold_sph.reference import shapes
+    from manifold_sph.scans.io import write
+
+    src = str(unit_sphere_file)
+    assert main(["eigs", src, "--k", "4", "--save", str(tmp_path / "v.npy"), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    np.testing.assert_allclose(out["eigenvalues"], [0, 2, 2, 2], atol=0.05)  # l(l+1) on the unit sphere
+    assert np.load(tmp_path / "v.npy").shape == (800, 4)
+    bare = tmp_path / "bare.xyz"
+    write(bare, shapes.sphere(800).points)
+    assert main(["normals", str(bare), "--save", str(tmp_path / "n.ply"), "--json"]) == 0
+    from manifold_sph import read
+
+    back = read(tmp_path / "n.ply")
+    assert back.normals is not None and np.einsum("ij,ij->i", back.normals, back.points).min() > 0.95
+    assert main(["eigs", src, "--k", "900"]) == 2
+    assert "--k must be below N - 1" in capsys.readouterr().err
+
+
+def test_heat_on_a_file_positional(unit_sphere_file, capsys):
+    assert main(["heat", str(unit_sphere_file), "--steps", "5", "--dt", "0.01", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["n"] == 800 and 0.0 <= out["min"] <= out["max"] <= 1.0 + 1e-9
+
+
+@pytest.mark.gl  # skipped by conftest.py without off-screen rendering
+def test_unreached_particles_are_drawn_not_dropped(tmp_path, capsys):
+    """Two spheres far apart, one source: the other sphere is not reached (inf), drawn in grey."""
+    from manifold_sph.reference import shapes
+    from manifold_sph.scans.io import write
+
+    a = shapes.sphere(400)
+    pts = np.vstack([a.points, a.points + [5.0, 0, 0]])
+    nrm = np.vstack([a.normals, a.normals])
+    from manifold_sph import PointCloud
+
+    write(tmp_path / "two.ply", PointCloud(pts, nrm))
+    png = tmp_path / "g.png"
+    assert main(["geodesic", str(tmp_path / "two.ply"), "--source", "0", "--out", str(png), "--size", "200x160",
+                 "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["unreached"] == 400 and out["n"] == 800
+    from PIL import Image
+
+    img = np.asarray(Image.open(png)).astype(float)
+    neutral = np.abs(img - img.mean(axis=2, keepdims=True)).max(axis=2) < 4
+    assert (neutral & (img.mean(axis=2) < 140)).sum() > 200  # the unreached sphere, dark grey

@@ -384,7 +384,7 @@ def test_cli_geometry_commands(tmp_path, capsys):
     assert out["method"] == "wavefront" and out["unreached"] == 0 and abs(out["to"]["700"] / exact - 1) < 1e-2
     hemi = tmp_path / "h.ply"
     write(hemi, random_sphere(4000)[random_sphere(4000)[:, 2] > 0])
-    assert main(["geodesic", str(hemi), "--boundary", "--out", str(tmp_path / "d.csv"), "--json"]) == 0
+    assert main(["geodesic", str(hemi), "--boundary", "--save", str(tmp_path / "d.csv"), "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["sources"] == "boundary" and abs(out["max"] - np.pi / 2) < 0.1
     d = read(tmp_path / "d.csv")
@@ -397,10 +397,10 @@ def test_cli_geometry_commands(tmp_path, capsys):
     noisy = tmp_path / "n.xyz"
     P = shapes.sphere(3000).points
     write(noisy, P + 0.02 * np.random.default_rng(0).standard_normal(P.shape))
-    assert main(["smooth", str(noisy), "--out", str(tmp_path / "o.ply"), "--json"]) == 0
+    assert main(["smooth", str(noisy), "--save", str(tmp_path / "o.ply"), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["mean_move"] > 0
     assert np.abs(np.linalg.norm(read(tmp_path / "o.ply").points, axis=1) - 1).mean() < 0.01
-    assert main(["smooth", str(noisy), "--out", str(tmp_path / "o.ply")]) == 2  # exists: not overwritten
+    assert main(["smooth", str(noisy), "--save", str(tmp_path / "o.ply")]) == 2  # exists: not overwritten
     assert "pass --overwrite" in capsys.readouterr().err
     assert main(["curvature", str(path), "--scale", "auto", "--json"]) == 0
     assert abs(json.loads(capsys.readouterr().out)["median"] - 1.0) < 0.02

@@ -7,14 +7,16 @@ import re
 import sys
 from collections.abc import Sequence
 
-from . import demo, evolve, geometry, render, spem, studies
+from . import demo, evolve, geometry, render, scan, spem, studies
 from .common import STATE, Parser, error_json
+from .inputs import notes
 
 __all__ = ["build_parser", "main", "COMMANDS"]
 
 
 #: The subcommands, in the order of ``manifold-sph --help``.
-COMMANDS = ("demo", "operators", "convergence", "heat", "wave", "poisson", "render", "curvature", "geodesic", "spem")
+COMMANDS = ("demo", "operators", "convergence", "heat", "wave", "poisson", "render", "normals", "eigs", "curvature",
+            "geodesic", "spem")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -31,6 +33,7 @@ def build_parser() -> argparse.ArgumentParser:
     studies.add_parsers(sub, schemes)
     evolve.add_parsers(sub, schemes)
     render.add_parsers(sub, schemes)
+    scan.add_parsers(sub, schemes)
     geometry.add_parsers(sub, schemes)
     spem.add_parsers(sub)
     return p
@@ -94,7 +97,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(join_negative_values(argv, value_options(parser)))
     command = args.command
     try:
-        return args.func(args)
+        with notes():  # the library's warnings: one line each on stderr, each once
+            return args.func(args)
     except USER_ERRORS as exc:
         code, kind, msg = 2, type(exc).__name__, " ".join(str(exc).split())
         print(f"manifold-sph: error: {msg}", file=sys.stderr)

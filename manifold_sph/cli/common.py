@@ -16,8 +16,8 @@ if TYPE_CHECKING:
 
 
 __all__ = ["FOUR_SCHEMES", "MAX_WINDOW", "BYTES_PER_POINT", "STATE", "UserError", "Parser", "error_json",
-           "check_size", "sizes_arg", "pair_arg", "window_arg", "positive_int_arg", "percent_arg",
-           "add_common_options", "add_picture_options", "surface_kwargs", "cloud_from_args", "out_dir",
+           "check_size", "sizes_arg", "pair_arg", "window_arg", "positive_int_arg", "percent_arg", "h_arg", "xyz_arg",
+           "up_arg", "add_common_options", "add_picture_options", "surface_kwargs", "cloud_from_args", "out_dir",
            "check_free", "render_ok"]
 
 
@@ -143,8 +143,43 @@ def percent_arg(text: str) -> float:
     return v
 
 
-def add_common_options(q: argparse.ArgumentParser, function: bool = True) -> None:
-    """The options of the commands that build a cloud of a built-in shape: shape, function, sampling, Surface options."""
+def h_arg(text: str) -> float | str:
+    """``--h``: a positive smoothing length, or "adaptive"."""
+    if text == "adaptive":
+        return text
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--h must be a positive number or 'adaptive', got {text!r}") from None
+    if not v > 0 or v == float("inf"):
+        raise argparse.ArgumentTypeError(f"--h must be a positive number or 'adaptive', got {text!r}")
+    return v
+
+
+def xyz_arg(text: str) -> tuple[float, float, float]:
+    """``X,Y,Z``: a point in space."""
+    try:
+        x, y, z = (float(t) for t in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a point X,Y,Z (three comma-separated numbers), got {text!r}") from None
+    if not all(abs(c) < float("inf") for c in (x, y, z)):
+        raise argparse.ArgumentTypeError(f"expected a finite point X,Y,Z, got {text!r}")
+    return x, y, z
+
+
+def up_arg(text: str) -> str | tuple[float, float, float]:
+    """``--up``: auto, x, y, z (a leading - turns it over) or a direction X,Y,Z."""
+    if text.lstrip("+-") in ("x", "y", "z") or text == "auto":
+        return text
+    try:
+        return xyz_arg(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"--up must be auto, x, y, z, -x, -y, -z or a direction X,Y,Z, got {text!r}") from None
+
+
+def add_common_options(q: argparse.ArgumentParser, function: bool = True, surface: bool = True) -> None:
+    """The options of the commands that build a cloud of a built-in shape: shape, function, sampling, and
+    (``surface``) the Surface options ``--neighbors``, ``--kernel``, ``--area``."""
     from ..reference.accuracy import SCALAR_FUNCTIONS, SHAPES
 
     q.add_argument("--shape", default="sphere", choices=sorted(SHAPES), help="built-in surface (default sphere)")
@@ -152,17 +187,21 @@ def add_common_options(q: argparse.ArgumentParser, function: bool = True) -> Non
         q.add_argument("--function", default="cos_xz_sin_y", choices=SCALAR_FUNCTIONS, help="test function")
     q.add_argument("--sampling", default=None, help="sampling of the shape (default: its near-uniform one)")
     q.add_argument("--seed", type=int, default=0, help="random seed of the sampling")
-    q.add_argument("--neighbors", type=int, default=27, help="mean neighbour count (default 27)")
-    q.add_argument("--kernel", default="quintic", help="kernel (default quintic)")
-    q.add_argument("--area", default="numerical", choices=["numerical", "geometric", "shepard"])
+    if surface:
+        q.add_argument("--neighbors", type=int, default=27, help="mean neighbour count (default 27)")
+        q.add_argument("--kernel", default="quintic", help="kernel (default quintic)")
+        q.add_argument("--area", default="numerical", choices=["numerical", "geometric", "shepard"])
     q.add_argument("--json", action="store_true", help="print JSON instead of a table")
 
 
 def add_picture_options(q: argparse.ArgumentParser) -> None:
-    """Camera, picture size and ``--overwrite``."""
+    """Camera, up axis, picture size and ``--overwrite``."""
     from ..viz.render import CAMERAS
 
     q.add_argument("--camera", default="iso", choices=sorted(CAMERAS), help="camera preset (default iso)")
+    q.add_argument("--up", type=up_arg, default="auto",
+                   help="the axis pointing up in the picture: auto (default: the axis the object stands on), x, y, z, "
+                        "-z... or X,Y,Z")
     q.add_argument("--size", type=window_arg, default=None, help="image size WIDTHxHEIGHT in pixels")
     q.add_argument("--overwrite", action="store_true", help="replace existing output files")
 
@@ -172,13 +211,13 @@ def surface_kwargs(args: argparse.Namespace) -> dict:
 
 
 def cloud_from_args(args: argparse.Namespace) -> PointCloud:
-    """A PointCloud from --file (with normals estimated if missing) or from --shape/--n."""
+    """A PointCloud from the input file (duplicates as ``--duplicates`` says) or from --shape/--n."""
     from ..reference.accuracy import make_cloud
 
     if getattr(args, "file", None):
         from ..scans.io import read
 
-        return read(args.file)
+        return read(args.file, duplicates=getattr(args, "duplicates", "merge"))
     check_size("--n", args.n)
     return make_cloud(args.shape, args.n, args.sampling, args.seed)
 

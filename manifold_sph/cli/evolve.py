@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import json
-import sys
 
 import numpy as np
 
-from .common import (UserError, add_common_options, add_picture_options, check_free, cloud_from_args, out_dir,
-                     positive_int_arg, render_ok, surface_kwargs)
+from .common import UserError, add_common_options, add_picture_options, cloud_from_args, positive_int_arg
+from .inputs import (add_colour_options, add_input, add_out, add_save, add_surface_options, build_surface,
+                     check_outputs, draw, progress, save_values)
 
 __all__ = ["add_parsers"]
 
@@ -16,11 +16,11 @@ __all__ = ["add_parsers"]
 def add_parsers(sub, schemes: list[str]) -> None:
     """Register ``heat`` and ``wave``."""
     for name, helptext in (("heat", "heat equation u_t = diffusivity Lap u"), ("wave", "wave equation u_tt = c^2 Lap u")):
-        q = sub.add_parser(name, help=helptext + " on a built-in shape or a file")
-        add_common_options(q, function=False)
-        q.add_argument("--file", default=None, help="read the points (and normals) from this file")
-        q.add_argument("--n", type=int, default=4032, help="number of points (default 4032)")
-        q.add_argument("--scheme", default="msph", choices=schemes)
+        q = sub.add_parser(name, help=helptext + " on a point-cloud file or a built-in shape")
+        add_input(q, optional=True, help="point cloud or mesh file (without it: the built-in --shape)")
+        add_common_options(q, function=False, surface=False)
+        q.add_argument("--n", type=int, default=4032, help="number of points of the built-in shape (default 4032)")
+        add_surface_options(q, schemes, neighbors=27, kernel=True)
         q.add_argument(
             "--init", default="hotspot",
             help="initial state: 'hotspot' (a Gaussian bump at the top), 'harmonic' (z + xy, exact solution "
@@ -34,8 +34,10 @@ def add_parsers(sub, schemes: list[str]) -> None:
             q.add_argument("--method", default="implicit", choices=["implicit", "crank-nicolson", "explicit"])
         else:
             q.add_argument("--c", type=float, default=1.0, help="wave speed (default 1)")
-        q.add_argument("--out", default=None, help="folder for the final picture and the animation")
-        q.add_argument("--format", default="gif", choices=["gif", "mp4"], help="animation format (mp4 needs imageio-ffmpeg)")
+        add_out(q, "the final state (.png) or the animation (.gif, .mp4: the video extra)", (".png", ".gif", ".mp4"),
+                repeat=True)
+        add_save(q, "the final state u")
+        add_colour_options(q)
         add_picture_options(q)
         q.set_defaults(func=_cmd_evolve)
 
@@ -55,24 +57,29 @@ def _initial_state(name: str, points: np.ndarray) -> np.ndarray:
     raise UserError(f"--init must be 'hotspot', 'harmonic' or one of {list(SCALAR_FUNCTIONS)}, got {name!r}")
 
 
-def _cmd_evolve(args) -> int:
-    from tqdm import tqdm
+def _mean(s, u) -> float:
+    """The area-weighted mean of ``u`` (the stable Laplacian's mass matrix: positive weights)."""
+    m = np.asarray(s.mass_matrix().diagonal())
+    return float(np.dot(m, u) / m.sum())
 
+
+def _cmd_evolve(args) -> int:
     from .. import pde
     from ..reference.errors import l2_error
-    from ..surface import Surface
 
-    cloud = cloud_from_args(args)
-    s = Surface(cloud, scheme=args.scheme, **surface_kwargs(args))
+    check_outputs(args)
+    with progress(args, 3 if args.file else 2, args.command) as bar:
+        if args.file:
+            bar.step("reading")
+        cloud = cloud_from_args(args)
+        if args.file:
+            bar.update()
+        s, _ = build_surface(args, cloud, bar)
     x = s.points
     u0 = _initial_state(args.init, x)
     every = args.every or max(1, args.steps // 40)
-    files = []
-    if args.out:
-        out = out_dir(args.out)
-        files = [out / f"{args.command}_final.png", out / f"{args.command}.{args.format}"]
-        check_free(files, args.overwrite)
-    with tqdm(total=args.steps, desc=args.command, disable=args.json, file=sys.stderr, unit="step") as bar:
+    with progress(args, args.steps, args.command) as bar:
+        bar.step("steps")
         cb = lambda step, t, u: bar.update()  # noqa: E731
         if args.command == "heat":
             dt = 1e-3 if args.dt is None else args.dt
@@ -85,7 +92,7 @@ def _cmd_evolve(args) -> int:
     summary = {
         "command": args.command, "n": int(s.n_points), "scheme": args.scheme, "init": args.init,
         "dt": dt, "steps": args.steps, "t": t,
-        "min": float(u.min()), "max": float(u.max()), "mean": float(np.dot(s.dV, u) / s.dV.sum()),
+        "min": float(u.min()), "max": float(u.max()), "mean": _mean(s, u),
     }
     exact_known = args.init == "harmonic" and not args.file and args.shape == "sphere"
     if exact_known:
@@ -95,21 +102,34 @@ def _cmd_evolve(args) -> int:
         else:
             ex = z * np.cos(np.sqrt(2.0) * args.c * t) + xy * np.cos(np.sqrt(6.0) * args.c * t)
         summary["l2_rel_error"] = l2_error(u, ex)
-    if args.out and render_ok(True):
-        from ..viz.render import animate, render_field
+    files = []
+    saved = save_values(args, s, {"u": u})
+    if saved:
+        files.append(saved)
+    # one colour range for the whole run (the solution's own: no outliers to clip in a PDE solution)
+    lo, hi = float(res.snapshots.min()), float(res.snapshots.max())
+    lim = (lo, hi) if hi > lo else None
+    where = args.file or args.shape
+    for out in args.out:
+        if out.lower().endswith(".png"):
+            draw(args, s, u, title=f"{args.command}, t = {t:.4g}, {where}", name="u", out=out,
+                 **({"clim": args.clim or lim} if lim or args.clim else {}))
+        else:
+            from ..viz.render import animate
 
-        size = args.size or (480, 400)
-        lim = (float(res.snapshots.min()), float(res.snapshots.max()))
-        render_field(s, u, title=f"{args.command}, t = {t:.4g}", bar_title="u", camera=args.camera, window_size=size,
-                     clim=lim if lim[1] > lim[0] else None, filename=files[0], overwrite=args.overwrite)
-        animate(s, res, files[1], title=f"{args.command} ({args.scheme})", bar_title="u", camera=args.camera,
-                window_size=size, progress=not args.json, overwrite=args.overwrite)
-        summary["files"] = [str(f) for f in files]
+            robust = args.robust
+            animate(s, res, out, title=f"{args.command} ({args.scheme}), {where}", bar_title="u", camera=args.camera,
+                    up=args.up, cmap=args.cmap or "auto", clim=args.clim or lim,
+                    robust=True if robust is None else (robust if robust > 0 else False),
+                    window_size=args.size or (480, 400), progress=not args.json, overwrite=args.overwrite)
+        files.append(out)
+    if files:
+        summary["files"] = files
     if args.json:
         print(json.dumps(summary, indent=2))
     else:
         print(
-            f"{args.command} on {args.file or args.shape} (N = {summary['n']}, {args.scheme}), {args.steps} steps of dt = {dt:.4g}, "
+            f"{args.command} on {where} (N = {summary['n']}, {args.scheme}), {args.steps} steps of dt = {dt:.4g}, "
             f"t = {t:.4g}: min {summary['min']:.4g}, max {summary['max']:.4g}, mean {summary['mean']:.4g}"
         )
         if "l2_rel_error" in summary:

@@ -16,7 +16,9 @@ from .common import (
     pair_arg,
     percent_arg,
     positive_int_arg,
+    xyz_arg,
 )
+from .inputs import SAVE_SUFFIXES, add_input, add_surface_options, draw, save_values
 
 __all__ = ["add_parsers"]
 
@@ -53,15 +55,13 @@ def add_parsers(sub, schemes: list[str]) -> None:
     from ..geometry import CURVATURE_METHODS, GEODESIC_METHODS, SMOOTH_METHODS
 
     def common(q, scheme=True, picture=True):
-        q.add_argument("file", help="point cloud (ply, pcd, xyz, csv, obj, npy, npz, las, laz, e57, vtk); its normals are used "
-                                    "if it has them, else estimated")
+        add_input(q)  # the file, --duplicates
         if scheme:
-            q.add_argument("--scheme", default="msph", choices=schemes)
-            q.add_argument("--neighbors", type=positive_int_arg, default=None, help="mean neighbour count (default: the scheme's)")
-        q.add_argument("--out", default=None, help="write the cloud with the result as a per-point field to this file "
-                                                  "(any format manifold-sph writes: ply, pcd, csv, npz, vtk, ...)")
+            add_surface_options(q, schemes)  # --scheme, --neighbors, --area, --h
+        q.add_argument("--save", default=None, help="save the per-point result: .npy (the array) or the cloud with the "
+                                                   "result as a field (ply, vtp, vtk, npz, csv, ...)")
         if picture:
-            q.add_argument("--png", default=None, help="also render the field, off-screen, to this PNG file")
+            q.add_argument("--out", default=None, help="also render the field, off-screen, to this PNG file")
             q.add_argument("--clim", type=pair_arg, default=None, help="colour limits LOW,HIGH of the picture")
             q.add_argument("--cmap", default=None, help="matplotlib colour map of the picture")
             add_picture_options(q)
@@ -76,6 +76,8 @@ def add_parsers(sub, schemes: list[str]) -> None:
         if many:
             where.add_argument("--boundary", action="store_true",
                                help="the distance from the cloud's open boundary (instead of --source)")
+            where.add_argument("--source-xyz", type=xyz_arg, action="append", metavar="X,Y,Z",
+                               help="the particle nearest to this point as a source; repeat for several")
         q.add_argument("--to", type=int, action="append", default=None, metavar="J",
                        help="print the result at these particles (repeat)")
 
@@ -89,16 +91,18 @@ def add_parsers(sub, schemes: list[str]) -> None:
     cur.add_argument("--scale", type=_scale_arg, default=None,
                      help="curvature at this length (quadrics fitted over that radius), or 'auto' (a radius chosen "
                           "per particle from the noise): for noisy scans (default: pointwise)")
-    cur.add_argument("--robust", type=percent_arg, default=2.0,
-                     help="clip this percentage at each end of the colour range (default 2; 0: full range)")
+    cur.add_argument("--robust", type=percent_arg, default=None,
+                     help="clip this percentage at each end of the colour range (0: full range; default: 2-98 %% "
+                          "narrowed for heavy tails)")
 
     geo = sub.add_parser("geodesic", help="geodesic distance from particles (or the boundary) of a point-cloud file")
     common(geo)
     source(geo, many=True)
     geo.add_argument("--method", default="wavefront", choices=GEODESIC_METHODS,
                      help="wavefront propagation over the local Delaunay triangles (default), or the heat method")
-    geo.add_argument("--robust", type=percent_arg, default=0.0,
-                     help="clip this percentage at each end of the colour range (default 0: full range)")
+    geo.add_argument("--robust", type=percent_arg, default=None,
+                     help="clip this percentage at each end of the colour range (0: full range; default: 2-98 %% "
+                          "narrowed for heavy tails)")
 
     tra = sub.add_parser("transport", help="parallel transport of a tangent vector from a particle (vector heat method)")
     common(tra, picture=False)
@@ -110,8 +114,8 @@ def add_parsers(sub, schemes: list[str]) -> None:
     source(log, many=False)
 
     smo = sub.add_parser("smooth", help="smooth (denoise) a point-cloud file")
-    smo.add_argument("file", help="point cloud to smooth")
-    smo.add_argument("--out", required=True, help="the smoothed cloud's file")
+    add_input(smo, help="point cloud to smooth")
+    smo.add_argument("--save", required=True, help="the smoothed cloud's file")
     smo.add_argument("--method", default="jet", choices=SMOOTH_METHODS,
                      help="jet: onto local quadrics (default); flow: implicit mean-curvature flow")
     smo.add_argument("--scale", type=float, default=None, help="length over which noise is removed (default 4 spacings for jet)")
@@ -128,15 +132,15 @@ def add_parsers(sub, schemes: list[str]) -> None:
 
 
 def _png_target(args):
-    """The --png file, checked before any work: a .png in an existing folder, free unless --overwrite,
-    and off-screen rendering available. ``None`` without --png."""
-    if not getattr(args, "png", None):
+    """The --out picture, checked before any work: a .png in an existing folder, free unless --overwrite,
+    and off-screen rendering available. ``None`` without --out."""
+    if not getattr(args, "out", None):
         return None
-    out = Path(args.png)
+    out = Path(args.out)
     if out.suffix.lower() != ".png":
-        raise UserError(f"--png must name a .png file, got {args.png!r}")
+        raise UserError(f"--out must name a .png file, got {args.out!r}")
     if not out.parent.is_dir():
-        raise UserError(f"--png {args.png!r}: the folder {str(out.parent)!r} does not exist")
+        raise UserError(f"--out {args.out!r}: the folder {str(out.parent)!r} does not exist")
     check_free([out], args.overwrite)
     from ..viz.render import rendering_available
 
@@ -147,12 +151,14 @@ def _png_target(args):
 
 
 def _out_target(args):
-    """The --out file, checked before any work (its folder exists; free unless --overwrite)."""
-    if not getattr(args, "out", None):
+    """The --save file, checked before any work (its folder exists; free unless --overwrite)."""
+    if not getattr(args, "save", None):
         return None
-    out = Path(args.out)
+    out = Path(args.save)
+    if args.command != "smooth" and out.suffix.lower() not in SAVE_SUFFIXES:
+        raise UserError(f"--save must name a {', '.join(SAVE_SUFFIXES)} file, got {args.save!r}")
     if not out.parent.is_dir():
-        raise UserError(f"--out {args.out!r}: the folder {str(out.parent)!r} does not exist")
+        raise UserError(f"--save {args.save!r}: the folder {str(out.parent)!r} does not exist")
     check_free([out], args.overwrite)
     return out
 
@@ -160,7 +166,7 @@ def _out_target(args):
 def _read(args):
     from ..scans.io import read
 
-    return read(args.file)
+    return read(args.file, duplicates=args.duplicates)
 
 
 def _check_indices(args, n, *names):
@@ -177,7 +183,8 @@ def _geometry_surface(args, cloud, bar):
     """The Surface of the file's cloud (its normals if it has them, else estimated by Surface)."""
     from ..surface import Surface
 
-    s = Surface(cloud, scheme=getattr(args, "scheme", "msph"), neighbors=getattr(args, "neighbors", None))
+    s = Surface(cloud, scheme=getattr(args, "scheme", "msph"), neighbors=getattr(args, "neighbors", None),
+                area=getattr(args, "area", "numerical"), h=getattr(args, "h", None))
     bar.update()
     return s
 
@@ -187,20 +194,17 @@ def _stats(values) -> dict:
     return {"min": float(v.min()), "median": float(np.median(v)), "max": float(v.max())}
 
 
-def _render_geometry(args, out, points, values, title, bar_title, cmap):
-    from ..viz.render import render_field
-
-    render_field(
-        points, values, title=title, bar_title=bar_title, camera=args.camera, window_size=args.size or (800, 600),
-        clim=args.clim, robust=args.robust or None, cmap=args.cmap or cmap, filename=out, overwrite=args.overwrite,
-    )
+def _render_geometry(args, out, points, values, title, bar_title):
+    draw(args, points, values, title=title, name=bar_title, out=out, overwrite=True)  # the picture defaults
 
 
 def _write_field(out, cloud_or_points, normals, name, values):
-    from ..pointcloud import PointCloud
-    from ..scans.io import write
+    import argparse
 
-    write(out, PointCloud(cloud_or_points, normals), fields={name: values}, overwrite=True)  # checked free before any work
+    from ..pointcloud import PointCloud
+
+    target = argparse.Namespace(save=str(out), overwrite=True)  # checked free before any work
+    save_values(target, PointCloud(cloud_or_points, normals), {name: values})
 
 
 def _finish(args, summary, text, outs):
@@ -248,7 +252,7 @@ def _cmd_curvature(args) -> int:
         label = {"mean": "H", "gaussian": "K", "k1": "k1", "k2": "k2"}[args.quantity]
         if png:
             _render_geometry(args, png, s, values, f"{args.quantity} curvature {label} ({args.scheme}), "
-                             f"{Path(args.file).name}", label, "coolwarm")
+                             f"{Path(args.file).name}", label)
             bar.update()
     if out:
         _write_field(out, s.points, s.normals, label, values)
@@ -263,7 +267,7 @@ def _cmd_curvature(args) -> int:
         how = f", at scale {args.scale}" if args.scale != "auto" else ", at an automatic scale"
     text = (f"{args.quantity} curvature of {args.file} (N = {summary['n']}, {args.scheme}, {normals}{how}): "
             f"min {summary['min']:.4g}, median {summary['median']:.4g}, max {summary['max']:.4g} ({seconds:.2f} s)")
-    return _finish(args, summary, text, {"png": png, "out": out})
+    return _finish(args, summary, text, {"out": png, "save": out})
 
 
 def _cmd_geodesic(args) -> int:
@@ -278,6 +282,11 @@ def _cmd_geodesic(args) -> int:
     t0 = time.perf_counter()
     cloud = _read(args)
     _check_indices(args, len(cloud), "source", "to")  # before any work
+    if args.source_xyz:  # the particles nearest to these points
+        from scipy.spatial import cKDTree
+
+        nearest = np.atleast_1d(cKDTree(cloud.points).query(np.asarray(args.source_xyz))[1]).tolist()
+        args.source = [*(args.source or []), *nearest]
     with tqdm(total=3 if png else 2, desc="geodesic", disable=args.json, file=sys.stderr) as bar:
         target = _geometry_surface(args, cloud, bar) if args.method == "heat" else cloud
         if args.method != "heat":
@@ -298,9 +307,7 @@ def _cmd_geodesic(args) -> int:
         if png:
             title = ("geodesic distance from the boundary" if args.boundary else
                      f"geodesic distance from {', '.join(str(i) for i in sorted(set(args.source)))}") + f", {Path(args.file).name}"
-            if not reached.all():
-                title += f"; {int((~reached).sum())} unreached not drawn"
-            _render_geometry(args, png, cloud.points[reached], d[reached], title, "distance", "viridis")
+            _render_geometry(args, png, cloud, d, title, "distance")  # unreached (inf): dark grey, counted
             bar.update()
     if out:
         _write_field(out, cloud.points, cloud.normals, "distance", d)
@@ -320,7 +327,7 @@ def _cmd_geodesic(args) -> int:
     if summary["unreached"]:
         text += (f"\n{summary['unreached']} particle(s) lie in pieces of the cloud without a source "
                  f"({summary['pieces']} pieces): distance inf")
-    return _finish(args, summary, text, {"png": png, "out": out})
+    return _finish(args, summary, text, {"out": png, "save": out})
 
 
 def _vector_heat(args, bar):
@@ -356,7 +363,7 @@ def _cmd_transport(args) -> int:
             f"{args.source} ({seconds:.2f} s)")
     if args.to:
         text += "\n" + "\n".join(f"  at {j}: {np.round(v, 6).tolist()}" for j, v in summary["to"].items())
-    return _finish(args, summary, text, {"out": out})
+    return _finish(args, summary, text, {"save": out})
 
 
 def _cmd_logmap(args) -> int:
@@ -381,7 +388,7 @@ def _cmd_logmap(args) -> int:
             f"{summary['max_radius']:.4g} ({seconds:.2f} s)")
     if args.to:
         text += "\n" + "\n".join(f"  {j}: {np.round(v, 6).tolist()}" for j, v in summary["to"].items())
-    return _finish(args, summary, text, {"out": out})
+    return _finish(args, summary, text, {"save": out})
 
 
 def _cmd_smooth(args) -> int:
@@ -405,4 +412,4 @@ def _cmd_smooth(args) -> int:
                "max_move": float(moved.max()), "seconds": round(seconds, 3)}
     text = (f"smoothed {args.file} (N = {summary['n']}, {args.method}{', features kept' if args.features else ''}): "
             f"points moved {summary['mean_move']:.4g} on average, at most {summary['max_move']:.4g} ({seconds:.2f} s)")
-    return _finish(args, summary, text, {"out": out})
+    return _finish(args, summary, text, {"save": out})

@@ -7,7 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .common import UserError, add_picture_options, check_free, pair_arg
+from .common import UserError, add_picture_options
+from .inputs import (add_colour_options, add_input, add_out, add_save, add_surface_options, build_surface,
+                     check_outputs, draw, progress, read_input, save_values)
 
 __all__ = ["add_parsers"]
 
@@ -15,18 +17,17 @@ __all__ = ["add_parsers"]
 def add_parsers(sub, schemes: list[str]) -> None:
     """Register ``render``."""
     ren = sub.add_parser("render", help="picture of a field on a point-cloud file")
-    ren.add_argument("file", help="point cloud (ply, pcd, xyz, csv, obj, npy, npz, las, laz, e57, vtk)")
+    add_input(ren)
     ren.add_argument(
         "--field", default="z",
         help="a field stored in the file, a coordinate x/y/z, or a test function name (default z)",
     )
     ren.add_argument("--operator", default="none", choices=["none", "laplacian", "gradient"],
                      help="draw the SPH Laplacian of the field, or the field with its gradient as arrows")
-    ren.add_argument("--scheme", default="msph", choices=schemes)
-    ren.add_argument("--out", default=None, help="PNG file to write (default: FILE with the field name and .png)")
-    ren.add_argument("--clim", type=pair_arg, default=None, help="colour limits LOW,HIGH")
-    ren.add_argument("--robust", type=float, default=None, help="clip this percentage at each end of the colour range")
-    ren.add_argument("--cmap", default="viridis", help="matplotlib colour map (default viridis)")
+    add_surface_options(ren, schemes)
+    add_out(ren, "the picture (default: FILE with the field name and .png)")
+    add_save(ren, "the values drawn (the Laplacian with --operator laplacian, the gradient with gradient)")
+    add_colour_options(ren)
     ren.add_argument("--transparent", action="store_true", help="transparent background")
     ren.add_argument("--json", action="store_true", help="print what was written as JSON")
     add_picture_options(ren)
@@ -35,47 +36,47 @@ def add_parsers(sub, schemes: list[str]) -> None:
 
 def _cmd_render(args) -> int:
     from ..reference.accuracy import SCALAR_FUNCTIONS, get_function
-    from ..scans.io import read
 
-    cloud, fields = read(args.file, return_fields=True)
-    x = cloud.points
-    name = args.field
-    if name in fields and np.asarray(fields[name]).shape == (len(x),):
-        values = np.asarray(fields[name], dtype=np.float64)
-    elif name in ("x", "y", "z"):
-        values = x[:, "xyz".index(name)]
-    elif name in SCALAR_FUNCTIONS:
-        values = get_function(name).value(x)
-    else:
-        stored = sorted(k for k, v in fields.items() if np.asarray(v).shape == (len(x),))
-        raise UserError(
-            f"--field {name!r} is neither a field of {args.file!r} (it has {stored}) nor x, y, z "
-            f"nor a test function {list(SCALAR_FUNCTIONS)}"
-        )
-    out = Path(args.out) if args.out else Path(args.file).with_name(f"{Path(args.file).stem}_{name}_{args.operator}.png")
-    check_free([out], args.overwrite)
-    from ..viz.render import render_field, rendering_available
-
-    ok, why = rendering_available()
-    if not ok:
-        raise RuntimeError(f"cannot render here: {why}")
-
-    vectors, label = None, name
-    if args.operator != "none":
-        from ..surface import Surface
-
-        s = Surface(cloud, scheme=args.scheme)
-        if args.operator == "laplacian":
-            values, label = s.laplacian(values), f"Lap {name}"
+    if not args.out:
+        args.out = str(Path(args.file).with_name(f"{Path(args.file).stem}_{args.field}_{args.operator}.png"))
+    check_outputs(args)
+    steps = 3 + (2 if args.operator != "none" else 0)
+    with progress(args, steps, "render") as bar:
+        cloud, fields = read_input(args, bar)
+        x = cloud.points
+        name = args.field
+        if name in fields and np.asarray(fields[name]).shape == (len(x),):
+            values = np.asarray(fields[name], dtype=np.float64)
+        elif name in ("x", "y", "z"):
+            values = x[:, "xyz".index(name)]
+        elif name in SCALAR_FUNCTIONS:
+            values = get_function(name).value(x)
         else:
-            vectors, cloud = s.gradient(values), s
-    render_field(
-        cloud, values, vectors=vectors, bar_title=label, camera=args.camera, window_size=args.size or (800, 600),
-        clim=args.clim, robust=args.robust, cmap=args.cmap, transparent=args.transparent,
-        filename=out, overwrite=args.overwrite,
-    )
+            stored = sorted(k for k, v in fields.items() if np.asarray(v).shape == (len(x),))
+            raise UserError(
+                f"--field {name!r} is neither a field of {args.file!r} (it has {stored}) nor x, y, z "
+                f"nor a test function {list(SCALAR_FUNCTIONS)}"
+            )
+        vectors, label, shown = None, name, cloud
+        if args.operator != "none":
+            s, _ = build_surface(args, cloud, bar)
+            shown = s
+            if args.operator == "laplacian":
+                values, label = s.laplacian(values), f"Lap {name}"
+            else:
+                vectors = s.gradient(values)
+        bar.step("values")
+        saved = save_values(args, shown, {label if vectors is None else f"grad {name}": values if vectors is None else vectors})
+        bar.update()
+        bar.step("picture")
+        draw(args, shown, values, title=f"{label}, {Path(args.file).name}", name=label, vectors=vectors,
+             transparent=args.transparent)
+        bar.update()
     if args.json:
-        print(json.dumps({"file": str(out), "field": name, "operator": args.operator, "n": len(x)}))
+        print(json.dumps({"file": str(args.out), "field": name, "operator": args.operator, "n": len(x),
+                          **({"save": saved} if saved else {})}))
     else:
-        print(f"wrote {out}")
+        print(f"wrote {args.out}")
+        if saved:
+            print(f"wrote {saved}")
     return 0

@@ -8,7 +8,8 @@ import sys
 import numpy as np
 
 from .common import (FOUR_SCHEMES, UserError, add_common_options, add_picture_options, check_free, check_size,
-                     cloud_from_args, out_dir, render_ok, sizes_arg, surface_kwargs)
+                     cloud_from_args, sizes_arg, surface_kwargs)
+from .inputs import add_input, add_out, check_outputs
 
 __all__ = ["add_parsers"]
 
@@ -16,17 +17,17 @@ __all__ = ["add_parsers"]
 def add_parsers(sub, schemes: list[str]) -> None:
     """Register ``operators``, ``convergence`` and ``poisson``."""
     ops = sub.add_parser("operators", help="errors of every scheme on one cloud")
+    add_input(ops, optional=True, help="read the points from this file (they must lie on --shape) instead of sampling it")
     add_common_options(ops)
     ops.add_argument("--n", type=int, default=4032, help="number of points (default 4032)")
-    ops.add_argument("--file", default=None, help="read the points from this file instead (they must lie on --shape)")
     ops.add_argument("--scheme", default="all", choices=["all", *schemes], help="'all': the four source schemes")
 
     conv = sub.add_parser("convergence", help="errors and fitted orders over several cloud sizes")
     add_common_options(conv)
     conv.add_argument("--sizes", type=sizes_arg, default=[1002, 2012, 4032, 8672, 15872, 32672])
     conv.add_argument("--scheme", default="msph", choices=schemes)
-    conv.add_argument("--plot", default=None, help="also write a log-log plot to this PNG/PDF/SVG file")
-    conv.add_argument("--overwrite", action="store_true", help="replace an existing --plot file")
+    add_out(conv, "a log-log plot of the errors", (".png", ".pdf", ".svg"))
+    conv.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
     ops.set_defaults(func=_cmd_operators)
     conv.set_defaults(func=_cmd_convergence)
 
@@ -34,7 +35,7 @@ def add_parsers(sub, schemes: list[str]) -> None:
     add_common_options(poi)
     poi.add_argument("--n", type=int, default=4032, help="number of points (default 4032)")
     poi.add_argument("--scheme", default="msph", choices=schemes)
-    poi.add_argument("--out", default=None, help="folder for a picture: f | exact | solution | error")
+    add_out(poi, "a picture rhs | exact u | SPH u | error")
     add_picture_options(poi)
     poi.set_defaults(func=_cmd_poisson)
 
@@ -80,28 +81,28 @@ def _cmd_convergence(args) -> int:
 
     for n in args.sizes:
         check_size("--sizes", n)
-    if args.plot:
-        check_free([args.plot], args.overwrite)
+    if args.out:
+        check_free([args.out], args.overwrite)
     with tqdm(total=len(args.sizes), desc=f"{args.scheme} on {args.shape}", disable=args.json, file=sys.stderr) as bar:
         table = convergence(
             args.shape, args.sizes, args.scheme, args.function,
             sampling=args.sampling, seed=args.seed, progress=bar.update, **surface_kwargs(args),
         )
-    if args.plot:
+    if args.out:
         from ..viz.plots import convergence_plot
 
         convergence_plot(
             {args.scheme: table}, reference_order=2,
             title=f"{args.scheme} on {args.shape}, f = {args.function} (relative errors)",
-            filename=args.plot, overwrite=args.overwrite,
+            filename=args.out, overwrite=args.overwrite,
         )
     if args.json:
         print(json.dumps(table.to_dict(json=True), indent=2))
     else:
         print(f"{args.scheme} on {args.shape}, f = {args.function} (orders fitted against h ~ N^-1/2)")
         print(table.to_text())
-        if args.plot:
-            print(f"plot written to {args.plot}")
+        if args.out:
+            print(f"wrote {args.out}")
     return 0
 
 
@@ -111,6 +112,7 @@ def _cmd_poisson(args) -> int:
     from ..reference.errors import l2_error, linf_error
     from ..surface import Surface
 
+    check_outputs(args)
     cloud = cloud_from_args(args)
     s = Surface(cloud, scheme=args.scheme, **surface_kwargs(args))
     f, _, lap_ex = exact_operators(cloud, get_function(args.function))
@@ -123,16 +125,12 @@ def _cmd_poisson(args) -> int:
         "l2_rel_error": l2_error(u, ref), "linf_rel_error": linf_error(u, ref),
     }
     if args.out:
-        out = out_dir(args.out)
-        target = out / f"poisson_{args.shape}_{args.scheme}.png"
-        check_free([target], args.overwrite)
-        if render_ok(True):
-            from ..viz.render import render_comparison
+        from ..viz.render import render_comparison
 
-            w, h = args.size or (300, 300)
-            render_comparison(s, rhs, ref, u, names=("rhs", "exact u", "SPH u", "error"), camera=args.camera,
-                              panel_size=(w, h), filename=target, overwrite=args.overwrite)
-            summary["files"] = [str(target)]
+        w, h = args.size or (300, 300)
+        render_comparison(s, rhs, ref, u, names=("rhs", "exact u", "SPH u", "error"), camera=args.camera, up=args.up,
+                          panel_size=(w, h), filename=args.out, overwrite=args.overwrite)
+        summary["files"] = [str(args.out)]
     if args.json:
         print(json.dumps(summary, indent=2))
     else:
