@@ -170,7 +170,7 @@ def cli_row(name: str, path: Path, pts: np.ndarray | None, tmp: Path) -> dict:
         t = time.perf_counter()
         res = subprocess.run([sys.executable, "-m", "manifold_sph.cli", *argv, "--overwrite"], capture_output=True,
                              text=True, timeout=1800)
-        notes = sum(ln.startswith("manifold-sph: note:") for ln in res.stderr.splitlines())
+        notes = res.stderr.count("manifold-sph: note:")
         row[task] = f"exit {res.returncode} {time.perf_counter() - t:.0f}s {notes} notes"
         if res.returncode:
             row[task] += " " + res.stderr.strip().splitlines()[-1][:80]

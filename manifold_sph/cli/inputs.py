@@ -101,7 +101,9 @@ def add_sources(q: argparse.ArgumentParser, required: bool = True) -> None:
 
 
 def check_outputs(args: argparse.Namespace) -> None:
-    """Check ``--out`` and ``--save`` before any work: extensions, folders, existing files."""
+    """Check the input file, ``--out`` and ``--save`` before any work: extensions, folders, existing files."""
+    if getattr(args, "file", None) and not Path(args.file).exists():
+        raise FileNotFoundError(f"no such file: {str(args.file)!r}")
     outs = args.out if isinstance(getattr(args, "out", None), list) else [getattr(args, "out", None)]
     paths = []
     for out in (o for o in outs if o):
@@ -127,11 +129,11 @@ def check_outputs(args: argparse.Namespace) -> None:
 
 @contextlib.contextmanager
 def progress(args: argparse.Namespace, total: int, desc: str) -> Iterator[Any]:
-    """A tqdm bar on stderr over ``total`` steps (none with ``--json``); ``bar.step(name)`` names the
-    next step, ``bar.update()`` ends it."""
+    """A tqdm bar on stderr over ``total`` steps (on a terminal, and not with ``--json``), cleared when
+    done; ``bar.step(name)`` names the next step, ``bar.update()`` ends it."""
     from tqdm import tqdm
 
-    with tqdm(total=total, desc=desc, disable=bool(getattr(args, "json", False)), file=sys.stderr,
+    with tqdm(total=total, desc=desc, disable=True if getattr(args, "json", False) else None, file=sys.stderr, leave=False,
               bar_format="{desc}: {n_fmt}/{total_fmt} |{bar}| {elapsed}") as bar:
         bar.step = lambda name: bar.set_description_str(f"{desc}: {name}")  # type: ignore[attr-defined]
         yield bar
@@ -261,7 +263,9 @@ def notes() -> Iterator[None]:
         text = " ".join(str(message).split())
         if issubclass(category, ManifoldSPHWarning) and text not in said:
             said.add(text)
-            print(f"manifold-sph: note: {text}", file=sys.stderr)
+            from tqdm import tqdm
+
+            tqdm.write(f"manifold-sph: note: {text}", file=sys.stderr)  # on a line of its own, above any bar
         elif not issubclass(category, ManifoldSPHWarning):
             previous(message, category, filename, lineno, file, line)
 
