@@ -9,7 +9,6 @@ options, ``--out`` (the picture), ``--save`` (the per-point values), sources, no
   ``--camera``, ``--size``, ``--cmap``, ``--clim``, ``--robust``;
 - ``--save FILE``: the per-point values (``.npy``: the array; ``.ply`` / ``.vtp`` / ``.vtk`` /
   ``.npz`` / ``.csv``: the points, their normals and the values as fields);
-- ``--source I`` / ``--source-xyz X,Y,Z``: particles by index or the nearest to a point;
 - a progress bar over the long steps (reading, normals, operators, the computation, the picture).
 
 The library's warnings become one line each on stderr (``manifold-sph: note: ...``, no source
@@ -29,11 +28,10 @@ from typing import Any
 
 import numpy as np
 
-from .common import UserError, check_free, h_arg, pair_arg, percent_arg, positive_int_arg, xyz_arg
+from .common import UserError, check_free, h_arg, pair_arg, percent_arg, positive_int_arg
 
-__all__ = ["FORMATS_HELP", "SAVE_SUFFIXES", "add_input", "add_surface_options", "add_out", "add_save", "add_sources",
-           "add_colour_options", "check_outputs", "read_input", "build_surface", "save_values", "draw",
-           "source_indices", "progress", "notes"]
+__all__ = ["FORMATS_HELP", "SAVE_SUFFIXES", "add_input", "add_surface_options", "add_out", "add_save",
+           "add_colour_options", "check_outputs", "read_input", "build_surface", "save_values", "draw", "progress", "notes"]
 
 FORMATS_HELP = "ply, pcd, xyz, csv, pts, obj, npy, npz, las, laz, e57, vtk, vtp"
 #: What ``--save`` writes, by extension.
@@ -89,15 +87,6 @@ def add_save(q: argparse.ArgumentParser, what: str = "the per-point values") -> 
     """``--save FILE``: the per-point values."""
     q.add_argument("--save", default=None, metavar="FILE",
                    help=f"save {what}: .npy (the array) or .ply / .vtp / .vtk / .npz / .csv (points, normals and values)")
-
-
-def add_sources(q: argparse.ArgumentParser, required: bool = True) -> None:
-    """``--source I`` and ``--source-xyz X,Y,Z`` (each repeatable; at least one when ``required``)."""
-    q.add_argument("--source", type=int, action="append", default=[], metavar="I",
-                   help="index of a source particle (0-based); repeat for several sources")
-    q.add_argument("--source-xyz", type=xyz_arg, action="append", default=[], metavar="X,Y,Z",
-                   help="the particle nearest to this point as a source; repeat for several")
-    q.set_defaults(sources_required=required)
 
 
 def check_outputs(args: argparse.Namespace) -> None:
@@ -177,25 +166,6 @@ def build_surface(args: argparse.Namespace, cloud: Any, bar: Any = None) -> tupl
     if bar is not None:
         bar.update()
     return s, estimated
-
-
-def source_indices(args: argparse.Namespace, points: np.ndarray) -> tuple[list[int], list[float]]:
-    """Source particles from ``--source`` (checked against the cloud's size) and ``--source-xyz``
-    (the nearest particle; with the distance to it)."""
-    n = len(points)
-    if getattr(args, "sources_required", True) and not args.source and not args.source_xyz:
-        raise UserError("give at least one source: --source I (an index) or --source-xyz X,Y,Z (the nearest particle)")
-    bad = [i for i in args.source if not 0 <= i < n]
-    if bad:
-        raise UserError(f"--source {bad[0]} is out of range: {args.file!r} has {n} points, indices 0 to {n - 1}")
-    idx, dist = list(args.source), [0.0] * len(args.source)
-    if args.source_xyz:
-        from scipy.spatial import cKDTree
-
-        d, i = cKDTree(points).query(np.asarray(args.source_xyz, dtype=np.float64))
-        idx += [int(k) for k in np.atleast_1d(i)]
-        dist += [float(x) for x in np.atleast_1d(d)]
-    return idx, dist
 
 
 def _atomic_npy(path: Path, values: np.ndarray) -> None:
