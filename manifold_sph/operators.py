@@ -19,20 +19,19 @@ from collections.abc import Callable, Hashable
 from typing import TypeVar
 
 import numpy as np
-import scipy.linalg as sla
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 from numpy.typing import ArrayLike
 
 from .exceptions import ManifoldSPHWarning
 from ._sparse import RowBlocks
-from ._validation import as_field, as_positive_field, check_bool, check_in, check_int, check_positive
+from ._validation import as_field, as_positive_field, check_bool, check_in, check_positive
 from .area import AreaElements, area_elements, check_area_method
 from .assembly import Assembled, ColumnAreas, assemble
 from .frames import offsets_array, tangent_frames
 from .kernels import get_kernel
 from .neighbors import Neighborhood, adaptive_smoothing_length, smoothing_length_for_count
 from .schemes import get_scheme
+from .spectrum import Eigenpairs, stable_eigenpairs
 from .voronoi import BOUNDARY, DEGENERATE, INCOMPLETE, NEAR_DUPLICATE, roughness, stiffness_matrix, voronoi_cells
 
 __all__ = ["OperatorSet"]
@@ -540,16 +539,18 @@ class OperatorSet:
             self._cache["stable_L"] = (-sp.diags(1.0 / st["area"]) @ st["K"]).tocsr()
         return self._cache["stable_L"]
 
-    def eigs(self, k: int = 50, *, sigma: float | None = None, refine: bool = False) -> tuple[np.ndarray, np.ndarray]:
-        """The ``k`` smallest eigenpairs of ``K v = lambda M v`` (the stable Laplacian's spectrum).
+    def eigs(self, k: int = 50, *, sigma: float | None = None, refine: bool = False, component: str | int = "largest",
+             method: str = "auto") -> Eigenpairs:
+        """The ``k`` smallest eigenpairs of ``K v = lambda M v`` (the stable Laplacian's spectrum), or those nearest ``sigma``.
+
+        The contract, the methods and their memory: :mod:`manifold_sph.spectrum`.
 
         Parameters
         ----------
         k : int
-            Number of eigenpairs, ``1 <= k < N - 1``.
+            Number of eigenpairs, ``1 <= k <= n - 2`` (``n`` the particles of the chosen piece).
         sigma : float, optional
-            Shift of the shift-invert Lanczos iteration (default ``-1e-2 / area``,
-            just below the zero eigenvalue).
+            Return the ``k`` eigenvalues nearest ``sigma`` (any cloud size) instead of the smallest.
         refine : bool
             Rayleigh-Ritz with the scheme's own (strong-form) Laplacian in the span of
             the first ``k + max(8, k // 4)`` stable eigenvectors: the eigenvalues of the
@@ -559,15 +560,21 @@ class OperatorSet:
             eigenvalues 1..48 on Fibonacci points 3.7e-6 (N = 8000) and 2.7e-7
             (32000) against 2.0e-3 and 4.9e-4 unrefined; on uniformly random points
             no gain (3.5e-3 at N = 8000) or a loss (1.9e-3 against 9.4e-4 at 32000).
-            The vectors are then the Ritz vectors, M-orthonormalised.
+            The vectors are then the Ritz vectors (for a complex pair of Ritz values,
+            the real and imaginary parts of one vector), M-orthonormalised.
+        component : "largest", "all" or int
+            Solve on the largest connected piece of the cloud (default; the other
+            particles are listed in ``.excluded``, with one warning), on the piece that
+            holds particle ``component``, or on the whole cloud (one zero eigenvalue per piece).
+        method : {"auto", "dense", "shift-invert", "lobpcg"}
+            See :mod:`manifold_sph.spectrum`.
 
         Returns
         -------
-        values : ndarray, shape (k,)
-            Ascending; ``lambda`` approximates the eigenvalues of ``-Lap_S`` (0 first on a
-            connected closed surface).
-        vectors : ndarray, shape (N, k)
-            M-orthonormal: ``vectors.T @ M @ vectors == I``.
+        Eigenpairs
+            ``.values`` (k,) ascending, ``.vectors`` (N, k) M-orthonormal
+            (``vectors.T @ M @ vectors == I``), zero on ``.excluded``; unpacks as
+            ``values, vectors``.
 
         Examples
         --------
@@ -578,41 +585,10 @@ class OperatorSet:
         >>> np.round(lam, 1).tolist()
         [0.0, 2.0, 2.0, 2.0]
         """
-        n = self.n_points
-        k = check_int("k", k, minimum=1)
-        if k >= n - 1:
-            raise ValueError(f"k must be smaller than the number of points minus 1 ({n - 1}), got {k}")
         refine = check_bool("refine", refine)
-        if sigma is not None:
-            if isinstance(sigma, bool) or not isinstance(sigma, (int, float, np.integer, np.floating)):
-                raise TypeError(f"sigma must be a real number or None, got {type(sigma).__name__} {sigma!r}")
-            if not np.isfinite(sigma):
-                raise ValueError(f"sigma must be finite, got {sigma!r}")
         st = self._stable()
-        K, area = st["K"], st["area"]
-        if sigma is None:
-            sigma = -1e-2 / area.sum()
-        if refine:
-            wanted = k
-            k = min(n - 2, k + max(8, k // 4))
-        if n <= 1500:
-            lam, V = sla.eigh(K.toarray(), np.diag(area), subset_by_index=[0, k - 1])
-        else:
-            v0 = np.random.default_rng(0).standard_normal(n)
-            lam, V = spla.eigsh(K.tocsc(), k=k, M=st["M"].tocsc(), sigma=float(sigma), which="LM", v0=v0)
-        order = np.argsort(lam)
-        lam, V = lam[order], V[:, order]
-        V = V / np.sqrt(np.einsum("ik,i,ik->k", V, area, V))
-        if refine:
-            A = V.T @ (area[:, None] * -(self.laplacian_matrix() @ V))
-            mu, C = np.linalg.eig(A)
-            order = np.argsort(mu.real)[:wanted]
-            lam = mu.real[order]
-            Y = V @ C[:, order].real
-            G = Y.T @ (area[:, None] * Y)  # M-orthonormalise the Ritz vectors
-            Lc = np.linalg.cholesky(0.5 * (G + G.T))
-            V = np.linalg.solve(Lc, Y.T).T
-        return lam, V
+        return stable_eigenpairs(st["K"], st["area"], k, sigma=sigma, component=component, method=method,
+                                 laplacian=self.laplacian_matrix() if refine else None)
 
     def laplacian(self, f: ArrayLike) -> np.ndarray:
         """Laplace-Beltrami operator (Laplacian in the plane) of a scalar field.

@@ -674,3 +674,46 @@ def test_wave_kernel_signature_finite_for_any_finite_energy(geo_sphere):
     assert np.isfinite(W).all() and np.all(W >= 0)
     m = s.mass_matrix().diagonal()
     assert np.allclose(m @ W, 1.0)  # a weighted mean of M-normalised squared eigenfunctions, at every energy
+
+
+# ================================================================== scaleout: eigs and TiledSurface (issue 38)
+def _quiet_surface(*args, **kw):
+    from manifold_sph import Surface
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return Surface(*args, **kw)
+
+
+def test_item5_eigs_sigma_is_honoured_below_1500_points():
+    c = shapes.sphere(600)
+    lam = _quiet_surface(c.points, c.normals).eigs(5, sigma=6.0)[0]
+    assert np.all(np.abs(lam - 6.0) < 0.1), lam  # the l = 2 cluster, not the 5 smallest
+
+
+def test_item9_eigs_at_1e_minus_155_refused_with_the_range():
+    c = shapes.sphere(500)
+    s = _quiet_surface(c.points * 1e-155, c.normals)
+    with pytest.raises(ValueError, match=r"points: .* outside \[1e-280, 1e\+280\] .* Rescale the points"):
+        s.eigs(10)
+
+
+def test_item13_eigs_refine_with_most_of_the_cloud():
+    c = shapes.sphere(200)
+    ev = _quiet_surface(c.points, c.normals).eigs(160, refine=True)
+    assert ev.values.shape == (160,) and np.all(np.isfinite(ev.vectors))
+
+
+def test_item14_eigs_at_1e_minus_100_scale_free():
+    c = shapes.sphere(1600)  # above the dense size: the iterative path raised ArpackError
+    ref = _quiet_surface(c.points, c.normals).eigs(6)[0]
+    lam = _quiet_surface(c.points * 1e-100, c.normals).eigs(6)[0] * 1e-200
+    np.testing.assert_allclose(lam, ref, rtol=1e-8, atol=1e-12)
+
+
+def test_item34_6_eigs_isolated_pieces_not_wasted():
+    a, b = shapes.sphere(600), shapes.sphere(40, radius=0.05)
+    s = _quiet_surface(np.vstack([a.points, b.points + 5]), np.vstack([a.normals, b.normals]))
+    with pytest.warns(RuntimeWarning, match="40 of 640 particles"):
+        ev = s.eigs(4)
+    assert ev.values[1] > 1.5 and ev.excluded.size == 40  # one zero mode, not one per piece
