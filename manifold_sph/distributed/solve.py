@@ -1,0 +1,235 @@
+"""Global solves on a tiled cloud: implicit heat, Poisson, geodesic distance and eigenpairs.
+
+The tiles keep the own rows of the stable Laplacian's ``K`` and ``M`` (``keep=("stable",)``)
+and, for geodesics, of the tangent-plane derivatives. Two engines solve with them:
+
+``"mpi"``
+    PETSc/SLEPc through petsc4py/slepc4py (the ``mpi`` extra): ``mpirun -n R python -m
+    manifold_sph.mpi JOB`` is started on this machine (or the same command is run by the
+    user under ``srun``/``mpirun`` on a cluster); each rank reads its own tiles' rows from
+    the cache directory and solves with CG preconditioned by PETSc's algebraic multigrid
+    (GAMG), eigenpairs with SLEPc (Krylov-Schur, shift-invert through the same CG).
+``"local"``
+    One process: ``K`` and ``M`` assembled from the tiles and solved with
+    :mod:`manifold_sph.solvers` (sparse Cholesky or AMG-CG) and :mod:`manifold_sph.spectrum`.
+
+``engine="auto"`` takes ``"mpi"`` when petsc4py and ``mpirun`` are installed and ``ranks`` > 1,
+``"local"`` otherwise, and says so in a warning when it falls back for want of the engine.
+
+Formulations (the same on both engines, so their results agree to the solver tolerance):
+
+- implicit Euler heat: ``(M + a dt K) u' = M u``;
+- Poisson ``-Lap u = f`` on a closed surface: ``K u = M (f - mean_M f)``, the solution of zero mean;
+- geodesic distance (heat method, as :class:`manifold_sph.geometry.GeodesicSolver`):
+  ``(M + t K) u = e_s`` with ``t = 4 mean(M)``, ``X = -grad u / |grad u|``, ``b_i = sum_j w_ij
+  (X_i + X_j) / 2 . (x_i - x_j)``, then ``K phi = b`` with ``phi`` held at the Euclidean
+  distance within ``3 sqrt(mean M)`` of the sources;
+- eigenpairs of ``K v = lambda M v`` nearest a shift just below zero.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+import warnings
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..exceptions import ManifoldSPHWarning
+
+__all__ = ["ENGINES", "GEODESIC_T", "SOURCE_RADIUS", "engine_available", "run"]
+
+ENGINES = ("auto", "mpi", "local")
+#: Geodesic heat time in units of the mean area element, and the held radius in units of the spacing.
+GEODESIC_T = 4.0
+SOURCE_RADIUS = 3.0
+
+
+def engine_available() -> str | None:
+    """None when the MPI engine can run here, else the reason it cannot."""
+    try:
+        import petsc4py  # noqa: F401
+    except ImportError:
+        return "petsc4py is not installed (pip install 'manifold-sph[mpi]', docs/distributed.md)"
+    if shutil.which("mpirun") is None and shutil.which("mpiexec") is None:
+        return "no mpirun or mpiexec on the PATH"
+    return None
+
+
+def job_description(ts) -> dict:
+    """What an MPI rank needs to read the tiles: sizes, tile files, points and order files."""
+    return {"n_points": int(ts.n_points), "bounds": [int(b) for b in ts.bounds],
+            "tiles": [ts._tile_path(t) for t in range(len(ts.chunks))], "points": ts._points_file,
+            "order": ts._order_file, "keep": list(ts.keep)}
+
+
+# ----------------------------------------------------------------------------- local engine
+def assemble(ts, name: str) -> sp.csr_matrix:
+    """A kept operator over the whole cloud, tile order."""
+    return ts._global_matrix(name, "tile")
+
+
+def _tile_vector(ts, name: str, width: int | None = None) -> np.ndarray:
+    from .tiles import TileData
+
+    parts = [np.asarray(TileData(ts._tile_path(t))[name]) for t in range(len(ts.chunks))]
+    return np.concatenate(parts) if parts else np.zeros((0,) if width is None else (0, width))
+
+
+def _local_heat(ts, u, a_dt, steps):
+    from ..solvers import spd_solver
+
+    K, m = assemble(ts, "K"), _tile_vector(ts, "M")
+    solver = spd_solver(sp.diags(m) + a_dt * K)
+    its = []
+    for _ in range(steps):
+        u = solver.solve(m * u)
+        its.append(solver.info.iterations)
+    return u, {"iterations": its, "method": solver.method}
+
+
+def _local_poisson(ts, f):
+    from ..solvers import spd_solver
+
+    K, m = assemble(ts, "K"), _tile_vector(ts, "M")
+    b = m * (f - np.dot(m, f) / m.sum())
+    free = np.ones(m.size, dtype=bool)
+    free[0] = False  # one value held; the zero-mean shift below gives the unique solution
+    solver = spd_solver(K[free][:, free])
+    u = np.zeros(m.size)
+    u[free] = solver.solve(b[free])
+    u -= np.dot(m, u) / m.sum()
+    return u, {"iterations": [solver.info.iterations], "method": solver.method}
+
+
+def geodesic_rhs(K, pts, X):
+    """``b_i = sum_j w_ij (X_i + X_j) / 2 . (x_i - x_j)`` over the off-diagonal ``w_ij = -K_ij`` of ``K``'s rows."""
+    Kc = K.tocoo()
+    off = Kc.row != Kc.col
+    i, j, w = Kc.row[off], Kc.col[off], -Kc.data[off]
+    return np.bincount(i, weights=w * np.einsum("pd,pd->p", 0.5 * (X[i] + X[j]), pts[i] - pts[j]),
+                       minlength=K.shape[0])
+
+
+def held_particles(pts, src, m):
+    """``(held mask, Euclidean distance to the nearest source)``: the particles within the source radius."""
+    from scipy.spatial import cKDTree
+
+    r = cKDTree(pts[src]).query(pts)[0]
+    held = r <= SOURCE_RADIUS * np.sqrt(m.mean())
+    held[src] = True
+    return held, r
+
+
+def _local_geodesic(ts, src):
+    from ..solvers import spd_solver
+
+    K, m = assemble(ts, "K"), _tile_vector(ts, "M")
+    dx, dy = assemble(ts, "dx"), assemble(ts, "dy")
+    U, V = _tile_vector(ts, "u", 3), _tile_vector(ts, "v", 3)
+    pts = np.asarray(np.load(ts._points_file, mmap_mode="r"))
+    n = m.size
+    rhs = np.zeros(n)
+    rhs[src] = 1.0
+    heat = spd_solver(sp.diags(m) + GEODESIC_T * m.mean() * K)
+    u = heat.solve(rhs)
+    g = (dx @ u)[:, None] * U + (dy @ u)[:, None] * V
+    norm = np.linalg.norm(g, axis=1)
+    X = -g / np.where(norm > 0, norm, 1.0)[:, None]
+    b = geodesic_rhs(K, pts, X)
+    held, r = held_particles(pts, src, m)
+    free = ~held
+    Kf = K[free]
+    poisson = spd_solver(Kf[:, free])
+    phi = r.copy()
+    phi[free] = poisson.solve(b[free] - Kf[:, held] @ r[held])
+    return phi, {"iterations": [heat.info.iterations, poisson.info.iterations], "method": poisson.method}
+
+
+def _local_eigs(ts, k, sigma):
+    from ..spectrum import stable_eigenpairs
+
+    K, m = assemble(ts, "K"), _tile_vector(ts, "M")
+    ev = stable_eigenpairs(K, m, k, sigma=sigma, component="all")
+    return ev.values, ev.vectors, {"iterations": [], "method": ev.method}
+
+
+# ----------------------------------------------------------------------------- dispatch
+def run(ts, problem: str, *, engine: str, ranks: int, **args):
+    """Run a global solve on ``engine``; returns ``(result in tile order, info dict)``."""
+    need = ["stable"] + (["derivatives"] if problem == "geodesic" else [])
+    missing = [k for k in need if k not in ts.keep]
+    if missing:
+        raise ValueError(f"{problem} needs the tiles' {' and '.join(missing)} rows, which were not kept "
+                         f"(keep={ts.keep!r}); build with keep=(..., {', '.join(map(repr, missing))})")
+    if engine == "auto":
+        why = engine_available()
+        if why is None and ranks > 1:
+            engine = "mpi"
+        else:
+            engine = "local"
+            if why is not None:
+                warnings.warn(f"the MPI engine is not available ({why}): solving on one process with "
+                              "scipy/pyamg/cholespy instead", ManifoldSPHWarning, stacklevel=3)
+    t0 = time.perf_counter()
+    if engine == "mpi":
+        out, info = _run_mpi(ts, problem, ranks, args)
+    elif problem == "heat":
+        out, info = _local_heat(ts, args["u0"], args["a_dt"], args["steps"])
+    elif problem == "poisson":
+        out, info = _local_poisson(ts, args["f"])
+    elif problem == "geodesic":
+        out, info = _local_geodesic(ts, args["sources"])
+    else:
+        lam, V, info = _local_eigs(ts, args["k"], args.get("sigma"))
+        out = (lam, V)
+    info = {"engine": engine, "ranks": ranks if engine == "mpi" else 1, "seconds": time.perf_counter() - t0} | info
+    return out, info
+
+
+def _run_mpi(ts, problem, ranks, args):
+    work = tempfile.mkdtemp(prefix="msph-mpi-", dir=str(ts.cache_dir))
+    try:
+        job = job_description(ts) | {"problem": problem, "work": work}
+        for name, value in args.items():
+            if isinstance(value, np.ndarray):
+                path = os.path.join(work, name + ".npy")
+                np.save(path, value)
+                job[name] = {"npy": path}
+            else:
+                job[name] = value
+        path = os.path.join(work, "job.json")
+        with open(path, "w") as f:
+            json.dump(job, f)
+        launcher = shutil.which("mpirun") or shutil.which("mpiexec")
+        cmd = [launcher, "-n", str(ranks)]
+        if _is_openmpi(launcher):  # Open MPI refuses root and more ranks than cores unless told
+            cmd += ["--allow-run-as-root", "--oversubscribe"]
+        cmd += [sys.executable, "-m", "manifold_sph.mpi", path]
+        env = dict(os.environ, OMPI_MCA_rmaps_base_oversubscribe="1")
+        proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
+        if proc.returncode != 0:
+            raise RuntimeError(f"the MPI engine failed (exit {proc.returncode}): {' '.join(cmd)}\n{proc.stderr[-3000:]}")
+        with open(os.path.join(work, "info.json")) as f:
+            info = json.load(f)
+        if problem == "eigs":
+            out = (np.load(os.path.join(work, "values.npy")), np.load(os.path.join(work, "vectors.npy")))
+        else:
+            out = np.load(os.path.join(work, "x.npy"))
+        return out, info
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+def _is_openmpi(launcher: str) -> bool:
+    try:
+        out = subprocess.run([launcher, "--version"], capture_output=True, text=True, timeout=30).stdout
+    except (OSError, subprocess.SubprocessError):
+        return False
+    return "Open MPI" in out or "OpenRTE" in out

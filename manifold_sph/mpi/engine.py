@@ -1,0 +1,276 @@
+"""The MPI engine of the global solves: PETSc (CG + GAMG) and SLEPc on the tiles' rows of ``K`` and ``M``.
+
+Run by ``mpirun -n R python -m manifold_sph.mpi JOB.json`` (``TiledSurface`` writes the job
+and starts it; on a cluster the same command runs under ``srun``). Each rank owns whole
+tiles: a contiguous range of rows in tile order, balanced by particle count, read from
+the tile cache directory with memory maps. Nothing is assembled on one rank.
+
+The formulations are those of :mod:`manifold_sph.distributed.solve`; results are written
+into ``.npy`` files in the job's work directory, each rank its own rows.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import resource
+import sys
+import time
+
+import numpy as np
+
+__all__ = ["RTOL", "main", "rank_tiles"]
+
+#: Relative residual of every CG solve (equality with the single process's Cholesky to ~1e-10).
+RTOL = 1e-12
+
+
+def rank_tiles(bounds, size: int, rank: int) -> tuple[int, int]:
+    """The tiles ``[t0, t1)`` of ``rank``: contiguous, cut where the particle count crosses ``N r / size``."""
+    bounds = np.asarray(bounds)
+    n = int(bounds[-1])
+    cuts = np.searchsorted(bounds[:-1], [n * r / size for r in range(size + 1)], side="left")
+    cuts[-1] = bounds.size - 1
+    return int(cuts[rank]), int(cuts[rank + 1])
+
+
+def _load(job, name):
+    v = job[name]
+    return np.load(v["npy"]) if isinstance(v, dict) and "npy" in v else v
+
+
+class _Rows:
+    """This rank's rows: ``K`` (PETSc Mat over all ranks), ``m``, and the tiles' data."""
+
+    def __init__(self, job, comm):
+        from petsc4py import PETSc
+
+        from ..distributed.tiles import TileData
+
+        self.comm = comm
+        t0, t1 = rank_tiles(job["bounds"], comm.getSize(), comm.getRank())
+        self.tiles = [TileData(job["tiles"][t]) for t in range(t0, t1)]
+        self.lo, self.hi = int(job["bounds"][t0]), int(job["bounds"][t1])
+        self.n = int(job["n_points"])
+        nloc = self.hi - self.lo
+        indptr, indices, data, m = [np.zeros(1, dtype=np.int64)], [], [], []
+        off = 0
+        for d in self.tiles:
+            K = d["K"]
+            cols = np.asarray(d["cols"])
+            indptr.append(np.asarray(K.indptr[1:], dtype=np.int64) + off)
+            off += int(K.indptr[-1])
+            indices.append(cols[np.asarray(K.indices)])
+            data.append(np.asarray(K.data))
+            m.append(np.asarray(d["M"]))
+        indptr = np.concatenate(indptr).astype(PETSc.IntType)
+        indices = np.concatenate(indices).astype(PETSc.IntType) if indices else np.zeros(0, PETSc.IntType)
+        data = np.concatenate(data) if data else np.zeros(0)
+        for i in range(nloc):  # PETSc wants each row's columns ascending
+            a, b = indptr[i], indptr[i + 1]
+            o = np.argsort(indices[a:b], kind="stable")
+            indices[a:b], data[a:b] = indices[a:b][o], data[a:b][o]
+        self.m = np.concatenate(m) if m else np.zeros(0)
+        self.K = PETSc.Mat().createAIJ(size=((nloc, self.n), (nloc, self.n)), csr=(indptr, indices, data), comm=comm)
+        self.K.assemble()
+        self.M = self.vec(self.m)
+        self.mean_m = comm.tompi4py().allreduce(float(self.m.sum())) / self.n
+
+    def vec(self, values=None):
+        from petsc4py import PETSc
+
+        v = PETSc.Vec().createMPI((self.hi - self.lo, self.n), comm=self.comm)
+        if values is not None:
+            v.getArray()[:] = values
+        return v
+
+    def ksp(self, A):
+        from petsc4py import PETSc
+
+        ksp = PETSc.KSP().create(comm=self.comm)
+        ksp.setOperators(A)
+        ksp.setType("cg")
+        ksp.getPC().setType("gamg")
+        ksp.setTolerances(rtol=RTOL, atol=0.0, max_it=2000)
+        ksp.setFromOptions()
+        return ksp
+
+    def solve(self, ksp, b, x, its, setup):
+        t = time.perf_counter()
+        ksp.solve(b, x)
+        if ksp.getConvergedReason() < 0:
+            raise RuntimeError(f"CG + GAMG did not converge (reason {ksp.getConvergedReason()}, "
+                               f"{ksp.getIterationNumber()} iterations, residual {ksp.getResidualNorm():.3g})")
+        its.append(int(ksp.getIterationNumber()))
+        setup.append(time.perf_counter() - t)
+
+    def allgather(self, local):
+        """The whole vector (tile order) on every rank."""
+        mpi = self.comm.tompi4py()
+        parts = mpi.allgather(np.ascontiguousarray(local))
+        return np.concatenate(parts, axis=0)
+
+
+def _write(job, name, shape, lo, hi, values, comm):
+    path = os.path.join(job["work"], name + ".npy")
+    if comm.getRank() == 0:
+        np.lib.format.open_memmap(path, mode="w+", dtype=np.float64, shape=shape).flush()
+    comm.barrier()
+    out = np.load(path, mmap_mode="r+")
+    out[lo:hi] = values
+    out.flush()
+    del out
+
+
+def _heat(job, R, its, secs):
+    A = R.K.duplicate(copy=True)
+    A.scale(float(job["a_dt"]))
+    A.setDiagonal(R.M, addv=True)
+    ksp = R.ksp(A)
+    ksp.setInitialGuessNonzero(True)
+    x = R.vec(_load(job, "u0")[R.lo : R.hi])
+    b = R.vec()
+    for _ in range(int(job["steps"])):
+        b.getArray()[:] = R.m * x.getArray()
+        R.solve(ksp, b, x, its, secs)
+    return x.getArray().copy()
+
+
+def _poisson(job, R, its, secs):
+    from petsc4py import PETSc
+
+    f = _load(job, "f")
+    mpi = R.comm.tompi4py()
+    fl = f[R.lo : R.hi]
+    mean = mpi.allreduce(float(np.dot(R.m, fl))) / mpi.allreduce(float(R.m.sum()))
+    R.K.setNullSpace(PETSc.NullSpace().create(constant=True, comm=R.comm))
+    b = R.vec(R.m * (fl - mean))
+    x = R.vec()
+    R.solve(R.ksp(R.K), b, x, its, secs)
+    u = x.getArray().copy()
+    u -= mpi.allreduce(float(np.dot(R.m, u))) / mpi.allreduce(float(R.m.sum()))
+    return u
+
+
+def _geodesic(job, R, its, secs):
+    from ..distributed.solve import GEODESIC_T, SOURCE_RADIUS
+    from scipy.spatial import cKDTree
+
+    src = np.asarray(_load(job, "sources"), dtype=np.int64)
+    pts = np.load(job["points"], mmap_mode="r")
+    A = R.K.duplicate(copy=True)
+    A.scale(GEODESIC_T * R.mean_m)
+    A.setDiagonal(R.M, addv=True)
+    rhs = np.zeros(R.hi - R.lo)
+    mine = src[(src >= R.lo) & (src < R.hi)]
+    rhs[mine - R.lo] = 1.0
+    x = R.vec()
+    R.solve(R.ksp(A), R.vec(rhs), x, its, secs)
+    u = R.allgather(x.getArray())
+    X = []
+    for d in R.tiles:  # -grad u / |grad u| on the own rows
+        uc = u[np.asarray(d["cols"])]
+        g = (d["dx"] @ uc)[:, None] * d["u"] + (d["dy"] @ uc)[:, None] * d["v"]
+        nrm = np.linalg.norm(g, axis=1)
+        X.append(-g / np.where(nrm > 0, nrm, 1.0)[:, None])
+    X = R.allgather(np.concatenate(X) if X else np.zeros((0, 3)))
+    b = []
+    for k, d in enumerate(R.tiles):  # sum_j w_ij (X_i + X_j) / 2 . (x_i - x_j), the own rows of K
+        K, cols = d["K"].tocoo(), np.asarray(d["cols"])
+        off = K.row != K.col
+        i, j, w = K.row[off], cols[K.col[off]], -K.data[off]
+        lo = int(cols[0])
+        P = np.asarray(pts[np.unique(np.concatenate([j, lo + i]))])
+        where = np.searchsorted(np.unique(np.concatenate([j, lo + i])), np.concatenate([lo + i, j]))
+        Pi, Pj = P[where[: i.size]], P[where[i.size :]]
+        b.append(np.bincount(i, weights=w * np.einsum("pd,pd->p", 0.5 * (X[lo + i] + X[j]), Pi - Pj), minlength=d.n))
+    b = np.concatenate(b) if b else np.zeros(0)
+    own = np.asarray(pts[R.lo : R.hi])
+    r = cKDTree(np.asarray(pts[np.sort(src)])).query(own)[0]
+    held = r <= SOURCE_RADIUS * np.sqrt(R.mean_m)
+    held[mine - R.lo] = True
+    rows = (np.flatnonzero(held) + R.lo).astype(np.int32)
+    xv, bv = R.vec(np.where(held, r, 0.0)), R.vec(b)
+    K = R.K.duplicate(copy=True)
+    K.zeroRowsColumns(rows, diag=1.0, x=xv, b=bv)
+    phi = R.vec()
+    R.solve(R.ksp(K), bv, phi, its, secs)
+    return phi.getArray().copy()
+
+
+def _eigs(job, R, its, secs):
+    from petsc4py import PETSc
+    from slepc4py import SLEPc
+
+    k = int(job["k"])
+    Mmat = PETSc.Mat().createAIJ(size=((R.hi - R.lo, R.n), (R.hi - R.lo, R.n)), nnz=1, comm=R.comm)
+    Mmat.setDiagonal(R.M)
+    Mmat.assemble()
+    mpi = R.comm.tompi4py()
+    total = mpi.allreduce(float(R.m.sum()))
+    eps = SLEPc.EPS().create(comm=R.comm)
+    eps.setOperators(R.K, Mmat)
+    eps.setProblemType(SLEPc.EPS.ProblemType.GHEP)
+    eps.setDimensions(k)
+    eps.setTarget(-1e-2 / total if job.get("sigma") is None else float(job["sigma"]))
+    eps.setWhichEigenpairs(SLEPc.EPS.Which.TARGET_MAGNITUDE)
+    eps.setTolerances(1e-12, 1000)
+    st = eps.getST()
+    st.setType("sinvert")
+    ksp = st.getKSP()
+    ksp.setType("cg")
+    ksp.getPC().setType("gamg")
+    ksp.setTolerances(rtol=RTOL, atol=0.0, max_it=2000)
+    eps.setFromOptions()
+    t = time.perf_counter()
+    eps.solve()
+    secs.append(time.perf_counter() - t)
+    its.append(int(eps.getIterationNumber()))
+    nconv = eps.getConverged()
+    if nconv < k:
+        raise RuntimeError(f"SLEPc converged {nconv} of {k} eigenpairs")
+    vals, vecs = [], []
+    v = R.vec()
+    for i in range(nconv):
+        vals.append(eps.getEigenpair(i, v).real)
+        a = v.getArray().copy()
+        a /= np.sqrt(mpi.allreduce(float(np.dot(a * R.m, a))))
+        vecs.append(a)
+    order = np.argsort(vals)[:k]
+    return np.maximum(np.asarray(vals)[order], 0.0), np.stack([vecs[i] for i in order], axis=1)
+
+
+def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if len(argv) != 1:
+        print("usage: mpirun -n RANKS python -m manifold_sph.mpi JOB.json  (written by TiledSurface)", file=sys.stderr)
+        return 2
+    with open(argv[0]) as f:
+        job = json.load(f)
+    import petsc4py
+
+    petsc4py.init([])
+    from petsc4py import PETSc
+
+    comm = PETSc.COMM_WORLD
+    t0 = time.perf_counter()
+    R = _Rows(job, comm)
+    t_read = time.perf_counter() - t0
+    its, secs = [], []
+    problem = job["problem"]
+    if problem == "eigs":
+        lam, V = _eigs(job, R, its, secs)
+        _write(job, "vectors", (R.n, V.shape[1]), R.lo, R.hi, V, comm)
+        if comm.getRank() == 0:
+            np.save(os.path.join(job["work"], "values.npy"), lam)
+    else:
+        x = {"heat": _heat, "poisson": _poisson, "geodesic": _geodesic}[problem](job, R, its, secs)
+        _write(job, "x", (R.n,), R.lo, R.hi, x, comm)
+    peak = comm.tompi4py().gather(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20, root=0)
+    if comm.getRank() == 0:
+        info = {"iterations": its, "solve_seconds": secs, "read_seconds": t_read, "peak_gb_per_rank": max(peak),
+                "method": "petsc-cg-gamg" if problem != "eigs" else "slepc-krylovschur-sinvert-cg-gamg"}
+        with open(os.path.join(job["work"], "info.json"), "w") as f:
+            json.dump(info, f)
+    comm.barrier()
+    return 0
