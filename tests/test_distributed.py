@@ -225,3 +225,84 @@ def test_bad_fields(given):
         given.divergence(np.zeros((2000, 2)))
     with pytest.raises(ValueError, match="method"):
         given.mean_curvature("cotan")
+
+
+# ------------------------------------------------------------------ stable rows and the global solves
+@pytest.fixture(scope="module")
+def stable(cloud):
+    ts = TiledSurface(cloud.points, cloud.normals, tile_points=500, scheduler="synchronous",
+                      keep=("stable", "derivatives"))
+    yield ts
+    ts.close()
+
+
+@pytest.fixture(scope="module")
+def single(cloud):
+    return Surface(cloud.points, cloud.normals, area="shepard")
+
+
+def test_stable_rows_bit_equal(stable, single):
+    K, M = stable.stiffness_matrix(), stable.mass_matrix()
+    assert (K != single.stiffness_matrix()).nnz == 0
+    assert np.array_equal(M.diagonal(), single.mass_matrix().diagonal())
+    with pytest.raises(ValueError, match="laplacian"):
+        stable.laplacian(np.ones(2000))
+
+
+def test_stable_rows_bit_equal_on_random_points():
+    c = shapes.sphere(2500, sampling="random", seed=2)
+    s = Surface(c.points, c.normals, area="shepard")
+    with TiledSurface(c.points, c.normals, tile_points=700, scheduler="synchronous", keep=("stable",)) as ts:
+        assert (ts.stiffness_matrix() != s.stiffness_matrix()).nnz == 0
+        assert np.array_equal(ts.mass_matrix().diagonal(), s.mass_matrix().diagonal())
+        assert rel(ts.gather(ts.dV), s.dV) == 0
+
+
+def test_local_engine_equals_single_process(stable, single, cloud):
+    x = cloud.points
+    u0 = np.exp(-10 * ((x - [0, 0, 1]) ** 2).sum(axis=1))
+    ref = pde.heat(single, u0, 1e-3, 3, method="implicit", laplacian="stable").u
+    u = stable.gather(stable.heat(u0, 1e-3, 3, method="implicit", engine="local"))
+    assert rel(u, ref) < 1e-10
+    assert stable.last_solve["engine"] == "local" and stable.last_solve["ranks"] == 1
+    # Poisson: K u = M (f - mean f), zero mean; the l = 1 harmonic z: -Lap z = 2 z
+    K, m = single.stiffness_matrix(), single.mass_matrix().diagonal()
+    u = stable.gather(stable.poisson(x[:, 2], engine="local"))
+    assert abs(np.dot(m, u)) < 1e-12
+    assert rel(K @ u, m * (x[:, 2] - np.dot(m, x[:, 2]) / m.sum())) < 1e-9
+    assert rel(u, x[:, 2] / 2) < 2e-2
+    d = stable.gather(stable.geodesic_distance(7, engine="local"))
+    exact = np.arccos(np.clip(x @ x[7], -1, 1))
+    assert d[7] == 0 and np.linalg.norm(d - exact) / np.linalg.norm(exact) < 1e-2
+    lam, V = stable.eigs(4, engine="local")
+    np.testing.assert_allclose(lam, single.eigs(4).values, rtol=1e-9, atol=1e-12)
+    assert V.shape == (2000, 4)
+
+
+def test_global_solves_need_the_stable_rows(given):
+    with pytest.raises(ValueError, match="keep=.*'stable'"):
+        given.poisson(np.ones(2000), engine="local")
+    with pytest.raises(ValueError, match="engine"):
+        given.poisson(np.ones(2000), engine="petsc")
+
+
+mpi_engine = pytest.mark.skipif(
+    __import__("manifold_sph.distributed.solve", fromlist=["x"]).engine_available() is not None,
+    reason="the MPI engine (petsc4py, slepc4py, mpirun) is not installed",
+)
+
+
+@mpi_engine
+def test_mpi_engine_two_ranks_equals_local(stable, cloud):
+    x = cloud.points
+    u0 = np.exp(-10 * ((x - [0, 0, 1]) ** 2).sum(axis=1))
+    for call in (lambda e: stable.heat(u0, 1e-3, 2, method="implicit", engine=e, ranks=2),
+                 lambda e: stable.poisson(x[:, 2], engine=e, ranks=2),
+                 lambda e: stable.geodesic_distance([3, 1500], engine=e, ranks=2)):
+        loc = stable.gather(call("local"))
+        got = stable.gather(call("mpi"))
+        assert stable.last_solve["engine"] == "mpi" and stable.last_solve["ranks"] == 2
+        assert rel(got, loc) < 1e-8
+    lam, _ = stable.eigs(6, engine="local")
+    lam2, V = stable.eigs(6, engine="mpi", ranks=2)
+    np.testing.assert_allclose(lam2, lam, rtol=1e-8, atol=1e-10)

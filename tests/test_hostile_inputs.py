@@ -717,3 +717,59 @@ def test_item34_6_eigs_isolated_pieces_not_wasted():
     with pytest.warns(RuntimeWarning, match="40 of 640 particles"):
         ev = s.eigs(4)
     assert ev.values[1] > 1.5 and ev.excluded.size == 40  # one zero mode, not one per piece
+
+
+def test_item12_tiled_fine_grid_over_a_small_cloud_merges_empty_cells():
+    pytest.importorskip("dask")
+    from manifold_sph.distributed.tiling import grid_tiles
+
+    c = shapes.sphere(200)
+    lo, hi = c.points.min(axis=0), c.points.max(axis=0)
+    parts, boxes = grid_tiles(c.points, (30, 30, 30), lo, hi)  # 27,000 cells, most of them empty
+    assert 1 <= len(parts) <= 4 and sum(p.size for p in parts) == 200 and boxes.shape == (len(parts), 2, 3)
+    from manifold_sph.distributed import TiledSurface
+
+    with TiledSurface(c.points, c.normals, grid=(30, 30, 30), scheduler="synchronous") as ts:
+        assert len(ts.chunks) <= 4 and 0 not in ts.chunks
+
+
+def test_item15_damaged_tile_cache_is_rebuilt(tmp_path):
+    pytest.importorskip("dask")
+    from manifold_sph.distributed import TiledSurface
+
+    c = shapes.sphere(1200)
+    cache = tmp_path / "cache"
+    with TiledSurface(c.points, c.normals, tile_points=400, scheduler="synchronous", cache_dir=cache) as ts:
+        ref = ts.gather(ts.laplacian(c.points[:, 0]))
+    victim = sorted(cache.glob("tile-*"))[1] / "lap_data.npy"
+    victim.write_bytes(victim.read_bytes()[:50])  # truncated
+    with TiledSurface(c.points, c.normals, tile_points=400, scheduler="synchronous", cache_dir=cache) as ts:
+        assert [r.get("rebuilt") for r in ts.report].count("damaged") == 1
+        assert [bool(r.get("reused")) for r in ts.report].count(True) == len(ts.chunks) - 1
+        np.testing.assert_array_equal(ts.gather(ts.laplacian(c.points[:, 0])), ref)
+
+
+def test_item15_tiled_surface_after_close_says_so():
+    pytest.importorskip("dask")
+    from manifold_sph.distributed import TiledSurface
+
+    c = shapes.sphere(600)
+    ts = TiledSurface(c.points, c.normals, tile_points=300, scheduler="synchronous")
+    ts.close()
+    with pytest.raises(RuntimeError, match="TiledSurface was closed"):
+        ts.gather(ts.normals)
+    with pytest.raises(RuntimeError, match="closed"):
+        ts.laplacian(np.ones(600))
+
+
+def test_item4_tiled_surface_reads_normals_stored_in_laz(tmp_path):
+    pytest.importorskip("dask")
+    from manifold_sph.distributed import TiledSurface
+
+    c = shapes.sphere(800)
+    write(tmp_path / "scan.laz", c)
+    back = read(tmp_path / "scan.laz")
+    assert back.normals is not None
+    with TiledSurface(str(tmp_path / "scan.laz"), tile_points=400, scheduler="synchronous") as ts:
+        assert not ts.normals_estimated
+        np.testing.assert_allclose(ts.gather(ts.normals), back.normals, atol=1e-12)
