@@ -4,6 +4,8 @@
     python benchmarks/distributed.py --quick             # 20k sphere, no scan
     python benchmarks/distributed.py --throughput 1000000   # build speed per core at 1M points, 1 and 2 workers
     python benchmarks/distributed.py --big 20000000 --out /tmp/big   # out of core: terrain-like cloud, 2 workers x 4 GB
+    python benchmarks/distributed.py --throughput 1000000 --sampling random --keep stable   # random points, K and M rows
+    python benchmarks/distributed.py --solves 262144      # global solves: single process, local engine, MPI at 1 and 2 ranks
 
 Equality table. Each case is built once in a fresh process (``Surface`` with the same
 local options: ``area="shepard"``, and the scan settings ``h="adaptive"`` on the scan,
@@ -23,6 +25,20 @@ one thread / (tiled time with one worker). Then the makespan of the measured til
 times list-scheduled on 1..16 workers plus the measured driver time: a simulation of
 how the build would scale on more cores.
 
+``--throughput`` also prints the tiles' CPU seconds (``process_time`` of each worker's
+build, the measure on a shared machine) and the per-core throughput from them:
+single-process CPU seconds with one thread / sum of the tiles' CPU seconds plus the
+driver's. ``--sampling random`` uses uniformly random points; ``--keep`` what the tiles build.
+
+``--solves N``: the global solves on an N-point Fibonacci sphere. Single process:
+``K, M`` (``Surface``), one implicit heat step ``(M + dt K) u = M u0`` with
+:func:`manifold_sph.solvers.spd_solver` (set-up, then each step), the geodesic heat method
+(:func:`manifold_sph.distributed.solve.geodesic_from_matrices`, first query) and
+``Surface.eigs(50)``; seconds and peak resident memory, each in a fresh process. Then
+``TiledSurface(keep=("stable", "derivatives"))`` (4 tiles) with the local engine and, when
+petsc4py is installed, the MPI engine at 1 and 2 ranks: iterations, seconds, peak GB per
+rank and ``max |x - x_local| / max |x_local|`` (eigenvalues: relative).
+
 ``--big N``: a terrain-like surface ``z = sum of sines + noise`` sampled at N uniformly
 random points (spacing about 1), written to ``OUT/terrain.npy`` in chunks; then
 ``TiledSurface`` with estimated normals on 2 workers with ``--memory-limit`` each
@@ -37,7 +53,6 @@ from __future__ import annotations
 import argparse
 import concurrent.futures as cf
 import multiprocessing as mp
-import os
 import resource
 import shutil
 import sys
@@ -138,14 +153,16 @@ def warm(client):
     client.run(job)
 
 
-def throughput(n):
+def throughput(n, sampling="fibonacci", keep=("laplacian", "derivatives")):
     from manifold_sph.reference import shapes
     from manifold_sph.distributed import TiledSurface
 
-    cloud = shapes.sphere(n)
+    cloud = shapes.sphere(n, sampling=sampling, seed=1)
     opts = {"area": "shepard"}
-    print(f"build of a {n}-point unit sphere (given normals, area='shepard', msph)")
+    print(f"build of a {n}-point unit sphere ({sampling}, given normals, area='shepard', msph, keep={keep})")
     t1, _, rss1 = single(cloud.points, cloud.normals, opts, threads=1)
+    t1cpu = _single_cpu(cloud.points, cloud.normals, opts)
+    print(f"  single process, 1 thread : {t1cpu:7.2f} CPU s")
     t2, _, rss2 = single(cloud.points, cloud.normals, opts, threads=2)
     print(f"  single process, 1 thread : {t1:7.2f} s   peak {rss1:6.0f} MB")
     print(f"  single process, 2 threads: {t2:7.2f} s   peak {rss2:6.0f} MB")
@@ -155,12 +172,18 @@ def throughput(n):
         warm(client)
         tmp = tempfile.mkdtemp(prefix="msph-bench-")
         t0 = time.perf_counter()
-        ts = TiledSurface(cloud.points, cloud.normals, tile_points=-(-n // 4), client=client, cache_dir=tmp, **opts)
+        c0 = time.process_time()
+        ts = TiledSurface(cloud.points, cloud.normals, tile_points=-(-n // 4), client=client, cache_dir=tmp, keep=keep,
+                          **opts)
         tw = time.perf_counter() - t0
+        driver_cpu = time.process_time() - c0
         tiles = [r["seconds"] for r in ts.report]
+        cpu = sum(r["cpu_seconds"] for r in ts.report)
         rows[w] = (tw, tiles, worker_rss(client))
         print(f"  TiledSurface, {w} worker(s): {tw:7.2f} s   tiles {len(tiles)} ({', '.join(f'{t:.2f}' for t in tiles)} s)"
-              f"   peak worker {rows[w][2]:6.0f} MB", flush=True)
+              f"   peak worker {rows[w][2]:6.0f} MB   CPU: tiles {cpu:.2f} s + driver {driver_cpu:.2f} s", flush=True)
+        if w == 1:
+            print(f"  per-core throughput by CPU seconds (single 1 thread / tiles + driver): {t1cpu / (cpu + driver_cpu):.0%}")
         ts.close()
         shutil.rmtree(tmp, ignore_errors=True)
         client.close()
@@ -180,6 +203,98 @@ def throughput(n):
                 load[np.argmin(load)] += x
             line.append(f"{w}: {driver + load.max():6.2f} s")
         print(f"    {work.size:2d} tiles -> " + "   ".join(line))
+
+
+def _cpu_job(points, normals, options):
+    from manifold_sph import Surface, threads
+
+    with threads.limit(1):
+        c0 = time.process_time()
+        s = Surface(points, normals, **options)
+        s.laplacian_matrix()
+        return time.process_time() - c0
+
+
+def _single_cpu(points, normals, options):
+    with cf.ProcessPoolExecutor(1, mp_context=mp.get_context("spawn")) as ex:
+        return ex.submit(_cpu_job, points, normals, options).result()
+
+
+def _solve_job(n, what):
+    import numpy as np
+    import scipy.sparse as sp
+
+    from manifold_sph import Surface
+    from manifold_sph.distributed.solve import geodesic_from_matrices
+    from manifold_sph.reference import shapes
+    from manifold_sph.solvers import spd_solver
+
+    cloud = shapes.sphere(n)
+    t0 = time.perf_counter()
+    s = Surface(cloud.points, cloud.normals, area="shepard")
+    K, m = s.stiffness_matrix(), s.mass_matrix().diagonal()
+    out = {"K, M": time.perf_counter() - t0}
+    t0 = time.perf_counter()
+    if what == "heat":
+        A = spd_solver(sp.diags(m) + 1e-3 * K)
+        out["set-up"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        A.solve(m * cloud.points[:, 2])
+        out["step"] = time.perf_counter() - t0
+        out["method"] = A.method
+    elif what == "geodesic":
+        dx, dy = s.derivative_matrices()
+        d, info = geodesic_from_matrices(K, m, dx, dy, s.u, s.v, cloud.points, np.array([0]))
+        out["first query"] = time.perf_counter() - t0
+        exact = np.arccos(np.clip(cloud.points @ cloud.points[0], -1, 1))
+        out["rel. error"] = float(np.linalg.norm(d - exact) / np.linalg.norm(exact))
+        out["method"] = info["method"]
+    else:
+        ev = s.eigs(50)
+        out["eigs(50)"] = time.perf_counter() - t0
+        out["method"] = ev.method
+    out["peak GB"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20
+    return out
+
+
+def solves(n):
+    from manifold_sph.distributed import TiledSurface
+    from manifold_sph.distributed.solve import engine_available
+    from manifold_sph.reference import shapes
+
+    print(f"global solves, {n}-point Fibonacci sphere")
+    print("single process (each in a fresh process):")
+    for what in ("heat", "geodesic", "eigs"):
+        with cf.ProcessPoolExecutor(1, mp_context=mp.get_context("spawn")) as ex:
+            out = ex.submit(_solve_job, n, what).result()
+        print("  " + what + ": " + ", ".join(f"{k} {v:.3g}" if isinstance(v, float) else f"{k} {v}" for k, v in out.items()),
+              flush=True)
+    cloud = shapes.sphere(n)
+    x = cloud.points
+    u0 = np.exp(-10 * ((x - [0, 0, 1]) ** 2).sum(axis=1))
+    with TiledSurface(x, cloud.normals, tile_points=-(-n // 4), scheduler="synchronous", keep=("stable", "derivatives"),
+                      area="shepard") as ts:
+        calls = {
+            "heat step": lambda e, r: ts.gather(ts.heat(u0, 1e-3, 1, method="implicit", engine=e, ranks=r)),
+            "poisson": lambda e, r: ts.gather(ts.poisson(x[:, 2], engine=e, ranks=r)),
+            "geodesic": lambda e, r: ts.gather(ts.geodesic_distance(0, engine=e, ranks=r)),
+            "eigs(50)": lambda e, r: ts.eigs(50, engine=e, ranks=r)[0],
+        }
+        why = engine_available()
+        engines = [("local", 1)] + ([("mpi", 1), ("mpi", 2)] if why is None else [])
+        if why:
+            print(f"MPI engine not run: {why}")
+        print(f"{'solve':10s} {'engine':6s} {'ranks':>5s} {'iterations':>14s} {'seconds':>8s} {'GB/rank':>8s} {'vs local':>9s}")
+        for name, call in calls.items():
+            ref = None
+            for e, r in engines:
+                got = call(e, r)
+                info = ts.last_solve
+                diff = "" if ref is None else f"{np.abs(got - ref).max() / np.abs(ref).max():9.1e}"
+                ref = got if ref is None else ref
+                print(f"{name:10s} {e:6s} {r:5d} {str(info.get('iterations'))[:14]:>14s} {info['seconds']:8.2f} "
+                      f"{info.get('peak_gb_per_rank', resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20):8.2f} {diff}",
+                      flush=True)
 
 
 def terrain(path: Path, n: int, seed=0):
@@ -254,12 +369,18 @@ def main():
     ap.add_argument("--out", type=Path, default=None)
     ap.add_argument("--memory-limit", default="4GB")
     ap.add_argument("--tile-points", type=int, default=500_000)
+    ap.add_argument("--sampling", default="fibonacci", choices=("fibonacci", "random"))
+    ap.add_argument("--keep", default="laplacian,derivatives", help="comma-separated: laplacian, derivatives, stable")
+    ap.add_argument("--solves", type=int, default=None, metavar="N")
     args = ap.parse_args()
+    if args.solves:
+        solves(args.solves)
+        return
     if args.big:
         big(args.big, args.out or Path(tempfile.mkdtemp(prefix="msph-big-")), args.memory_limit, args.tile_points)
         return
     if args.throughput:
-        throughput(args.throughput)
+        throughput(args.throughput, args.sampling, tuple(args.keep.split(",")))
         return
     from manifold_sph.reference import shapes
 

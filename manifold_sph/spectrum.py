@@ -59,7 +59,7 @@ import scipy.sparse.linalg as spla
 from scipy.sparse.csgraph import connected_components
 
 from ._results import short_repr, to_dict
-from ._validation import check_bool, check_in, check_int
+from ._validation import check_in, check_int
 from .exceptions import ManifoldSPHWarning
 from .solvers import choose_spd_method, linear_solver, spd_solver
 

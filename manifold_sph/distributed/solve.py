@@ -43,7 +43,7 @@ import scipy.sparse as sp
 
 from ..exceptions import ManifoldSPHWarning
 
-__all__ = ["ENGINES", "GEODESIC_T", "SOURCE_RADIUS", "engine_available", "run"]
+__all__ = ["ENGINES", "GEODESIC_T", "SOURCE_RADIUS", "engine_available", "geodesic_from_matrices", "run"]
 
 ENGINES = ("auto", "mpi", "local")
 #: Geodesic heat time in units of the mean area element, and the held radius in units of the spacing.
@@ -128,12 +128,21 @@ def held_particles(pts, src, m):
 
 
 def _local_geodesic(ts, src):
-    from ..solvers import spd_solver
-
     K, m = assemble(ts, "K"), _tile_vector(ts, "M")
     dx, dy = assemble(ts, "dx"), assemble(ts, "dy")
     U, V = _tile_vector(ts, "u", 3), _tile_vector(ts, "v", 3)
     pts = np.asarray(np.load(ts._points_file, mmap_mode="r"))
+    return geodesic_from_matrices(K, m, dx, dy, U, V, pts, src)
+
+
+def geodesic_from_matrices(K, m, dx, dy, U, V, pts, src):
+    """The geodesic heat method of the module notes on whole-cloud matrices; ``(distance, info)``.
+
+    ``K``, ``m``: the stable Laplacian; ``dx``, ``dy`` the tangent-plane derivative matrices in
+    the frames ``U``, ``V`` (N, 3); ``pts`` (N, 3); ``src`` source indices.
+    """
+    from ..solvers import spd_solver
+
     n = m.size
     rhs = np.zeros(n)
     rhs[src] = 1.0
