@@ -71,6 +71,8 @@ DENSE_MAX_N = 1500
 MIN_MASS = 1e-280
 MAX_MASS = 1e280
 EIGS_METHODS = ("auto", "dense", "shift-invert", "lobpcg")
+#: Iterations of LOBPCG before it stops with a warning.
+LOBPCG_MAXITER = 1000
 
 
 @dataclasses.dataclass(frozen=True, repr=False)
@@ -183,7 +185,13 @@ def _lobpcg(K, m, k, shift, tol):
     P = ml.aspreconditioner(cycle="V")
     extra = max(8, k // 4)
     X = np.random.default_rng(0).standard_normal((n, k + extra))
-    lam, V = spla.lobpcg(K, X, B=M, M=P, largest=False, tol=tol, maxiter=500)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        lam, V = spla.lobpcg(K, X, B=M, M=P, largest=False, tol=tol, maxiter=LOBPCG_MAXITER)
+    if any("Exited" in str(w.message) for w in caught):
+        warnings.warn(f"eigs(method='lobpcg'): LOBPCG stopped after {LOBPCG_MAXITER} iterations above the residual "
+                      f"tolerance {tol:g}; method='shift-invert' solves to round-off where the factor fits in memory",
+                      ManifoldSPHWarning, stacklevel=4)
     order = np.argsort(lam)[:k]
     return lam[order], V[:, order]
 

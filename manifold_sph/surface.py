@@ -10,7 +10,7 @@ from numpy.typing import ArrayLike
 
 from .exceptions import ManifoldSPHWarning
 from .frames import FramePair, PairOffsets, check_frames, project_pairs, tangent_frames
-from .neighbors import GRID_MIN_POINTS, build_tree, find_neighbors
+from .neighbors import GRID_MIN_POINTS, Neighborhood, build_tree, find_neighbors
 from .operators import OperatorSet
 from .pointcloud import PointCloud, PointViews, as_cloud
 
@@ -268,7 +268,12 @@ class Surface(OperatorSet, PointViews):
             ManifoldSPHWarning,
             stacklevel=3,
         )
-        nb = find_neighbors(pts, nrm, h=hv, support=self.kernel.support, normal_threshold=normal_threshold, tree=tree)
+        if flip.any():  # flipped normals change other rows' normal filter: search every row again
+            nb = find_neighbors(pts, nrm, h=hv, support=self.kernel.support, normal_threshold=normal_threshold,
+                                tree=tree)
+        else:  # only the widened rows change (a row's neighbours lie within its own support): search them
+            # alone and splice them in (a full search with the widened h takes the slower KD-tree path everywhere)
+            nb = _splice_rows(nb, lonely, pts, nrm, hv, self.kernel.support, normal_threshold, tree)
         self._check_isolated(nb, "their normals disagree with their neighbours'")  # a flip elsewhere can only add
         return nb, nrm
 
@@ -313,3 +318,31 @@ class Surface(OperatorSet, PointViews):
             f"Surface(n_points={self.n_points}, scheme={self.scheme.name!r}, kernel={self.kernel.name!r}, "
             f"mean neighbours={self.neighborhood.counts.mean():.1f}, area={self._area_args[0]!r})"
         )
+
+
+def _splice_rows(nb, rows, pts, nrm, hv, support, normal_threshold, tree):
+    """``nb`` with the neighbour lists of ``rows`` searched again with the smoothing lengths ``hv``.
+
+    The same arrays as a search of every row with ``hv`` (each row's list depends only on its own
+    support; rows keep the search's order, the particle first).
+    """
+    def search(h):
+        return find_neighbors(pts[rows], nrm[rows], h=h, support=support, normal_threshold=normal_threshold,
+                              candidates=pts, candidate_normals=nrm, tree=tree)
+
+    new, old = search(hv[rows]), search(nb.h[rows])
+    counts = nb.counts.copy()
+    counts[rows] = new.counts
+    indptr = np.zeros(counts.size + 1, dtype=nb.indptr.dtype)
+    np.cumsum(counts, out=indptr[1:])
+    indices = np.empty(int(indptr[-1]), dtype=nb.indices.dtype)
+    keep = np.ones(counts.size, dtype=bool)
+    keep[rows] = False
+    r = nb.rows
+    mask = keep[r]
+    pos = np.flatnonzero(mask)
+    indices[indptr[r[mask]] + (pos - nb.indptr[r[mask]])] = nb.indices[mask]
+    owner = np.repeat(np.arange(rows.size), new.counts)
+    indices[indptr[rows[owner]] + (np.arange(new.indices.size) - new.indptr[owner])] = new.indices
+    return Neighborhood(indptr=indptr, indices=indices, h=hv, support=nb.support,
+                        n_filtered=nb.n_filtered - old.n_filtered + new.n_filtered)

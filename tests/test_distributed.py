@@ -227,6 +227,24 @@ def test_bad_fields(given):
         given.mean_curvature("cotan")
 
 
+def test_widened_rows_spliced_equal_a_full_search():
+    """A tile's rim (or a scan's strays) widens a few supports: only those rows are searched again."""
+    from manifold_sph.neighbors import find_neighbors
+
+    c = shapes.sphere(40000, sampling="random", seed=1)
+    keep = np.abs(c.points[:, 0]) < 0.5  # a slab: particles on its two rims have half neighbourhoods
+    stray = np.array([[0.3, 0.0, 1.1], [0.0, 0.4, -1.08]])
+    p = np.vstack([c.points[keep], stray])
+    q = np.vstack([c.normals[keep], stray / np.linalg.norm(stray, axis=1)[:, None]])
+    with pytest.warns(RuntimeWarning, match="widened"):
+        s = Surface(p, q, area="shepard", h=0.017)
+    assert s.widened.size >= 2
+    nb = s.neighborhood
+    full = find_neighbors(p, s.normals, h=nb.h, support=nb.support, normal_threshold=0.0)
+    assert np.array_equal(full.indptr, nb.indptr) and np.array_equal(full.indices, nb.indices)
+    assert full.n_filtered == nb.n_filtered
+
+
 # ------------------------------------------------------------------ stable rows and the global solves
 @pytest.fixture(scope="module")
 def stable(cloud):

@@ -36,9 +36,9 @@ def reference(rand):
 def test_methods_agree_with_dense_lapack(rand, reference, method):
     K, m = rand
     k = 4 if method == "lobpcg" else 12
-    ev = stable_eigenpairs(K, m, k, method=method, tol=1e-8)
+    ev = stable_eigenpairs(K, m, k, method=method, tol=1e-6)
     assert ev.method == method
-    # LOBPCG to residual 1e-8 (eigenvalue error ~ residual^2 relative): 1e-9; the others round-off
+    # LOBPCG to residual 1e-6 (eigenvalue error ~ residual^2): 1e-9; the others round-off
     np.testing.assert_allclose(ev.values[1:], reference[1:k], rtol=1e-9)
     assert abs(ev.values[0]) < 1e-10
     V = ev.vectors

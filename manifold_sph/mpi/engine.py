@@ -175,21 +175,21 @@ def _geodesic(job, R, its, secs):
         X.append(-g / np.where(nrm > 0, nrm, 1.0)[:, None])
     X = R.allgather(np.concatenate(X) if X else np.zeros((0, 3)))
     b = []
-    for k, d in enumerate(R.tiles):  # sum_j w_ij (X_i + X_j) / 2 . (x_i - x_j), the own rows of K
+    for d in R.tiles:  # sum_j w_ij (X_i + X_j) / 2 . (x_i - x_j), the own rows of K
         K, cols = d["K"].tocoo(), np.asarray(d["cols"])
         off = K.row != K.col
-        i, j, w = K.row[off], cols[K.col[off]], -K.data[off]
-        lo = int(cols[0])
-        P = np.asarray(pts[np.unique(np.concatenate([j, lo + i]))])
-        where = np.searchsorted(np.unique(np.concatenate([j, lo + i])), np.concatenate([lo + i, j]))
-        Pi, Pj = P[where[: i.size]], P[where[i.size :]]
-        b.append(np.bincount(i, weights=w * np.einsum("pd,pd->p", 0.5 * (X[lo + i] + X[j]), Pi - Pj), minlength=d.n))
+        gi, gj, w = cols[K.row[off]], cols[K.col[off]], -K.data[off]
+        Pi, Pj = np.asarray(pts[gi]), np.asarray(pts[gj])
+        b.append(np.bincount(K.row[off], weights=w * np.einsum("pd,pd->p", 0.5 * (X[gi] + X[gj]), Pi - Pj),
+                             minlength=d.n))
     b = np.concatenate(b) if b else np.zeros(0)
     own = np.asarray(pts[R.lo : R.hi])
     r = cKDTree(np.asarray(pts[np.sort(src)])).query(own)[0]
     held = r <= SOURCE_RADIUS * np.sqrt(R.mean_m)
     held[mine - R.lo] = True
-    rows = (np.flatnonzero(held) + R.lo).astype(np.int32)
+    from petsc4py import PETSc
+
+    rows = (np.flatnonzero(held) + R.lo).astype(PETSc.IntType)
     xv, bv = R.vec(np.where(held, r, 0.0)), R.vec(b)
     K = R.K.duplicate(copy=True)
     K.zeroRowsColumns(rows, diag=1.0, x=xv, b=bv)
@@ -203,8 +203,10 @@ def _eigs(job, R, its, secs):
     from slepc4py import SLEPc
 
     k = int(job["k"])
-    Mmat = PETSc.Mat().createAIJ(size=((R.hi - R.lo, R.n), (R.hi - R.lo, R.n)), nnz=1, comm=R.comm)
-    Mmat.setDiagonal(R.M)
+    nloc = R.hi - R.lo
+    Mmat = PETSc.Mat().createAIJ(size=((nloc, R.n), (nloc, R.n)), comm=R.comm,
+                                 csr=(np.arange(nloc + 1, dtype=PETSc.IntType),
+                                      np.arange(R.lo, R.hi, dtype=PETSc.IntType), R.m.copy()))
     Mmat.assemble()
     mpi = R.comm.tompi4py()
     total = mpi.allreduce(float(R.m.sum()))
