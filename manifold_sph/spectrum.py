@@ -58,7 +58,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.sparse.csgraph import connected_components
 
-from ._results import short_repr, to_dict
+from .results import Result
 from ._validation import check_in, check_int
 from .exceptions import ManifoldSPHWarning
 from .solvers import choose_spd_method, linear_solver, spd_solver
@@ -76,7 +76,7 @@ LOBPCG_MAXITER = 1000
 
 
 @dataclasses.dataclass(frozen=True, repr=False)
-class Eigenpairs:
+class Eigenpairs(Result):
     """Eigenpairs of ``K v = lambda M v`` (:func:`stable_eigenpairs`, :meth:`Surface.eigs`).
 
     Behaves as the pair ``(values, vectors)``: ``values, vectors = result``, ``result[0]``.
@@ -115,12 +115,6 @@ class Eigenpairs:
     def __getitem__(self, index):
         return (self.values, self.vectors)[index]
 
-    def to_dict(self) -> dict[str, Any]:
-        """The fields as a dict (arrays stay arrays)."""
-        return to_dict(self)
-
-    def __repr__(self) -> str:
-        return short_repr(self)
 
 
 def _check_sigma(sigma: Any) -> float | None:
