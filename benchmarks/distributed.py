@@ -6,6 +6,7 @@
     python benchmarks/distributed.py --big 20000000 --out /tmp/big   # out of core: terrain-like cloud, 2 workers x 4 GB
     python benchmarks/distributed.py --throughput 1000000 --sampling random --keep stable   # random points, K and M rows
     python benchmarks/distributed.py --solves 262144      # global solves: single process, local engine, MPI at 1 and 2 ranks
+    python benchmarks/distributed.py --scale 10000000 --memory-limit 5GB   # 10M points: build K, M rows, implicit step
 
 Equality table. Each case is built once in a fresh process (``Surface`` with the same
 local options: ``area="shepard"``, and the scan settings ``h="adaptive"`` on the scan,
@@ -257,7 +258,7 @@ def _solve_job(n, what):
     return out
 
 
-def solves(n):
+def solves(n, single_only=False):
     from manifold_sph.distributed import TiledSurface
     from manifold_sph.distributed.solve import engine_available
     from manifold_sph.reference import shapes
@@ -269,6 +270,8 @@ def solves(n):
             out = ex.submit(_solve_job, n, what).result()
         print("  " + what + ": " + ", ".join(f"{k} {v:.3g}" if isinstance(v, float) else f"{k} {v}" for k, v in out.items()),
               flush=True)
+    if single_only:
+        return
     cloud = shapes.sphere(n)
     x = cloud.points
     u0 = np.exp(-10 * ((x - [0, 0, 1]) ** 2).sum(axis=1))
@@ -295,6 +298,43 @@ def solves(n):
                 print(f"{name:10s} {e:6s} {r:5d} {str(info.get('iterations'))[:14]:>14s} {info['seconds']:8.2f} "
                       f"{info.get('peak_gb_per_rank', resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20):8.2f} {diff}",
                       flush=True)
+
+
+def scale(n, tile_points, memory_limit, steps=1):
+    """One machine to N points: a tiled build keeping K and M rows, then implicit heat steps on one process."""
+    from manifold_sph.distributed import TiledSurface
+    from manifold_sph.reference import shapes
+
+    t0 = time.perf_counter()
+    cloud = shapes.sphere(n)
+    x = cloud.points
+    print(f"{n}-point Fibonacci sphere: sampled in {time.perf_counter() - t0:.1f} s", flush=True)
+    client, cluster = local_client(2, memory_limit)
+    tmp = tempfile.mkdtemp(prefix="msph-scale-")
+    try:
+        t0, c0 = time.perf_counter(), time.process_time()
+        ts = TiledSurface(x, cloud.normals, tile_points=tile_points, client=client, cache_dir=tmp, keep=("stable",),
+                          area="shepard")
+        tb = time.perf_counter() - t0
+        cpu = sum(r["cpu_seconds"] for r in ts.report)
+        peak = max(r["peak_rss_mb"] for r in ts.report) / 1024
+        disk = sum(f.stat().st_size for f in Path(tmp).rglob("*") if f.is_file()) / 2**30
+        print(f"  build: {len(ts.chunks)} tiles on 2 workers ({memory_limit} each): {tb:.1f} s wall, tiles {cpu:.1f} CPU s, "
+              f"driver {time.process_time() - c0:.1f} CPU s, peak worker {peak:.2f} GB, tiles on disk {disk:.2f} GB",
+              flush=True)
+        u0 = np.exp(-10 * ((x - [0, 0, 1]) ** 2).sum(axis=1))
+        del cloud, x
+        t0 = time.perf_counter()
+        u = ts.gather(ts.heat(u0, 1e-4, steps, method="implicit", engine="local"))
+        info = ts.last_solve
+        print(f"  implicit heat, {steps} step(s), local engine ({info['method']}): {time.perf_counter() - t0:.1f} s "
+              f"(solve {info['seconds']:.1f} s, iterations {info['iterations']}), max u {u.max():.4f}, "
+              f"driver peak {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20:.2f} GB", flush=True)
+        ts.close()
+    finally:
+        client.close()
+        cluster.close()
+        shutil.rmtree(tmp, ignore_errors=True)
 
 
 def terrain(path: Path, n: int, seed=0):
@@ -372,9 +412,15 @@ def main():
     ap.add_argument("--sampling", default="fibonacci", choices=("fibonacci", "random"))
     ap.add_argument("--keep", default="laplacian,derivatives", help="comma-separated: laplacian, derivatives, stable")
     ap.add_argument("--solves", type=int, default=None, metavar="N")
+    ap.add_argument("--scale", type=int, default=None, metavar="N", help="build K, M rows of N points on 2 workers, "
+                    "then an implicit heat step on one process")
+    ap.add_argument("--single-only", action="store_true", help="--solves: the single-process rows only")
     args = ap.parse_args()
+    if args.scale:
+        scale(args.scale, args.tile_points, args.memory_limit)
+        return
     if args.solves:
-        solves(args.solves)
+        solves(args.solves, args.single_only)
         return
     if args.big:
         big(args.big, args.out or Path(tempfile.mkdtemp(prefix="msph-big-")), args.memory_limit, args.tile_points)

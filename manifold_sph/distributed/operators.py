@@ -175,7 +175,7 @@ class TiledOperators:
         if method == "implicit":
             if every is not None:
                 raise ValueError("every= is for explicit steps; implicit steps return the final state")
-            u = self.compute(self.field(u0))
+            u = self._tile_values(u0)
             out = self._global("heat", engine, ranks, u0=u, a_dt=a * dt, steps=steps)
             return self._as_dask(out)
         if every is not None:
@@ -208,6 +208,14 @@ class TiledOperators:
         out, self.last_solve = run(self, problem, engine=engine, ranks=ranks, **args)
         return out
 
+    def _tile_values(self, values) -> np.ndarray:
+        """A scalar field in tile order as numpy: arrays reordered here, Dask arrays and callables computed."""
+        import dask.array as da
+
+        if callable(values) or isinstance(values, da.Array):
+            return np.asarray(self.compute(self.field(values)))
+        return as_field("field", values, self.n_points)[self.order]
+
     def _as_dask(self, x):
         import dask.array as da
 
@@ -218,7 +226,7 @@ class TiledOperators:
 
         ``f`` as in :meth:`field`; ``engine``, ``ranks`` as in :meth:`heat`. Returns a Dask array (N,) in tile order.
         """
-        return self._as_dask(self._global("poisson", engine, ranks, f=self.compute(self.field(f))))
+        return self._as_dask(self._global("poisson", engine, ranks, f=self._tile_values(f)))
 
     def geodesic_distance(self, sources, *, engine: str = "auto", ranks: int = 2):
         """Geodesic distance from ``sources`` (input indices) by the heat method on the stable Laplacian.
