@@ -227,13 +227,26 @@ def test_animate_gif(cloud, tmp_path):
     assert Image.open(path2).n_frames == 3
 
 
-def test_animate_without_the_video_extra_says_how_to_install_it(cloud, tmp_path, monkeypatch):
+def test_mp4_without_the_video_extra_says_how_to_install_it(cloud, tmp_path, monkeypatch):
     import sys
 
     monkeypatch.setitem(sys.modules, "imageio", None)  # as if not installed
     with pytest.raises(ImportError, match=r"install manifold-sph\[video\]"):
-        animate(cloud, np.zeros((2, 600)), tmp_path / "a.gif")
+        animate(cloud, np.zeros((2, 600)), tmp_path / "a.mp4")
     assert not list(tmp_path.iterdir())
+
+
+@needs_gl
+def test_gif_needs_no_video_extra(cloud, tmp_path, monkeypatch):
+    import sys
+
+    from PIL import Image
+
+    monkeypatch.setitem(sys.modules, "imageio", None)  # GIFs are written by Pillow
+    z = cloud.points[:, 2]
+    path = animate(cloud, np.array([z, -z]), tmp_path / "a.gif", window_size=(64, 48))
+    img = Image.open(path)
+    assert img.n_frames == 2 and img.size == (64, 48)
 
 
 @needs_gl

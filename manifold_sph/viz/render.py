@@ -813,8 +813,9 @@ def animate(
     """Write a time series of scalar fields to an animated GIF or an MP4 video.
 
     One colour range for all frames (``clim``, or the robust range of all the
-    snapshots), so that decay and propagation are visible. Needs ``imageio`` (and
-    ``imageio-ffmpeg`` for MP4): the ``video`` extra, ``pip install "manifold-sph[video]"``.
+    snapshots), so that decay and propagation are visible. GIFs are written with Pillow
+    (installed with matplotlib); MP4 needs ``imageio`` and ``imageio-ffmpeg``: the ``video``
+    extra, ``pip install "manifold-sph[video]"``.
 
     Parameters
     ----------
@@ -823,8 +824,8 @@ def animate(
     snapshots : array_like, shape (S, N), or an object with ``.snapshots`` (and ``.times``)
         E.g. the :class:`~manifold_sph.pde.Solution` of :func:`manifold_sph.pde.heat` or :func:`~manifold_sph.pde.wave`.
     filename : str or path
-        ``.gif`` or ``.mp4``, written frame by frame by pyvista's ``open_gif`` /
-        ``open_movie`` (imageio).
+        ``.gif`` (Pillow, 256-colour palette per frame) or ``.mp4`` (H.264 through
+        pyvista's ``open_movie``, the ``video`` extra).
     times : array_like, shape (S,), optional
         Shown in a corner as ``t = ...`` (default: ``snapshots.times`` if present).
     fps : float
@@ -868,8 +869,8 @@ def animate(
     up_vector(scene.points, up)
     from tqdm import tqdm
 
-    # frames stream to a temporary file beside the target through pyvista's writers (imageio),
-    # renamed into place only when complete
+    # frames go to a temporary file beside the target (MP4 streamed through pyvista's
+    # writer, GIF frames gathered and written by Pillow), renamed into place only when complete
     tmp = path.with_name(path.stem + ".partial" + path.suffix.lower())
     try:
         with _quiet_vtk():
@@ -883,18 +884,26 @@ def animate(
                 if mp4:
                     p.open_movie(str(tmp), framerate=fps, codec="libx264", macro_block_size=2, pixelformat="yuv420p")
                 else:
-                    p.open_gif(str(tmp), fps=fps, loop=0, palettesize=256)
+                    p.show(auto_close=False, interactive=False)
+                frames = []
                 for k in tqdm(range(snaps.shape[0]), desc=f"frames -> {path.name}", disable=not progress, unit="frame"):
                     data = actor.mapper.dataset
                     data.point_data["field"][:] = scene.values(np.clip(snaps[k], *lim))
                     data.Modified()
                     if clock is not None:
                         _set_text(clock, f"t = {times[k]:.4g}")
-                    p.write_frame()
-                writer, p.mwriter = p.mwriter, None
-                writer.close()  # here, not in p.close(), which would hide a failed write
+                    if mp4:
+                        p.write_frame()
+                    else:
+                        p.render()
+                        frames.append(p.screenshot(return_img=True))
+                if mp4:
+                    writer, p.mwriter = p.mwriter, None
+                    writer.close()  # here, not in p.close(), which would hide a failed write
             finally:
                 p.close()
+        if not mp4:
+            _write_gif(tmp, frames, fps)
         if path.exists() and not overwrite:  # appeared meanwhile
             raise FileExistsError(f"{str(path)!r} exists; pass overwrite=True to replace it")
         os.replace(tmp, path)
@@ -904,19 +913,30 @@ def animate(
     return path
 
 
+def _write_gif(path: Path, frames: list, fps: float) -> None:
+    """Frames (H, W, 3) uint8 -> a looping GIF with Pillow, one adaptive palette per frame."""
+    from PIL import Image
+
+    images = [Image.fromarray(np.ascontiguousarray(f[..., :3])).quantize(colors=256, method=Image.Quantize.MEDIANCUT)
+              for f in frames]
+    images[0].save(path, format="GIF", save_all=True, append_images=images[1:], duration=max(1, round(1000 / fps)),
+                   loop=0, disposal=1, optimize=False)
+
+
 def _check_video(mp4: bool) -> None:
-    """A clear error when the animation writers (the ``video`` extra) are not installed."""
+    """A clear error when the MP4 writers (the ``video`` extra) are not installed."""
+    if not mp4:
+        return
     try:
         import imageio  # noqa: F401
     except ImportError:
         raise ImportError(
-            "writing animations needs imageio: install manifold-sph[video] (pip install 'manifold-sph[video]')"
+            "MP4 output needs imageio: install manifold-sph[video] (pip install 'manifold-sph[video]'), or write a .gif"
         ) from None
-    if mp4:
-        try:
-            import imageio_ffmpeg  # noqa: F401
-        except ImportError:
-            raise ImportError(
-                "MP4 output needs imageio-ffmpeg: install manifold-sph[video] (pip install 'manifold-sph[video]'), "
-                "or write a .gif"
-            ) from None
+    try:
+        import imageio_ffmpeg  # noqa: F401
+    except ImportError:
+        raise ImportError(
+            "MP4 output needs imageio-ffmpeg: install manifold-sph[video] (pip install 'manifold-sph[video]'), "
+            "or write a .gif"
+        ) from None
