@@ -215,6 +215,19 @@ def vector_table(quick):
                   f"(set-up {tb:.1f} s, transport {tt:.2f} s, log map {tl:.2f} s)", flush=True)
 
 
+def cgal_jet_smooth(X, k):
+    """CGAL's ``jet_smooth_point_set`` (degree-2 jets over ``k`` nearest points) of the points ``X``."""
+    from CGAL import CGAL_Point_set_processing_3 as psp
+    from CGAL.CGAL_Kernel import Point_3
+    from CGAL.CGAL_Point_set_3 import Point_set_3
+
+    ps = Point_set_3()
+    for x in X:
+        ps.insert(Point_3(*map(float, x)))
+    psp.jet_smooth_point_set(ps, k)
+    return np.array([[p.x(), p.y(), p.z()] for p in ps.points()])
+
+
 def smooth_table(quick):
     igl = peer("igl")
     if igl is None:
@@ -244,11 +257,7 @@ def smooth_table(quick):
             "flow": quiet(smooth, noisy, method="flow").points,
         }
         if psp is not None:
-            from CGAL.CGAL_Kernel import Point_3 as P3
-
-            pts = [P3(*map(float, x)) for x in noisy]
-            psp.jet_smooth_point_set(pts, 24)
-            outs["cgal"] = np.array([[p.x(), p.y(), p.z()] for p in pts])
+            outs["cgal"] = cgal_jet_smooth(noisy, 24)
         row = f"{name:12s} {dist(noisy).mean():7.3f} {dist(outs['jet']).mean():7.3f} {dist(outs['feat']).mean():8.3f} " \
               f"{dist(outs['flow']).mean():7.3f} " + (f"{dist(outs['cgal']).mean():8.3f}" if "cgal" in outs else f"{'-':>8s}")
         if name == "rocker-arm":
