@@ -252,8 +252,8 @@ def smooth_table(quick):
             return np.sqrt(igl.point_mesh_squared_distance(X, U, F)[0]) / h
 
         outs = {
-            "jet": quiet(smooth, noisy).points,
-            "feat": quiet(smooth, noisy, features=True).points,
+            "jet": quiet(smooth, noisy, features=False).points,
+            "feat": quiet(smooth, noisy).points,
             "flow": quiet(smooth, noisy, method="flow").points,
         }
         if psp is not None:

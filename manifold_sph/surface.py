@@ -209,7 +209,7 @@ class Surface(OperatorSet, PointViews):
         return log_map(self, source)
 
     def smooth(
-        self, *, method: str = "jet", scale: float | None = None, iterations: int = 3, features: bool = False
+        self, *, method: str = "jet", scale: float | None = None, iterations: int = 3, features: bool = True
     ) -> PointCloud:
         """A smoothed (denoised) copy of the cloud as a PointCloud; see :func:`manifold_sph.geometry.smooth`."""
         from .geometry import smooth

@@ -345,10 +345,10 @@ def test_smoothing_reduces_noise_and_keeps_sharp_edges():
     h = np.sqrt(4 * np.pi / 6000)
     noisy = c.points + 0.5 * h * np.random.default_rng(0).standard_normal(c.points.shape)
     before = np.abs(np.linalg.norm(noisy, axis=1) - 1).mean()
-    for kw in ({}, {"method": "flow"}, {"features": True}):
+    for kw in ({}, {"method": "flow"}, {"features": False}):
         out = geometry.smooth(noisy, **kw)
         after = np.abs(np.linalg.norm(out.points, axis=1) - 1).mean()
-        assert after < before / 3, (kw, before / after)  # measured 4.8 (jet), 4.0 (flow), 4.0 (features)
+        assert after < before / 3, (kw, before / after)  # measured 4.0 (jet, robust), 4.0 (flow), 4.8 (plain)
     s = quiet(noisy)
     assert s.smooth().normals is not None and s.smooth().points.shape == (6000, 3)
     # a cube: the robust fits keep its edges (points near an edge stay near the surface)
@@ -363,7 +363,7 @@ def test_smoothing_reduces_noise_and_keeps_sharp_edges():
         return np.abs(np.where(np.all(q < 0, axis=1), q.max(axis=1), np.linalg.norm(np.maximum(q, 0), axis=1)))
 
     edge = np.sort(np.abs(g), axis=1)[:, 1] > 1 - 2 * hc  # within two spacings of an edge
-    plain, kept = geometry.smooth(cube), geometry.smooth(cube, features=True)
+    plain, kept = geometry.smooth(cube, features=False), geometry.smooth(cube)
     assert np.percentile(to_cube(kept.points[edge]), 95) < 2 * hc
     assert to_cube(kept.points[edge]).mean() < to_cube(plain.points[edge]).mean()
     assert to_cube(kept.points).mean() < to_cube(cube).mean() / 2

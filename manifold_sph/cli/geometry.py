@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import sys
 import time
@@ -120,7 +121,8 @@ def add_parsers(sub, schemes: list[str]) -> None:
                      help="jet: onto local quadrics (default); flow: implicit mean-curvature flow")
     smo.add_argument("--scale", type=float, default=None, help="length over which noise is removed (default 4 spacings for jet)")
     smo.add_argument("--iterations", type=positive_int_arg, default=3, help="passes (default 3)")
-    smo.add_argument("--features", action="store_true", help="keep sharp edges and corners (jet)")
+    smo.add_argument("--features", action=argparse.BooleanOptionalAction, default=True,
+                     help="robust fits that keep sharp edges, corners and thin parts (jet; default on)")
     smo.add_argument("--overwrite", action="store_true", help="replace an existing output file")
     smo.add_argument("--json", action="store_true", help="print the summary as JSON")
 
@@ -396,8 +398,6 @@ def _cmd_smooth(args) -> int:
 
     if args.scale is not None and not (np.isfinite(args.scale) and args.scale > 0):
         raise UserError(f"--scale must be a positive length, got {args.scale}")
-    if args.features and args.method != "jet":
-        raise UserError("--features applies to --method jet only")
     out = _out_target(args)
     t0 = time.perf_counter()
     cloud = _read(args)
@@ -410,6 +410,6 @@ def _cmd_smooth(args) -> int:
     summary = {"command": "smooth", "file": str(args.file), "n": len(cloud), "method": args.method,
                "features": bool(args.features), "iterations": args.iterations, "mean_move": float(moved.mean()),
                "max_move": float(moved.max()), "seconds": round(seconds, 3)}
-    text = (f"smoothed {args.file} (N = {summary['n']}, {args.method}{', features kept' if args.features else ''}): "
+    text = (f"smoothed {args.file} (N = {summary['n']}, {args.method}{', robust fits' if args.features and args.method == 'jet' else ''}): "
             f"points moved {summary['mean_move']:.4g} on average, at most {summary['max_move']:.4g} ({seconds:.2f} s)")
     return _finish(args, summary, text, {"save": out})
