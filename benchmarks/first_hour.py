@@ -150,7 +150,8 @@ def spread_ratio(s, values) -> float:
     kw = dict(window_size=(320, 240), show_scalar_bar=False)
     tuned = max(colour_spread(render_field(s, values, robust=p, **kw), field_colormap(*color_limits(values, robust=p)))
                 for p in (False, 2, 5, 10, 20, 30))
-    return colour_spread(render_field(s, values, **kw), field_colormap(*color_limits(values, robust=True))) / tuned
+    default = colour_spread(render_field(s, values, **kw), field_colormap(*color_limits(values, robust=True)))
+    return default / tuned if tuned > 0 else float("nan")  # nan: no picture spreads its colours (a constant field)
 
 
 def cli_row(name: str, path: Path, pts: np.ndarray | None, tmp: Path) -> dict:

@@ -371,6 +371,14 @@ def test_y_up_cloud_stands_upright():
 
 
 @needs_gl
+def test_planar_clouds_are_seen_from_their_normal():
+    """The default "iso" camera looks at a planar cloud from its normal: a 5 x 1 strip stays 5 x 1."""
+    pts = np.random.default_rng(0).random((2000, 2)) * [5.0, 1.0]
+    h, w = _ink_box(render_field(pts, pts[:, 0], window_size=(300, 300), show_scalar_bar=False))
+    assert 4.0 < w / h < 6.0, (w, h)
+
+
+@needs_gl
 def test_titles_are_drawn_verbatim(cloud):
     """'|' used to send the title to VTK's MathText backend, which dropped the bars and the spaces."""
     from vtkmodules.vtkRenderingCore import vtkTextRenderer

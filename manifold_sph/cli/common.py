@@ -191,6 +191,8 @@ def add_common_options(q: argparse.ArgumentParser, function: bool = True, surfac
         q.add_argument("--neighbors", type=int, default=27, help="mean neighbour count (default 27)")
         q.add_argument("--kernel", default="quintic", help="kernel (default quintic)")
         q.add_argument("--area", default="numerical", choices=["numerical", "geometric", "shepard"])
+        q.add_argument("--h", type=h_arg, default=None,
+                       help="smoothing length: a number, or 'adaptive' (each particle its own, for variable density)")
     q.add_argument("--json", action="store_true", help="print JSON instead of a table")
 
 
@@ -207,7 +209,7 @@ def add_picture_options(q: argparse.ArgumentParser) -> None:
 
 
 def surface_kwargs(args: argparse.Namespace) -> dict:
-    return dict(neighbors=args.neighbors, kernel=args.kernel, area=args.area)
+    return dict(neighbors=args.neighbors, kernel=args.kernel, area=args.area, h=getattr(args, "h", None))
 
 
 def cloud_from_args(args: argparse.Namespace) -> PointCloud:

@@ -276,6 +276,8 @@ def _set_camera(plotter, points: np.ndarray, camera, zoom: float = 1.0, up: Any 
     u = up_vector(points, up)
     if isinstance(camera, str):
         check_in("camera", camera, CAMERAS)
+        if camera == "iso" and np.ptp(points @ u) <= 1e-6 * max(float(np.ptp(points, axis=0).max()), 1e-300):
+            camera = "top"  # a planar cloud is seen from its normal, not at a slant
         direction, view_up = (np.asarray(v, dtype=np.float64) for v in CAMERAS[camera])
         a = int(np.argmax(np.abs(u)))
         if abs(u[a]) > 1 - 1e-12:  # a coordinate axis: the presets' z swapped with it (and turned over for -a)
@@ -542,7 +544,8 @@ def render_field(
     camera : str or (direction, view_up)
         A key of :data:`CAMERAS` (``"iso"``, ``"equator"``, ``"north_pole"``, ...)
         or a pair of 3-vectors (direction from the centre to the camera, up).
-        The presets are written for z up and turned to the ``up`` axis.
+        The presets are written for z up and turned to the ``up`` axis; a planar cloud
+        is seen from its normal with "iso" (the default).
     up : "auto", "x", "y", "z", "-x", "-y", "-z" or a 3-vector
         The axis that points up in the camera presets. ``"auto"`` (default): the
         axis the object stands on (:func:`~manifold_sph.viz.style.detect_up_axis`).
