@@ -8,7 +8,7 @@ as an attribute on first use (PEP 562), as in scipy:
 
 >>> import manifold_sph as ms
 >>> ms.pde.heat.__module__
-'manifold_sph.pde'
+'manifold_sph.pde.time_stepping'
 >>> ms.reference.shapes.sphere(100).geometry.name
 'sphere'
 >>> "viz" in dir(ms)

@@ -11,14 +11,13 @@ their owner's column, see :class:`manifold_sph.Domain2D`.
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .exceptions import ManifoldSPHWarning
+from .diagnostics import note
 from . import _jit
 from ._sparse import MIN_THREADED_NNZ, RowBlocks, bicgstab_csr
 from ._validation import check_positive
@@ -306,11 +305,11 @@ def _numerical(A: sp.csr_matrix, nb: Neighborhood, xy: np.ndarray | PairOffsets,
         dV = None if dVc is None else dVc[label] / size[label]
         n_merged = n - ncl
         groups = int((size > 1).sum())
-        warnings.warn(
-            f"area='numerical': {n_merged + groups} particle(s) in {groups} group(s) are near-duplicates (closer "
-            f"than {MERGE_TOL:g} h); each group was solved as one particle and shares its area element",
-            ManifoldSPHWarning,
-            stacklevel=4,
+        note(
+            "merged", f"{n_merged + groups} near-duplicate point(s) in {groups} group(s) share their area elements",
+            detail=f"They are closer than {MERGE_TOL:g} h to each other; each group was solved as one point in the "
+            "numerical area solve. Remove duplicate points if they are not intended.",
+            count=n_merged + groups,
         )
     else:
         key = _sweep_key(xy)
@@ -321,12 +320,11 @@ def _numerical(A: sp.csr_matrix, nb: Neighborhood, xy: np.ndarray | PairOffsets,
             A = None
     fell_back = dV is None or not np.all(np.isfinite(dV))
     if fell_back:
-        warnings.warn(
-            f"area='numerical': the kernel system sum_j W_ij dV_j = 1 was not solved within {budget} "
-            f"BiCGSTAB iterations ({n} particles{', too many for a direct solve' if n > LU_MAX_ROWS else ''}; an "
-            "irregular cloud) or is singular; using the Shepard elements (area='shepard') instead",
-            ManifoldSPHWarning,
-            stacklevel=4,
+        note(
+            "area", "the area elements are the simpler Shepard ones (the numerical area solve did not converge)",
+            detail=f"The kernel system sum_j W_ij dV_j = 1 was not solved within {budget} BiCGSTAB iterations ({n} "
+            f"particles{', too many for a direct solve' if n > LU_MAX_ROWS else ''}; an irregular cloud) or is "
+            "singular. Pass area='shepard' to choose them directly.",
         )
         dV = 1.0 / _csr_row_sums(A) if A is not None else shepard["dV"]
     if A is None:  # released: the solver measured the Shepard elements' residual (a converged one is in hand)

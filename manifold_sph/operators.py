@@ -14,19 +14,19 @@ elements), one assembly gives the tangent-plane matrices ``dx``, ``dy`` and
 
 from __future__ import annotations
 
-import warnings
-from collections.abc import Callable, Hashable
+from collections.abc import Callable, Hashable, Iterator
+from contextlib import contextmanager
 from typing import TypeVar
 
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike
 
-from .exceptions import ManifoldSPHWarning
 from ._sparse import RowBlocks
 from ._validation import as_field, as_positive_field, check_bool, check_in, check_positive
 from .area import AreaElements, area_elements, check_area_method
 from .assembly import Assembled, ColumnAreas, assemble
+from .diagnostics import BuildReport, collecting, note
 from .frames import offsets_array, tangent_frames
 from .kernels import get_kernel
 from .neighbors import Neighborhood, adaptive_smoothing_length, smoothing_length_for_count
@@ -34,7 +34,15 @@ from .schemes import get_scheme
 from .spectrum import Eigenpairs, stable_eigenpairs
 from .voronoi import BOUNDARY, DEGENERATE, INCOMPLETE, NEAR_DUPLICATE, roughness, stiffness_matrix, voronoi_cells
 
-__all__ = ["OperatorSet"]
+__all__ = ["OperatorSet", "LAPLACIAN_FORMS", "GROSS_DISAGREEMENT"]
+
+#: The Laplacians an operator set offers: ``"auto"`` picks one of the other two for the cloud.
+LAPLACIAN_FORMS = ("auto", "strong", "stable")
+
+#: A point where the two Laplacians differ, on the probe functions, by more than this many times the
+#: root-mean-square size of the stable one's values (and 5 times the median difference) holds a gross
+#: error of the scheme's Laplacian (:attr:`OperatorSet.laplacian_form`).
+GROSS_DISAGREEMENT = 1.0
 
 _T = TypeVar("_T")
 
@@ -95,6 +103,12 @@ class OperatorSet:
         Area elements are computed here when the scheme's weights use them, and
         on first access otherwise.
         """
+        if getattr(self, "_build_report", None) is None:
+            self._build_report = BuildReport(f"{type(self).__name__} of {nb.n_rows:,} points")
+        with self._collect():
+            self._setup_operators(nb, xy, frames, area, total_area, columns, column_normals)
+
+    def _setup_operators(self, nb, xy, frames, area, total_area, columns, column_normals):
         self.neighborhood = nb
         self._xy = xy
         self._frames = frames
@@ -118,12 +132,13 @@ class OperatorSet:
         if not np.all(np.isfinite(self._ops.pair_lap)):  # pragma: no cover - guarded by the fallbacks
             raise FloatingPointError("operator lap has non-finite weights; please report this cloud")
         if self._ops.fallback:
-            parts = ", ".join(f"{idx.size} to {name!r}" for name, idx in self._ops.fallback.items())
-            warnings.warn(
-                f"scheme {self.scheme.name!r}: {parts} particle(s) fell back (too few neighbours, collinear "
-                f"neighbours or condition number above {self.max_condition:g}); see .fallback for the indices",
-                ManifoldSPHWarning,
-                stacklevel=3,
+            parts = " and ".join(f"{idx.size} to {name!r}" for name, idx in self._ops.fallback.items())
+            idx = np.sort(np.concatenate(list(self._ops.fallback.values())))
+            note(
+                "fallback", f"{idx.size} point(s) of the {self.scheme.name!r} scheme fell back to a simpler one ({parts})",
+                detail=f"Their local fits had too few or collinear neighbours, or a condition number above "
+                f"max_condition={self.max_condition:g}; the simpler scheme is less accurate there.",
+                count=idx.size, indices=idx,
             )
         self._cache = {}
 
@@ -133,8 +148,40 @@ class OperatorSet:
         """Area elements (``.dV``, ``.n_negative``, ``.method``), computed once."""
         if self._area is None:
             method, total_area, columns = self._area_args
-            self._area = area_elements(method, self.neighborhood, self._xy, self.kernel, total_area=total_area, columns=columns)
+            with self._collect():
+                self._area = area_elements(method, self.neighborhood, self._xy, self.kernel, total_area=total_area,
+                                           columns=columns)
         return self._area
+
+    # ------------------------------------------------------------ diagnostics
+    @contextmanager
+    def _collect(self) -> Iterator[BuildReport]:
+        """Collect what the enclosed work adapts into :meth:`report`; one warning at the end, if any."""
+        if getattr(self, "_build_report", None) is None:
+            self._build_report = BuildReport(f"{type(self).__name__} of {self.n_points:,} points")
+        with collecting(self._build_report) as report:
+            yield report
+
+    def report(self) -> BuildReport:
+        """What the build adapted to this cloud, in detail (the build's one warning summarises it).
+
+        Entries (:class:`~manifold_sph.diagnostics.Adaptation`) say what was done, why, what
+        the user can do, and which points it concerns: normals estimated or flipped, sparse
+        points given wider supports, fallbacks to simpler schemes, near-duplicate points
+        merged, repaired cells of the stable Laplacian, and which Laplacian
+        :meth:`laplacian` uses. ``print(s.report())`` shows them; ``to_dict()`` gives them
+        as JSON-ready data.
+
+        Examples
+        --------
+        >>> from manifold_sph import Surface
+        >>> from manifold_sph.reference import shapes
+        >>> print(Surface(shapes.sphere(500)).report())
+        Surface of 500 points: built as given, nothing adapted.
+        """
+        if getattr(self, "_build_report", None) is None:
+            self._build_report = BuildReport(f"{type(self).__name__} of {self.n_points:,} points")
+        return self._build_report
 
     @property
     def dim(self) -> int:
@@ -163,48 +210,6 @@ class OperatorSet:
                 raise TypeError(f"compute must be a callable returning the value, got {type(compute).__name__}")
             self._cache[key] = compute()
         return self._cache[key]
-
-    def stabilized_laplacian(self, method: str = "taylor") -> sp.csr_matrix:
-        """A Laplace-Beltrami matrix whose spectrum lies in the closed left half-plane.
-
-        Parameters
-        ----------
-        method : {"taylor", "weak"}
-            ``"taylor"``: the standard SPH (Taylor) Laplacian with Shepard area elements.
-            Its off-diagonal weights are non-negative and its rows sum to zero, so every
-            Gershgorin disc lies in the left half-plane and ``I - dt L`` is an M-matrix
-            (maximum principle). Consistent only on near-uniform clouds.
-            ``"weak"``: ``-M^-1 G^T M G`` with ``G`` the surface's gradient matrix and
-            ``M = diag(dV)`` (positive area elements required): similar to a symmetric
-            negative semi-definite matrix, so its eigenvalues are real and <= 0.
-
-        Returns
-        -------
-        scipy.sparse.csr_matrix, shape (N, N)
-        """
-        check_in("method", method, ("taylor", "weak"))
-        key = ("stabilized", method)
-        if key in self._cache:
-            return self._cache[key]
-        if method == "taylor":
-            nb = self.neighborhood
-            shep = area_elements("shepard", nb, self._xy, self.kernel, columns=self._columns)
-            ops = assemble(nb, self._xy, ColumnAreas(shep.dV, self._columns), self.kernel, get_scheme("standard"),
-                           columns=self._columns, n_cols=nb.n_rows)
-            L = ops.lap
-        else:
-            dV = self.dV
-            if np.any(dV <= 0):
-                raise ValueError(
-                    f"stabilized_laplacian(method='weak') needs positive area elements, but {int((dV <= 0).sum())} "
-                    "are not; build the surface with area='shepard'"
-                )
-            D = self._dim
-            G = self.gradient_matrix()
-            M = sp.diags(np.repeat(dV, D))
-            L = (-sp.diags(1.0 / dV) @ (G.T @ M @ G)).tocsr()
-        self._cache[key] = L
-        return L
 
     def pair_offsets(self) -> np.ndarray:
         """(P, 2) offsets ``x_j - x_i`` of every neighbour pair in the row particle's frame (CSR order of
@@ -251,14 +256,90 @@ class OperatorSet:
         """Tangent-plane derivative matrices ``(Dx, Dy)``, each (N, N), in the particles' own frames."""
         return self._ops.dx, self._ops.dy
 
-    def laplacian_matrix(self) -> sp.csr_matrix:
-        """Laplace-Beltrami matrix L, shape (N, N): ``L @ f == laplacian(f)``.
+    def laplacian_matrix(self, *, form: str = "auto") -> sp.csr_matrix:
+        """Laplace-Beltrami matrix ``L ~ Lap_S``, shape (N, N): ``L @ f == laplacian(f, form=form)``.
 
-        The matrix is the one the operators use, not a copy: do not change it in place
-        (scipy's ``abs(L)`` and some other operations sort its unsorted column indices in
-        place, which changes the order of later row sums at round-off; use ``L.copy()``).
+        Parameters
+        ----------
+        form : {"auto", "strong", "stable"}
+            ``"strong"``: the scheme's own matrix (high order on clean clouds; not symmetric).
+            ``"stable"``: ``-M^-1 K`` (:meth:`stable_laplacian_matrix`). ``"auto"``: the one
+            :attr:`laplacian_form` names for this cloud.
+
+        Returns
+        -------
+        scipy.sparse.csr_matrix, shape (N, N)
+            The matrix the operators use, not a copy: do not change it in place (scipy's
+            ``abs(L)`` and some other operations sort its unsorted column indices in place,
+            which changes the order of later row sums at round-off; use ``L.copy()``).
         """
-        return self._ops.lap
+        form = self._form(form)
+        return self._ops.lap if form == "strong" else self.stable_laplacian_matrix()
+
+    def _form(self, form: str) -> str:
+        check_in("form", form, LAPLACIAN_FORMS)
+        return self.laplacian_form if form == "auto" else form
+
+    @property
+    def laplacian_form(self) -> str:
+        """``"strong"`` or ``"stable"``: the Laplacian that :meth:`laplacian` uses on this cloud.
+
+        The scheme's (strong-form) Laplacian is high order where its local fits are well posed,
+        and grossly wrong at points where they are not (noisy or irregular sampling: values of
+        ``Lap_S x`` 60 times too large on a model's vertices). The stable Laplacian has no gross
+        errors, but on irregular clouds every value carries an O(1) error (relative error of
+        ``Lap_S(xyz)`` on uniformly random sphere points about 0.12-0.19 at any ``N``, against
+        0.003-0.007 for the strong form from 16,000 points on).
+
+        Both are applied to smooth probe functions (the centred coordinates and their
+        products). Where they differ by more than :data:`GROSS_DISAGREEMENT` times the stable
+        values' root-mean-square size (and 5 times the median difference), the larger of the
+        two values is the wrong one; every other difference is taken as the stable form's
+        error. The strong form is chosen when the energy of its gross errors is at most that
+        of the stable form's errors: when it is the more accurate of the two in the mean square. Decided on
+        first use (it builds the stable Laplacian) and recorded in :meth:`report`; docs/pde.md
+        has the measurements.
+        """
+        if "form" not in self._cache:
+            with self._collect():
+                self._cache["form"] = self._choose_form()
+        return self._cache["form"][0]
+
+    def _choose_form(self) -> tuple[str, float]:
+        try:
+            st = self._stable()
+        except ValueError as exc:  # no particle has a cell: only the scheme's Laplacian exists
+            note("laplacian", "the Laplacian is the scheme's own (the stable one could not be built)",
+                 detail=str(exc), severity="info")
+            return "strong", np.nan
+        ok = (st["flags"] & BOUNDARY) == 0
+        ok[st["degenerate"]] = False
+        x = np.asarray(self.points, dtype=np.float64)
+        y = x - x.mean(axis=0)
+        y /= max(float(np.sqrt((y**2).sum(axis=1).max())), 1e-300)
+        d = y.shape[1]
+        probes = np.column_stack([y] + [y[:, a] * y[:, b] for a in range(d) for b in range(a, d)])
+        A = (self._ops.lap @ probes)[ok]
+        B = (self.stable_laplacian_matrix() @ probes)[ok]
+        rms = float(np.sqrt((B**2).sum(axis=1).mean())) if B.size else 0.0
+        if not rms > 0:
+            return "strong", np.nan  # no closed cell to compare on
+        d = np.linalg.norm(A - B, axis=1) / rms
+        gross = d > max(GROSS_DISAGREEMENT, 5.0 * float(np.median(d)))
+        # at a gross difference the wrong value is the larger one (the truth is of the typical size)
+        gross &= np.linalg.norm(A, axis=1) > np.linalg.norm(B, axis=1)
+        ratio = float(np.sum(d[gross] ** 2) / max(np.sum(d[~gross] ** 2), 1e-300))
+        if ratio <= 1.0:
+            note("laplacian", f"the Laplacian is the {self.scheme.name!r} scheme's own (strong form)", severity="info",
+                 detail=f"On smooth functions it has gross errors at {int(gross.sum())} point(s), carrying "
+                 f"{ratio:.2g} times the energy of the stable Laplacian's errors: it is the more accurate one.")
+            return "strong", ratio
+        note("laplacian", "the Laplacian is the stable one (the scheme's own is not accurate on this cloud)",
+             severity="info",
+             detail=f"On smooth functions the {self.scheme.name!r} scheme's Laplacian is grossly wrong at "
+             f"{int(gross.sum())} point(s) (ill-conditioned local fits: irregular or noisy sampling), carrying "
+             f"{ratio:.3g} times the energy of the stable Laplacian's errors. Pass form='strong' to use it anyway.")
+        return "stable", ratio
 
     def _pair_coefficients(self):
         """Per pair, the ambient vector ``dx_ij e1_i + dy_ij e2_i`` (P, D)."""
@@ -411,8 +492,12 @@ class OperatorSet:
 
     def _stable(self) -> dict:
         """Voronoi stiffness and mass, built once (see :mod:`manifold_sph.voronoi`)."""
-        if "stable" in self._cache:
-            return self._cache["stable"]
+        if "stable" not in self._cache:
+            with self._collect():
+                self._cache["stable"] = self._build_stable()
+        return self._cache["stable"]
+
+    def _build_stable(self) -> dict:
         nb = self.neighborhood
         n = nb.n_rows
         rows, cols = nb.rows, np.asarray(self._columns)
@@ -485,14 +570,22 @@ class OperatorSet:
             "near_duplicate": int(np.count_nonzero(flags & NEAR_DUPLICATE)),
         }
         if degenerate.size:
-            warnings.warn(
-                f"stable Laplacian: {degenerate.size} particle(s) have no Voronoi cell (collinear or too few "
-                f"neighbours): given the mean of their neighbours' areas and no flux of their own; see .stable_report",
-                ManifoldSPHWarning,
-                stacklevel=3,
+            note(
+                "no_cell", f"{degenerate.size} point(s) have no cell in the stable Laplacian and were given their "
+                "neighbours' mean area",
+                detail="Their neighbours are collinear or too few for a Voronoi cell in the tangent plane; they "
+                "exchange no heat of their own (they follow their neighbours' fluxes).",
+                count=degenerate.size, indices=degenerate,
             )
-        self._cache["stable"] = {"K": K, "M": sp.diags(area).tocsr(), "area": area, "report": report}
-        return self._cache["stable"]
+        if report["near_duplicate"]:
+            dup = np.flatnonzero(flags & NEAR_DUPLICATE)
+            note(
+                "near_duplicate_cells", f"{dup.size} point(s) nearly coincide with a neighbour (closer than 1e-3 of "
+                "their cell's size) in the stable Laplacian", severity="info",
+                detail="Their coupling uses that distance as a floor: strong but finite.", count=dup.size, indices=dup,
+            )
+        return {"K": K, "M": sp.diags(area).tocsr(), "area": area, "report": report, "flags": flags,
+                "degenerate": degenerate}
 
     @property
     def stable_report(self) -> dict:
@@ -533,7 +626,7 @@ class OperatorSet:
         return self._stable()["M"]
 
     def stable_laplacian_matrix(self) -> sp.csr_matrix:
-        """``L = -M^-1 K``, shape (N, N): a Laplace-Beltrami matrix with real eigenvalues ``<= 0``."""
+        """``L = -M^-1 K ~ Lap_S``, shape (N, N), real eigenvalues ``<= 0`` on any cloud (``laplacian_matrix(form="stable")``)."""
         if "stable_L" not in self._cache:
             st = self._stable()
             self._cache["stable_L"] = (-sp.diags(1.0 / st["area"]) @ st["K"]).tocsr()
@@ -588,18 +681,27 @@ class OperatorSet:
         refine = check_bool("refine", refine)
         st = self._stable()
         return stable_eigenpairs(st["K"], st["area"], k, sigma=sigma, component=component, method=method,
-                                 laplacian=self.laplacian_matrix() if refine else None)
+                                 laplacian=self.laplacian_matrix(form="strong") if refine else None)
 
-    def laplacian(self, f: ArrayLike) -> np.ndarray:
+    def laplacian(self, f: ArrayLike, *, form: str = "auto") -> np.ndarray:
         """Laplace-Beltrami operator (Laplacian in the plane) of a scalar field.
 
         Parameters
         ----------
         f : array_like, shape (N,)
+        form : {"auto", "strong", "stable"}
+            Which Laplacian (:meth:`laplacian_matrix`); ``"auto"``: :attr:`laplacian_form`.
 
         Returns
         -------
         ndarray, shape (N,)
         """
-        return self._blocks("lap") @ as_field("f", f, self.n_points)
+        f = as_field("f", f, self.n_points)
+        form = self._form(form)
+        if form == "strong":
+            return self._blocks("lap") @ f
+        key = ("blocks", "stable")
+        if key not in self._cache:
+            self._cache[key] = RowBlocks(self.stable_laplacian_matrix())
+        return self._cache[key] @ f
 

@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-import warnings
 from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .exceptions import ManifoldSPHWarning
+from .diagnostics import BuildReport, note
 from .frames import FramePair, PairOffsets, check_frames, project_pairs, tangent_frames
 from .neighbors import GRID_MIN_POINTS, Neighborhood, build_tree, find_neighbors
 from .operators import OperatorSet
@@ -115,12 +114,21 @@ class Surface(OperatorSet, PointViews):
         total_area: float | None = None,
         max_condition: float = 1e8,
     ) -> None:
-        cloud = as_cloud(points, normals=normals)
+        self._build_report = BuildReport("Surface")
+        with self._collect():  # one warning at the end summarises what the build adapted
+            cloud = as_cloud(points, normals=normals)
+            self._build_report.subject = f"Surface of {len(cloud.points):,} points"
+            self._build(cloud, kernel, scheme, neighbors, h, area, normal_threshold, total_area, max_condition)
+
+    def _build(self, cloud, kernel, scheme, neighbors, h, area, normal_threshold, total_area, max_condition) -> None:
         #: Whether the normals were estimated here from the points (none were given).
         self.normals_estimated = cloud.normals is None
         self._resolve(kernel, scheme, neighbors, max_condition)
         if cloud.normals is None:
+            degree = int(min(max(getattr(self.scheme, "degree", 2), 2), 4))
             cloud = PointCloud(cloud.points, _estimate_normals(cloud.points, self.scheme), geometry=cloud.geometry)
+            note("normals", "normals were estimated from the points", severity="info",
+                 detail=f"None were given: jet fits of degree {degree}, oriented outward. Pass normals= to use your own.")
         self.cloud = cloud
         pts, nrm = cloud.points, cloud.normals
         # The KD-tree is built here for small clouds (its k-NN query is reused by the neighbour
@@ -241,11 +249,12 @@ class Surface(OperatorSet, PointViews):
             nrm[lonely[flip]] *= -1.0
             dots[flip] *= -1.0
             self.flipped = lonely[flip]
-            warnings.warn(
-                f"{int(flip.sum())} normal(s) disagreed with every nearby point's (n_i . n_j <= {normal_threshold:g}; "
-                f"first indices {self.flipped[:8].tolist()}) and were flipped; see .flipped",
-                ManifoldSPHWarning,
-                stacklevel=3,
+            note(
+                "flipped", f"{int(flip.sum())} normal(s) pointed against all their neighbours' and were flipped",
+                detail=f"Each disagreed with every nearby point's normal (n_i . n_j <= normal_threshold = "
+                f"{normal_threshold:g}) and agrees once flipped: a wrongly oriented normal. Check the orientation of "
+                "the normals given, or give none to have them estimated.",
+                count=int(flip.sum()), indices=self.flipped,
             )
         rank = np.cumsum(dots > normal_threshold, axis=1)  # compatible neighbours up to each candidate
         hopeless = lonely[rank[:, -1] < need]
@@ -261,12 +270,12 @@ class Surface(OperatorSet, PointViews):
         reach = dist[np.arange(lonely.size), np.argmax(rank >= enough[:, None], axis=1)]
         hv = np.array(np.broadcast_to(hv, (n,)), dtype=np.float64)
         hv[lonely] = np.maximum(hv[lonely], 1.0001 * reach / self.kernel.support)
-        warnings.warn(
-            f"{lonely.size} particle(s) had fewer than {need} neighbours inside the kernel support (isolated "
-            f"points or sparse parts of the cloud, first indices {lonely[:8].tolist()}): their smoothing length "
-            f"was widened to reach {target} neighbours; see .widened",
-            ManifoldSPHWarning,
-            stacklevel=3,
+        note(
+            "widened", f"{lonely.size} isolated or sparse point(s) got wider supports (reaching {target} neighbours)",
+            detail=f"They had fewer than {need} neighbours inside the kernel support (stray points, or sparse parts "
+            "of the cloud); their smoothing length was widened, so their operators are smoother and less "
+            "accurate there. Remove stray points, or sample those parts more densely.",
+            count=lonely.size, indices=lonely,
         )
         if flip.any():  # flipped normals change other rows' normal filter: search every row again
             nb = find_neighbors(pts, nrm, h=hv, support=self.kernel.support, normal_threshold=normal_threshold,

@@ -785,3 +785,49 @@ def test_item4_tiled_surface_reads_normals_stored_in_laz(tmp_path):
     with TiledSurface(str(tmp_path / "scan.laz"), tile_points=400, scheduler="synchronous") as ts:
         assert not ts.normals_estimated
         np.testing.assert_allclose(ts.gather(ts.normals), back.normals, atol=1e-12)
+
+
+# ------------------------------------------------------------------ PDE solvers (owner: pde; items 11 and 14)
+@pytest.fixture(scope="module")
+def pde_surface():
+    from manifold_sph import Surface
+
+    return Surface(shapes.sphere(300))
+
+
+@pytest.mark.parametrize("solver", ["heat", "wave"])
+def test_pde_callback_not_callable_is_named_at_the_entry(pde_surface, solver):
+    """Item 14: ``heat(callback=3)`` raised a bare "'int' object is not callable" after the first step."""
+    from manifold_sph import pde
+
+    z = pde_surface.points[:, 2]
+    with pytest.raises(TypeError, match=r"callback must be a callable callback\(step, t, u\) or None, got int 3"):
+        getattr(pde, solver)(pde_surface, z, dt=1e-3, steps=2, callback=3)
+
+
+@pytest.mark.parametrize("call", ["heat", "wave", "poisson", "explicit_dt_limit"])
+def test_pde_complex_laplacian_is_refused(pde_surface, call):
+    """Item 11: a complex user matrix lost its imaginary part with only numpy's ComplexWarning."""
+    import scipy.sparse as sp
+
+    from manifold_sph import pde
+
+    L = -pde_surface.stiffness_matrix().astype(np.complex128) * (1 + 1j)
+    z = pde_surface.points[:, 2]
+    run = {
+        "heat": lambda: pde.heat(pde_surface, z, dt=1e-3, steps=1, laplacian=L),
+        "wave": lambda: pde.wave(pde_surface, z, dt=1e-3, steps=1, laplacian=sp.csr_matrix(L)),
+        "poisson": lambda: pde.poisson(pde_surface, z - z.mean(), laplacian=L.toarray()),
+        "explicit_dt_limit": lambda: pde.explicit_dt_limit(pde_surface, laplacian=L),
+    }[call]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no ComplexWarning on the way
+        with pytest.raises(TypeError, match="laplacian must be a real matrix, got dtype complex128"):
+            run()
+
+
+def test_pde_complex_fixed_values_are_refused(pde_surface):
+    from manifold_sph import pde
+
+    with pytest.raises(TypeError, match="fixed_values must be real"):
+        pde.heat(pde_surface, np.zeros(300), dt=1e-3, steps=1, fixed=[0], fixed_values=1 + 2j)

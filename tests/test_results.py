@@ -37,7 +37,7 @@ def test_heat_and_wave_return_a_solution_whatever_the_options(surf):
     assert isinstance(w, pde.Solution) and w.laplacian == "stable" and w.snapshots.shape == (2, 400)
     with pytest.raises(dataclasses.FrozenInstanceError):
         w.u = z
-    assert set(w.to_dict()) == {"u", "times", "snapshots", "laplacian"}
+    assert set(w.to_dict()) == {"u", "times", "snapshots", "laplacian", "dt", "solver"}
     assert "array (400,)" in repr(w)  # arrays shown by shape, not printed
 
 

@@ -162,12 +162,12 @@ def test_wave_stable_conserves_energy(rand2000):
 def test_auto_switches_to_stable_on_random_points():
     p = random_sphere(1500, seed=7)
     s = quiet_surface(p, p.copy())
-    assert not pde.strong_form_is_stable(s)
-    with pytest.warns(RuntimeWarning, match="laplacian='auto'.*growing modes.*stable Voronoi Laplacian"):
-        assert pde.choose_laplacian(s) == "stable"
+    assert not pde.strong_form_decays(s)
     with warnings.catch_warnings():
-        warnings.simplefilter("error")  # said once per surface
+        warnings.simplefilter("error")  # said in the report, not in a warning: the stable Laplacian is always safe
+        assert pde.choose_laplacian(s) == "stable"
         u = pde.heat(s, p[:, 2], dt=1e-2, steps=20).u
+    assert s.report()["pde_laplacian"].summary == "the PDE solvers use the stable Laplacian"
     assert np.abs(u).max() <= 1.0
     strong = pde.heat(s, p[:, 2], dt=1e-2, steps=20, laplacian="strong").u  # the growing modes, forced
     assert not np.abs(strong).max() <= 1.0
@@ -181,18 +181,22 @@ def test_auto_proves_an_m_matrix_stable_without_eigs(monkeypatch):
     converge on it."""
     p = random_sphere(1500, seed=7)
     s = quiet_surface(p, p.copy(), scheme="standard", area="shepard")
-    L = s.laplacian_matrix().tocoo()
+    L = s.laplacian_matrix(form="strong").tocoo()
     off = L.row != L.col
     assert L.data[off].min() >= 0 and np.abs(L.sum(axis=1)).max() < 1e-9 * abs(L.diagonal()).max()
 
     def no_eigs(*a, **k):
         raise AssertionError("eigs called")
 
-    monkeypatch.setattr(pde.spla, "eigs", no_eigs)
-    assert pde.strong_form_is_stable(s)
+    from manifold_sph.pde import laplacians
+
+    monkeypatch.setattr(laplacians.spla, "eigs", no_eigs)
+    assert pde.strong_form_decays(s)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        assert pde.choose_laplacian(s) == "strong"
+        assert pde.choose_laplacian(s) == s.laplacian_form  # decaying: the accurate form is stepped
+        fib = Surface(shapes.sphere(1500), scheme="standard", area="shepard")
+        assert pde.strong_form_decays(fib) and pde.choose_laplacian(fib) == fib.laplacian_form == "strong"
 
 
 def test_near_duplicates_are_finite():
@@ -245,11 +249,11 @@ def test_explicit_limit_not_cached_by_id(rand2000):
 
 def test_laplacian_argument_errors(rand2000):
     with pytest.raises(ValueError, match="laplacian must be one of"):
-        pde.heat(rand2000, np.zeros(2000), 1e-3, 1, laplacian="weak")
+        pde.heat(rand2000, np.zeros(2000), dt=1e-3, steps=1, laplacian="weak")
     with pytest.raises(TypeError, match="laplacian must be one of .* or a sparse matrix"):
-        pde.heat(rand2000, np.zeros(2000), 1e-3, 1, laplacian=3.0)
+        pde.heat(rand2000, np.zeros(2000), dt=1e-3, steps=1, laplacian=3.0)
     with pytest.raises(ValueError, match="above the explicit heat stability limit"):
-        pde.heat(rand2000, np.zeros(2000), 1.0, 1, method="explicit", laplacian="stable")
+        pde.heat(rand2000, np.zeros(2000), dt=1.0, steps=1, method="explicit", laplacian="stable")
 
 
 def test_voronoi_cells_flags():
@@ -363,11 +367,11 @@ def test_bad_input_to_the_new_entry_points(rand2000):
     bad = sp.diags(np.full(n, -1.0)).tocsr()
     bad.data[0] = np.nan
     with pytest.raises(ValueError, match="laplacian must have finite entries"):
-        pde.heat(rand2000, np.zeros(n), 1e-3, 1, laplacian=bad)
+        pde.heat(rand2000, np.zeros(n), dt=1e-3, steps=1, laplacian=bad)
     with pytest.raises(ValueError, match=r"laplacian must have shape \(2000, 2000\)"):
         pde.poisson(rand2000, np.zeros(n), laplacian=sp.identity(3))
     with pytest.raises(TypeError, match="maxiter must be an integer"):
-        pde.strong_form_is_stable(rand2000, maxiter=1.5)
+        pde.strong_form_decays(rand2000, maxiter=1.5)
     with pytest.raises(TypeError, match="surface must be a Surface or Domain2D"):
         pde.choose_laplacian("sphere")
     with pytest.raises(ValueError, match="tol must be a finite positive number"):
@@ -400,9 +404,9 @@ def test_the_stability_check_does_not_reorder_the_operator_matrix():
     build's later products summed its rows in another order (round-off differences that broke
     bit-for-bit equality of tiled and single-process builds)."""
     s = Surface(shapes.sphere(3000))
-    before = s.laplacian_matrix().indices.copy()
-    pde.strong_form_is_stable(s)
-    np.testing.assert_array_equal(s.laplacian_matrix().indices, before)
+    before = s.laplacian_matrix(form="strong").indices.copy()
+    pde.strong_form_decays(s)
+    np.testing.assert_array_equal(s.laplacian_matrix(form="strong").indices, before)
 
 
 def test_new_entry_points_reject_bad_input():

@@ -69,7 +69,7 @@ def run_demo(out: str | os.PathLike[str], *, n: int = 4032, render: bool = True,
     rows = operator_errors(cloud, fn, FOUR_SCHEMES)
     bar.update()
     surfaces = {name: Surface(cloud, scheme=name) for name in FOUR_SCHEMES}
-    lap = {k: s.laplacian(f) for k, s in surfaces.items()}
+    lap = {k: s.laplacian(f, form="strong") for k, s in surfaces.items()}
     grad = {k: s.gradient(f) for k, s in surfaces.items()}
     bar.update()
     plots.error_boxplot(

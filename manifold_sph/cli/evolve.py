@@ -26,8 +26,15 @@ def add_parsers(sub, schemes: list[str]) -> None:
             help="initial state: 'hotspot' (a Gaussian bump at the top), 'harmonic' (z + xy, exact solution "
                  "known on the unit sphere) or a test function name (default hotspot)",
         )
-        q.add_argument("--dt", type=float, default=None, help="time step (default: heat 1e-3, wave half the stability limit)")
-        q.add_argument("--steps", type=positive_int_arg, default=200, help="number of steps (default 200)")
+        reach = "0.1: heat spreads over a tenth" if name == "heat" else "1: a front crosses the cloud once"
+        q.add_argument("--reach", type=float, default=None,
+                       help=f"how far the solution travels, as a fraction of the cloud's diameter (default {reach})")
+        q.add_argument("--t-end", type=float, default=None, help="final time in the cloud's units (instead of --reach)")
+        q.add_argument("--dt", type=float, default=None,
+                       help="time step (default: chosen from the point spacing" +
+                            (")" if name == "heat" else " and the stability limit)"))
+        q.add_argument("--steps", type=positive_int_arg, default=None,
+                       help="number of steps (with --dt: an absolute duration; alone: splits the duration)")
         q.add_argument("--every", type=positive_int_arg, default=None, help="save a frame every this many steps (default steps/40)")
         if name == "heat":
             q.add_argument("--diffusivity", type=float, default=1.0, help="diffusivity (default 1)")
@@ -63,6 +70,22 @@ def _mean(s, u) -> float:
     return float(np.dot(m, u) / m.sum())
 
 
+def _time_steps(args, s) -> tuple[float, int]:
+    """``(dt, steps)`` from --reach / --t-end / --dt / --steps (default: --reach 0.1 for heat, 1 for wave)."""
+    from .. import pde
+
+    heat = args.command == "heat"
+    duration = {"reach": args.reach, "t_end": args.t_end, "dt": args.dt, "steps": args.steps}
+    if args.reach is None and args.t_end is None and (args.dt is None or args.steps is None):
+        duration["reach"] = 0.1 if heat else 1.0  # no absolute time suits every cloud
+    speed = {"diffusivity": args.diffusivity, "method": args.method} if heat else {"c": args.c}
+    try:
+        return pde.time_steps(s, equation=args.command, **duration, **speed)
+    except ValueError as exc:  # name the options, not the keywords
+        raise UserError(str(exc).replace("reach=", "--reach ").replace("t_end=", "--t-end ").replace("dt=", "--dt ")
+                        .replace("steps=", "--steps ")) from exc
+
+
 def _cmd_evolve(args) -> int:
     from .. import pde
     from ..reference.errors import l2_error
@@ -77,21 +100,22 @@ def _cmd_evolve(args) -> int:
         s, _ = build_surface(args, cloud, bar)
     x = s.points
     u0 = _initial_state(args.init, x)
-    every = args.every or max(1, args.steps // 40)
-    with progress(args, args.steps, args.command) as bar:
+    dt, steps = _time_steps(args, s)
+    every = args.every or max(1, steps // 40)
+    with progress(args, steps, args.command) as bar:
         bar.step("steps")
         cb = lambda step, t, u: bar.update()  # noqa: E731
         if args.command == "heat":
-            dt = 1e-3 if args.dt is None else args.dt
-            res = pde.heat(s, u0, dt=dt, steps=args.steps, diffusivity=args.diffusivity, method=args.method, every=every, callback=cb)
+            res = pde.heat(s, u0, dt=dt, steps=steps, diffusivity=args.diffusivity, method=args.method, every=every,
+                           callback=cb)
         else:
-            dt = 0.5 * pde.explicit_dt_limit(s, c=args.c, equation="wave") if args.dt is None else args.dt
-            res = pde.wave(s, u0, dt=dt, steps=args.steps, c=args.c, every=every, callback=cb)
+            res = pde.wave(s, u0, dt=dt, steps=steps, c=args.c, every=every, callback=cb)
     u = res.u
     t = float(res.times[-1])
     summary = {
         "command": args.command, "n": int(s.n_points), "scheme": args.scheme, "init": args.init,
-        "dt": dt, "steps": args.steps, "t": t,
+        "dt": dt, "steps": steps, "t": t, "laplacian": res.laplacian, "solver": res.solver,
+        "adapted": [a.summary for a in s.report()],
         "min": float(u.min()), "max": float(u.max()), "mean": _mean(s, u),
     }
     exact_known = args.init == "harmonic" and not args.file and args.shape == "sphere"
@@ -129,8 +153,9 @@ def _cmd_evolve(args) -> int:
         print(json.dumps(summary, indent=2))
     else:
         print(
-            f"{args.command} on {where} (N = {summary['n']}, {args.scheme}), {args.steps} steps of dt = {dt:.4g}, "
-            f"t = {t:.4g}: min {summary['min']:.4g}, max {summary['max']:.4g}, mean {summary['mean']:.4g}"
+            f"{args.command} on {where} (N = {summary['n']}, {args.scheme}, {res.laplacian} Laplacian), {steps} steps "
+            f"of dt = {dt:.4g}, t = {t:.4g}: min {summary['min']:.4g}, max {summary['max']:.4g}, "
+            f"mean {summary['mean']:.4g}"
         )
         if "l2_rel_error" in summary:
             print(f"relative L2 error against the exact solution: {summary['l2_rel_error']:.3e}")

@@ -230,7 +230,7 @@ def notes() -> Iterator[None]:
     said: set[str] = set()
 
     def show(message, category, filename, lineno, file=None, line=None):  # noqa: ANN001 - warnings.showwarning's
-        text = " ".join(str(message).split())
+        text = " ".join(str(message).split()).replace(" Surface.report() has the details.", "")  # a Python call
         if issubclass(category, ManifoldSPHWarning) and text not in said:
             said.add(text)
             from tqdm import tqdm

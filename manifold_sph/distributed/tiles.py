@@ -280,7 +280,7 @@ def _build_tile_arrays(spec: dict):
               "h": np.asarray(s.h[:n_own]), "dV": np.asarray(s.dV[:n_own])}
     gersh = 0.0
     if "laplacian" in keep:
-        L = _head_rows(s.laplacian_matrix(), n_own)
+        L = _head_rows(s.laplacian_matrix(form="strong"), n_own)
         arrays |= _csr_arrays("lap", L)
         arrays["H_laplacian"] = -0.5 * np.einsum("ij,ij->i", L @ spts, nrm_s[:n_own])
         # row sums of |L| without scipy's abs(), which sorts the rows' entries in place

@@ -191,7 +191,7 @@ def mean_curvature(surface: Surface, method: str = "auto", *, scale: float | str
         return 0.5 * (W[:, 0, 0] + W[:, 1, 1])
     check_scale(surface.points, "curvature", SCALE_RANGE)
     return surface.cached(("mean_curvature", "laplacian"), lambda: -0.5 * np.einsum(
-        "ij,ij->i", surface.laplacian_matrix() @ surface.points, surface.normals))
+        "ij,ij->i", surface.laplacian_matrix(form="strong") @ surface.points, surface.normals))
 
 
 def gaussian_curvature(surface: Surface, *, scale: float | str | None = None) -> np.ndarray:

@@ -100,7 +100,7 @@ def operator_errors(
         t0 = time.perf_counter()
         s = Surface(cloud, scheme=name, **surface_kwargs)
         build = time.perf_counter() - t0
-        el = error_summary(s.laplacian(f), lap)
+        el = error_summary(s.laplacian(f, form="strong"), lap)
         eg = error_summary(s.gradient(f), grad)
         rows.append(
             {
@@ -232,7 +232,7 @@ def planar_errors(
         d = Domain2D(p, scheme=name, bounds=bounds, mirror=mirror, **domain_kwargs)
         eg = error_summary(d.gradient(functions.xy_2d.value(p)), g_ex)
         ed = error_summary(d.divergence(fld.value(p)), fld.divergence(p))
-        el = error_summary(d.laplacian(f.value(p)), lap_ex)
+        el = error_summary(d.laplacian(f.value(p), form="strong"), lap_ex)
         rows.append(
             {
                 "scheme": name, "n": len(p), "mirror": mirror,

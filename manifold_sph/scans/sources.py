@@ -21,8 +21,6 @@ these. This module imports no other part of the package but the file parsers
 from __future__ import annotations
 
 import os
-import sys
-import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -30,7 +28,6 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..exceptions import ManifoldSPHWarning
 from .._validation import check_in
 
 __all__ = [
@@ -72,8 +69,6 @@ _MAGIC = ((b"ply\n", "ply"), (b"ply\r\n", "ply"), (b"\x93NUMPY", "npy"), (b"PK\x
 
 #: The libraries whose objects are point-like input (top-level module names).
 _FOREIGN = ("open3d", "pyvista", "trimesh", "vtkmodules", "vtk")
-
-_PACKAGE_DIR = str(Path(__file__).resolve().parents[1])
 
 
 @dataclass
@@ -453,10 +448,10 @@ def settle(src: Source, *, normals: str = "auto", duplicates: str = "merge") -> 
 
 
 def announce(note: str) -> None:
-    """Say ``note`` in one :class:`~manifold_sph.ManifoldSPHWarning`, pointing at the caller's code."""
+    """Say ``note`` in one :class:`~manifold_sph.ManifoldSPHWarning`, pointing at the caller's code; inside a
+    Surface build, as an entry of its report (the build's one warning)."""
     if not note:
         return
-    level, frame = 2, sys._getframe(1)
-    while frame is not None and frame.f_code.co_filename.startswith(_PACKAGE_DIR):
-        level, frame = level + 1, frame.f_back
-    warnings.warn(note, ManifoldSPHWarning, stacklevel=level)
+    from ..diagnostics import note as report_note
+
+    report_note("input", note)
