@@ -89,7 +89,7 @@ def _single(points, normals, options, threads):
     t0 = time.perf_counter()
     s = Surface(points, normals, **options)
     t_build = time.perf_counter() - t0
-    out = {"lap": s.laplacian(f), "grad": s.gradient(f), "div": s.divergence(F), "normals": s.normals,
+    out = {"lap": s.laplacian(f, form="strong"), "grad": s.gradient(f), "div": s.divergence(F), "normals": s.normals,
            "H": s.mean_curvature()}
     return t_build, out, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 

@@ -72,7 +72,7 @@ def ours(cloud, scheme, **kw):
     fb = int(sum(v.size for v in s.fallback.values()))
     return {
         "method": scheme + (f" k={kw['neighbors']}" if "neighbors" in kw else ""),
-        "lap": error_summary(s.laplacian(f), lap)["l2_rel"],
+        "lap": error_summary(s.laplacian(f, form="strong"), lap)["l2_rel"],
         "grad": error_summary(s.gradient(f), grad)["l2_rel"],
         "build": build,
         "note": f"{s.neighborhood.counts.mean():.0f} nb, {fb} fallback",

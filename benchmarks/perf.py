@@ -224,7 +224,7 @@ def bench_size(n, repeat, mem, peers, pc):
 
     # end-to-end first: its errors label the part rows
     t_e2e, s = timed(quiet(lambda: Surface(cloud, scheme="cspm")), repeat)
-    L = s.laplacian_matrix()
+    L = s.laplacian_matrix(form="strong")
     e_cspm = lap_err(L @ f, lap_ex)
     p_e2e = traced_peak(quiet(lambda: Surface(cloud, scheme="cspm")), mem)
     e2e_note = f"area numerical, {nb.counts.mean():.1f} nb, {sum(v.size for v in s.fallback.values())} fallback"
@@ -284,21 +284,21 @@ def bench_size(n, repeat, mem, peers, pc):
         t_np, s_np = timed(quiet(lambda: Surface(cloud, scheme="cspm")), repeat)
     finally:
         _jit.ENABLED = True
-    e_np = lap_err(s_np.laplacian(f), lap_ex)
+    e_np = lap_err(s_np.laplacian(f, form="strong"), lap_ex)
     del s_np
     add("end-to-end cspm, numpy kernels", t_np, e_np, None, f"MANIFOLD_SPH_JIT=0; compiled kernels x{t_np / t_e2e:.2f} faster")
     t_e2e_sh, s_sh = timed(quiet(lambda: Surface(cloud, scheme="cspm", area="shepard")), repeat)
-    e_sh = lap_err(s_sh.laplacian(f), lap_ex)
+    e_sh = lap_err(s_sh.laplacian(f, form="strong"), lap_ex)
     add("end-to-end cspm shepard", t_e2e_sh, e_sh, None, "area shepard")
     del s_sh
     t_m4, s4 = timed(quiet(lambda: Surface(cloud, scheme="msph4", area="shepard")), repeat)
-    e_m4 = lap_err(s4.laplacian(f), lap_ex)
+    e_m4 = lap_err(s4.laplacian(f, form="strong"), lap_ex)
     fb4 = sum(v.size for v in s4.fallback.values())
     add("end-to-end msph4", t_m4, e_m4, traced_peak(quiet(lambda: Surface(cloud, scheme="msph4", area="shepard")), mem),
         f"area shepard (unused), {s4.neighborhood.counts.mean():.1f} nb, {fb4} fallback")
     spec = {}
     if n <= SPECTRUM_OURS_MAX:
-        spec = {"cspm": spectrum_err(L), "msph4": spectrum_err(s4.laplacian_matrix())}
+        spec = {"cspm": spectrum_err(L), "msph4": spectrum_err(s4.laplacian_matrix(form="strong"))}
         print(f"{'':>8} spectrum (15 smallest nonzero eigenvalues of -L vs l(l+1), max relative error): "
               f"cspm {spec['cspm']:.2e}, msph4 {spec['msph4']:.2e}", flush=True)
     del s4
@@ -307,9 +307,9 @@ def bench_size(n, repeat, mem, peers, pc):
     nbytes = L.data.nbytes + L.indices.nbytes + L.indptr.nbytes
     t_sp, _ = timed(lambda: L @ f, max(repeat, 3), min_time=0.05)
     add("matvec scipy L @ f", t_sp, e_cspm, traced_peak(lambda: L @ f, mem), f"nnz {L.nnz}, {nbytes / 2**20:.1f} MB CSR, one thread")
-    s.laplacian(f)  # splits L into row blocks once
-    t_mv, _ = timed(lambda: s.laplacian(f), max(repeat, 3), min_time=0.05)
-    add("matvec s.laplacian(f)", t_mv, e_cspm, traced_peak(lambda: s.laplacian(f), mem), "row blocks on threads, input checks included")
+    s.laplacian(f, form="strong")  # splits L into row blocks once
+    t_mv, _ = timed(lambda: s.laplacian(f, form="strong"), max(repeat, 3), min_time=0.05)
+    add("matvec s.laplacian(f)", t_mv, e_cspm, traced_peak(lambda: s.laplacian(f, form="strong"), mem), "row blocks on threads, input checks included")
     stream = lambda: (float(np.sum(L.data)), int(np.max(L.indices)), int(np.max(L.indptr)))
     t_st, _ = timed(stream, max(repeat, 3), min_time=0.05)
     add("stream matrix bytes", t_st, None, None, f"{nbytes / t_st / 1e9:.1f} GB/s; matvec/stream x{t_mv / t_st:.2f}")
@@ -406,7 +406,7 @@ def bench_scan(path, repeat, pc):
         kw = {} if hh is None else {"h": hh}
         t, s = timed(quiet(lambda: Surface(cloud, scheme=scheme, area=area, **kw)), repeat)
         key = f"{scheme} {area}" + ("" if hh is None else f" h={hh}")
-        laps[key] = s.laplacian(f)
+        laps[key] = s.laplacian(f, form="strong")
         fb = sum(v.size for v in s.fallback.values())
         ref = laps["msph shepard h=adaptive"]
         diff = np.linalg.norm(laps[key] - ref) / np.linalg.norm(ref)

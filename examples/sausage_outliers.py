@@ -30,7 +30,7 @@ def main(argv=None) -> int:
     tip_dist = np.min(np.linalg.norm(x[:, None, :] - cloud.geometry.tips[None], axis=2), axis=1)
     errs = {}
     for name in SCHEMES:
-        errs[name] = absolute_error(Surface(cloud, scheme=name).laplacian(f), exact)
+        errs[name] = absolute_error(Surface(cloud, scheme=name).laplacian(f, form="strong"), exact)
         out_idx = boxplot_summary(errs[name]).outliers
         near = float(np.mean(tip_dist[out_idx] < 0.3)) if out_idx.size else float("nan")
         print(f"{name:<9} {out_idx.size:>4} outliers, {100 * near:.0f} % of them within 0.3 of a tip; "
