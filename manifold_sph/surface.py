@@ -72,8 +72,8 @@ class Surface(OperatorSet, PointViews):
         Surface area for ``area="geometric"``.
     max_condition : float
         Particles whose local systems have a larger condition number fall back to
-        a lower-order scheme (ncsph, msph -> cspm -> standard); a RuntimeWarning
-        gives the counts and :attr:`fallback` the indices.
+        a lower-order scheme (ncsph, msph -> cspm -> standard), recorded in
+        :meth:`report`; :attr:`fallback` has the indices.
 
     Attributes
     ----------
@@ -83,6 +83,16 @@ class Surface(OperatorSet, PointViews):
         Tangent frames.
     area : AreaElements
         ``area.dV``, ``area.n_negative``.
+    widened, flipped : ndarray of int
+        Particles given a wider support, and whose normals were flipped.
+
+    Notes
+    -----
+    What the build adapts to the cloud (normals estimated or flipped, supports widened,
+    fallbacks, merged near-duplicates) is summarised in at most one
+    :class:`~manifold_sph.ManifoldSPHWarning` per build; :meth:`report` has the details.
+    :meth:`laplacian` uses the more accurate of the scheme's and the stable Laplacian on
+    this cloud (:attr:`laplacian_form`).
 
     Examples
     --------
@@ -229,7 +239,7 @@ class Surface(OperatorSet, PointViews):
         parts of a scan) a support reaching ``neighbors`` normal-compatible neighbours.
 
         A normal that agrees with none of its nearest points is flipped first when the flip makes it
-        agree. RuntimeWarnings give the counts, :attr:`widened` and :attr:`flipped` the indices.
+        agree. Both go to the build's report; :attr:`widened` and :attr:`flipped` hold the indices.
         Returns the neighbourhood and the (possibly flipped) normals.
         """
         need = max(self.scheme.min_neighbors, 2)
