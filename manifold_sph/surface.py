@@ -9,7 +9,7 @@ from numpy.typing import ArrayLike
 
 from .diagnostics import BuildReport, note
 from .frames import FramePair, PairOffsets, check_frames, project_pairs, tangent_frames
-from .neighbors import GRID_MIN_POINTS, Neighborhood, build_tree, find_neighbors
+from .neighbors import GRID_MIN_POINTS, build_tree, find_neighbors, widen_lonely
 from .operators import OperatorSet
 from .pointcloud import PointCloud, PointViews, as_cloud
 
@@ -236,65 +236,23 @@ class Surface(OperatorSet, PointViews):
 
     def _widen_lonely(self, nb, pts, nrm, hv, normal_threshold, tree):
         """Give particles with fewer than the scheme's minimum of neighbours (isolated points, sparse
-        parts of a scan) a support reaching ``neighbors`` normal-compatible neighbours.
-
-        A normal that agrees with none of its nearest points is flipped first when the flip makes it
-        agree. Both go to the build's report; :attr:`widened` and :attr:`flipped` hold the indices.
-        Returns the neighbourhood and the (possibly flipped) normals.
+        parts of a scan, normals that disagree with their neighbours') enough neighbours, repairing
+        their normals where needed: :func:`manifold_sph.neighbors.widen_lonely`. RuntimeWarnings give
+        the counts; :attr:`widened`, :attr:`flipped`, :attr:`repaired` and :attr:`unfiltered` the indices.
+        Returns the neighbourhood and the (possibly repaired) normals.
         """
         need = max(self.scheme.min_neighbors, 2)
-        lonely = np.flatnonzero(nb.counts < need)
-        self.widened, self.flipped = lonely, lonely[:0]
-        if not lonely.size:
-            return nb, nrm
-        tree = self._tree if tree is None else tree
-        n = pts.shape[0]
-        k = min(n, 4 * self.neighbors)
-        dist, idx = tree.query(pts[lonely], k=k)
-        dots = np.einsum("rkd,rd->rk", nrm[idx], nrm[lonely])
-        dots[:, 0] = np.inf  # the particle itself
-        flip = ((dots > normal_threshold).sum(axis=1) < need) & ((-dots > normal_threshold).sum(axis=1) >= need)
-        if flip.any():
-            nrm = nrm.copy()
-            nrm[lonely[flip]] *= -1.0
-            dots[flip] *= -1.0
-            self.flipped = lonely[flip]
-            note(
-                "flipped", f"{int(flip.sum())} normal(s) pointed against all their neighbours' and were flipped",
-                detail=f"Each disagreed with every nearby point's normal (n_i . n_j <= normal_threshold = "
-                f"{normal_threshold:g}) and agrees once flipped: a wrongly oriented normal. Check the orientation of "
-                "the normals given, or give none to have them estimated.",
-                count=int(flip.sum()), indices=self.flipped,
-            )
-        rank = np.cumsum(dots > normal_threshold, axis=1)  # compatible neighbours up to each candidate
-        hopeless = lonely[rank[:, -1] < need]
-        if hopeless.size:
-            raise ValueError(
-                f"{hopeless.size} particle(s) have fewer than {need} neighbours whose normals agree with theirs "
-                f"(n_i . n_j > normal_threshold = {normal_threshold:g}) among their {k} nearest points (first "
-                f"indices {hopeless[:8].tolist()}): their normals disagree with every nearby point (wrong "
-                "orientation?) or they are outliers; check the normals, lower normal_threshold, or remove them"
-            )
-        target = min(self.neighbors, n - 1)
-        enough = np.minimum(target, rank[:, -1])  # all compatible ones when fewer than the target
-        reach = dist[np.arange(lonely.size), np.argmax(rank >= enough[:, None], axis=1)]
-        hv = np.array(np.broadcast_to(hv, (n,)), dtype=np.float64)
-        hv[lonely] = np.maximum(hv[lonely], 1.0001 * reach / self.kernel.support)
-        note(
-            "widened", f"{lonely.size} isolated or sparse point(s) got wider supports (reaching {target} neighbours)",
-            detail=f"They had fewer than {need} neighbours inside the kernel support (stray points, or sparse parts "
-            "of the cloud); their smoothing length was widened, so their operators are smoother and less "
-            "accurate there. Remove stray points, or sample those parts more densely.",
-            count=lonely.size, indices=lonely,
-        )
-        if flip.any():  # flipped normals change other rows' normal filter: search every row again
-            nb = find_neighbors(pts, nrm, h=hv, support=self.kernel.support, normal_threshold=normal_threshold,
-                                tree=tree)
-        else:  # only the widened rows change (a row's neighbours lie within its own support): search them
-            # alone and splice them in (a full search with the widened h takes the slower KD-tree path everywhere)
-            nb = _splice_rows(nb, lonely, pts, nrm, hv, self.kernel.support, normal_threshold, tree)
-        self._check_isolated(nb, "their normals disagree with their neighbours'")  # a flip elsewhere can only add
-        return nb, nrm
+        if tree is None and np.any(nb.counts < need):
+            tree = self._tree  # built once, kept
+        fix = widen_lonely(nb, pts, nrm, hv, need=need, target=self.neighbors, normal_threshold=normal_threshold,
+                           tree=tree)
+        self.widened, self.flipped, self.repaired, self.unfiltered = fix.widened, fix.flipped, fix.repaired, fix.unfiltered
+        kinds = [(key, idx) for key, idx in (("flipped", fix.flipped), ("repaired", fix.repaired), ("widened", fix.widened),
+                                             ("unfiltered", fix.unfiltered)) if idx.size]
+        for (key, idx), message in zip(kinds, fix.messages()):  # messages() lists the same kinds in this order
+            summary, _, see = message.rpartition("; see ")
+            note(key, summary, detail=f"The indices are in Surface.{see}.", count=idx.size, indices=idx)
+        return fix.neighborhood, fix.normals
 
     def _wider_candidates(self, rows: np.ndarray):
         """The ``_WIDER_K`` nearest neighbours of ``rows`` (normal filter applied), projected."""
@@ -338,30 +296,3 @@ class Surface(OperatorSet, PointViews):
             f"mean neighbours={self.neighborhood.counts.mean():.1f}, area={self._area_args[0]!r})"
         )
 
-
-def _splice_rows(nb, rows, pts, nrm, hv, support, normal_threshold, tree):
-    """``nb`` with the neighbour lists of ``rows`` searched again with the smoothing lengths ``hv``.
-
-    The same arrays as a search of every row with ``hv`` (each row's list depends only on its own
-    support; rows keep the search's order, the particle first).
-    """
-    def search(h):
-        return find_neighbors(pts[rows], nrm[rows], h=h, support=support, normal_threshold=normal_threshold,
-                              candidates=pts, candidate_normals=nrm, tree=tree)
-
-    new, old = search(hv[rows]), search(nb.h[rows])
-    counts = nb.counts.copy()
-    counts[rows] = new.counts
-    indptr = np.zeros(counts.size + 1, dtype=nb.indptr.dtype)
-    np.cumsum(counts, out=indptr[1:])
-    indices = np.empty(int(indptr[-1]), dtype=nb.indices.dtype)
-    keep = np.ones(counts.size, dtype=bool)
-    keep[rows] = False
-    r = nb.rows
-    mask = keep[r]
-    pos = np.flatnonzero(mask)
-    indices[indptr[r[mask]] + (pos - nb.indptr[r[mask]])] = nb.indices[mask]
-    owner = np.repeat(np.arange(rows.size), new.counts)
-    indices[indptr[rows[owner]] + (np.arange(new.indices.size) - new.indptr[owner])] = new.indices
-    return Neighborhood(indptr=indptr, indices=indices, h=hv, support=nb.support,
-                        n_filtered=nb.n_filtered - old.n_filtered + new.n_filtered)

@@ -269,12 +269,16 @@ def test_radius_knn_asks_again_for_dense_rows(monkeypatch):
     calls = []
     knn = nbm._knn
     monkeypatch.setattr(nbm, "_knn", lambda *a: calls.append(a[2]) or knn(*a))
-    dist, idx = nbm._radius_knn(tree, pts, radii, -1)
+    groups = nbm._radius_knn(tree, pts, radii, -1)
     assert len(calls) >= 3  # probe, everyone, the full rows again
+    _, dist, idx = groups[0]
     counts = (dist < radii[:, None]).sum(axis=1)
+    for rows, d, _ in groups[1:]:  # the rows asked again replace the first group's
+        counts[rows] = (d < radii[rows, None]).sum(axis=1)
+        assert d.shape[1] <= (d < radii[rows, None]).sum(axis=1).max() + 1 or d.shape[1] == calls[-1]
     ref = tree.query_ball_point(pts, 0.02, return_length=True)
     np.testing.assert_array_equal(counts, ref)
-    assert dist.shape[1] <= ref.max() + 1 or dist.shape[1] == calls[-1]
+    assert dist.shape[1] < ref.max()  # the first group is not widened to the clump's rows
 
 
 def test_build_tree_rejects_bad_points():
