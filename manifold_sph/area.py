@@ -74,21 +74,28 @@ def _kernel_values(nb, xy, kernel, near_columns=None):
 
 
 def _near_in_rows(nb, xc, cols, lo, hi, tol):
-    """Positions of the pairs ``i != j`` of rows ``lo:hi`` (offsets ``xc``) closer than ``tol h_i``."""
+    """Positions of the pairs ``i != j`` of rows ``lo:hi`` (offsets ``xc``) closer than ``tol min(h_i, h_j)``.
+
+    Both smoothing lengths: a particle whose support was widened (a stray point far from the
+    cloud) has a large ``h_i``, and its neighbours, each other's far apart on their own scale,
+    are not near-duplicates of one another through it."""
     p0, p1 = nb.indptr[lo], nb.indptr[hi]
     if _jit.ENABLED:
         close = np.empty(p1 - p0, dtype=np.uint8)
         _jit.near_pairs(0, hi - lo, nb.indptr[lo : hi + 1] - p0, xc, nb.h[lo:hi], cols[p0:p1], lo, tol, close)
+        found = np.flatnonzero(close)
     else:
         rows = np.repeat(np.arange(lo, hi), np.diff(nb.indptr[lo : hi + 1]))
-        close = (np.hypot(xc[:, 0], xc[:, 1]) < tol * nb.h[rows]) & (cols[p0:p1] != rows)
-    return p0 + np.flatnonzero(close)
+        found = np.flatnonzero((np.hypot(xc[:, 0], xc[:, 1]) < tol * nb.h[rows]) & (cols[p0:p1] != rows))
+    if found.size:  # few: the column's own scale checked here
+        found = found[np.hypot(xc[found, 0], xc[found, 1]) < tol * nb.h[cols[p0 + found]]]
+    return p0 + found
 
 
 def near_duplicate_pairs(
     nb: Neighborhood, xy: np.ndarray | PairOffsets, columns: np.ndarray | None = None, tol: float | None = None
 ) -> np.ndarray:
-    """Positions of the pairs ``i != j`` closer than ``tol h_i`` (default :data:`MERGE_TOL`), in row chunks."""
+    """Positions of the pairs ``i != j`` closer than ``tol min(h_i, h_j)`` (default :data:`MERGE_TOL`), in row chunks."""
     tol = MERGE_TOL if tol is None else check_positive("tol", tol)
     n = nb.n_rows
     cols = nb.indices if columns is None else np.asarray(columns)
