@@ -366,9 +366,12 @@ def roughness(indptr: np.ndarray, xy: np.ndarray, height: np.ndarray, radius: np
         r[full] = np.add.reduceat(v, starts)
         return r
 
-    tx, ty = xy[:, 0], xy[:, 1]
+    # in units of each row's radius: the fit's sums of t^4 stay finite and normal at any scale (1e100
+    # coordinates overflowed them)
+    r = np.repeat(np.where(np.isfinite(radius) & (radius > 0), radius, 1.0), counts)
+    tx, ty, height = xy[:, 0] / r, xy[:, 1] / r, height / r
     d2 = tx * tx + ty * ty + height * height
-    w = np.exp(-9.0 * d2 / np.repeat(radius, counts) ** 2)
+    w = np.exp(-9.0 * d2)
     w[d2 == 0] = 0.0
     phi = (tx * tx, tx * ty, ty * ty)
     A, b = np.empty((n, 3, 3)), np.empty((n, 3))
@@ -381,7 +384,8 @@ def roughness(indptr: np.ndarray, xy: np.ndarray, height: np.ndarray, radius: np
     q = np.repeat(np.linalg.solve(A, b[:, :, None])[:, :, 0], counts, axis=0)
     e = np.abs(height - (q[:, 0] * phi[0] + q[:, 1] * phi[1] + q[:, 2] * phi[2]))
     sw = rowsum(w)
-    return ROUGHNESS_FACTOR * rowsum(w * e) / np.where(sw > 0, sw, 1.0)
+    scale = np.where(np.isfinite(radius) & (radius > 0), radius, 1.0)
+    return ROUGHNESS_FACTOR * scale * (rowsum(w * e) / np.where(sw > 0, sw, 1.0))
 
 
 def _lift_reach(slope: float) -> float:
