@@ -42,7 +42,7 @@ if TYPE_CHECKING:
     #: What every reader returns: points (N, 3), normals (N, 3) or None, other fields, faces (F, 3) or None.
     _Read: TypeAlias = "tuple[np.ndarray, np.ndarray | None, dict[str, np.ndarray], np.ndarray | None]"
 
-__all__ = ["ReadError", "read_format", "read_las_chunks", "NORMAL_NAMES"]
+__all__ = ["ReadError", "read_format", "read_las_chunks", "NORMAL_NAMES", "import_laspy"]
 
 NORMAL_NAMES = (("nx", "ny", "nz"), ("normal_x", "normal_y", "normal_z"), ("normalx", "normaly", "normalz"))
 
@@ -809,6 +809,60 @@ def from_pv_mesh(mesh: pv.DataSet) -> tuple[np.ndarray, np.ndarray | None, dict[
 _LAS_SKIP = {"X", "Y", "Z"}
 
 
+def import_laspy(purpose: str = "reading LAS/LAZ files"):
+    """The ``laspy`` module (with its LAZ backend ``lazrs``), or an ImportError naming the extra to install."""
+    try:
+        import laspy
+    except ImportError:
+        raise ImportError(f"{purpose} needs the optional packages laspy and lazrs: pip install 'manifold-sph[las]' "
+                          "(or pip install 'laspy[lazrs]')") from None
+    return laspy
+
+
+def _laz_record_count(path, header) -> tuple[int, bool] | None:
+    """``(count, exact)``: the number of point records the LAZ chunks of ``path`` hold (``exact``
+    False: at least that many), or None when the file does not say.
+
+    Variable-size chunks list their point counts in the chunk table; fixed-size chunks of the
+    layered compressor (point formats 6 to 10) store theirs after each chunk's first, raw point;
+    for the point-wise compressor (formats 0 to 5) the chunk table bounds the count from below,
+    ``(chunks - 1) * chunk_size + 1``, which is returned."""
+    import struct
+
+    try:
+        import lazrs
+    except ImportError:  # pragma: no cover - laspy[lazrs] brings it
+        return None
+    vlr = next((v for v in header.vlrs if type(v).__name__ == "LasZipVlr"), None)
+    if vlr is None:
+        return None
+    raw = vlr.record_data_bytes()
+    lz = lazrs.LazVlr(raw)
+    start = int(header.offset_to_point_data)
+    with open(path, "rb") as fh:
+        fh.seek(start)
+        table = lazrs.read_chunk_table(fh, lz)
+    if not table:
+        return None
+    if lz.uses_variable_size_chunks():
+        return int(sum(int(c) for c, _ in table)), True
+    size = int(lz.chunk_size())
+    compressor = struct.unpack_from("<H", raw, 0)[0]
+    if compressor != 3:  # point-wise chunks: only a lower bound
+        return (len(table) - 1) * size + 1, False
+    total, pos = 0, start + 8  # the chunk table's offset first, then the chunks
+    record = int(header.point_format.size)
+    with open(path, "rb") as fh:
+        for _, nbytes in table:
+            fh.seek(pos + record)
+            word = fh.read(4)
+            if len(word) < 4:
+                return None
+            total += struct.unpack("<I", word)[0]
+            pos += int(nbytes)
+    return total, True
+
+
 def _las_split(path, points, dims: dict):
     """Normals from extra dimensions nx/ny/nz (or normal_x...), the other dimensions as fields."""
     lower = {k.lower(): k for k in dims}
@@ -838,10 +892,9 @@ def read_las_chunks(path: str | os.PathLike[str],
     >>> [(len(p), int(f["intensity"][-1])) for p, f in read_las_chunks(path, chunk_size=20)]
     [(20, 19), (20, 39), (10, 49)]
     """
-    import laspy
-
     from .._validation import check_int
 
+    laspy = import_laspy()
     chunk_size = check_int("chunk_size", chunk_size, minimum=1)
     try:
         reader = laspy.open(str(path))
@@ -860,7 +913,7 @@ def read_las_chunks(path: str | os.PathLike[str],
 
 
 def read_las(path: str | os.PathLike[str]) -> _Read:
-    import laspy
+    laspy = import_laspy()
 
     try:
         with laspy.open(str(path)) as reader:
@@ -881,6 +934,14 @@ def read_las(path: str | os.PathLike[str]) -> _Read:
     if not compressed and end - need >= int(h.point_format.size):
         raise ReadError(path, f"the file holds {(end - need) // int(h.point_format.size)} point records more than "
                               f"the header's count {n}: the header count is too small")
+    if compressed:
+        try:
+            held = _laz_record_count(path, h)
+        except Exception as exc:  # noqa: BLE001 - a damaged chunk table, whatever lazrs raises
+            raise ReadError(path, f"its LAZ chunk table could not be read ({type(exc).__name__}: {exc})") from None
+        if held is not None and held[0] > n:
+            raise ReadError(path, f"the file's compressed chunks hold {'at least ' if not held[1] else ''}{held[0]} "
+                                  f"point records, more than the header's count {n}: the header count is too small")
     pts, cols = [], {}
     for xyz, f in read_las_chunks(path, chunk_size=max(1, min(n, 2_000_000))):
         pts.append(xyz)

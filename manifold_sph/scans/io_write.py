@@ -18,10 +18,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .io_read import NORMAL_NAMES, import_laspy
+
 if TYPE_CHECKING:
     from ..pointcloud import PointCloud
 
-__all__ = ["atomic_target", "write_format"]
+__all__ = ["LAS_PRECISION", "atomic_target", "check_field_names", "las_scales", "write_format"]
 
 
 @contextmanager
@@ -145,20 +147,120 @@ _LAS_STANDARD = {"intensity": np.uint16, "classification": np.uint8, "red": np.u
                  "blue": np.uint16, "gps_time": np.float64, "return_number": np.uint8,
                  "number_of_returns": np.uint8, "user_data": np.uint8, "point_source_id": np.uint16}
 
+#: The other dimensions of LAS point formats 6 and 7 (bit fields and the scan angle, which this writer
+#: leaves at zero): a field of one of these names is refused rather than lost.
+_LAS_OTHER = ("x", "y", "z", "synthetic", "key_point", "withheld", "overlap", "scanner_channel",
+              "scan_direction_flag", "edge_of_flight_line", "classification_flags", "scan_angle", "nir")
+
+#: Column names the readers give a meaning: the coordinates and every normal trio they recognise.
+_COORDINATES = ("x", "y", "z")
+_NORMAL_COMPONENTS = tuple(c for trio in NORMAL_NAMES for c in trio)
+
+
+def check_field_names(fmt: str, fields: dict, has_normals: bool) -> None:
+    """Refuse field names that the file's reader would read as something else.
+
+    In PLY, PCD, XYZ / CSV / PTS and LAS / LAZ files fields are columns next to the coordinates
+    and normals: a field named like a coordinate or a normal component (``x``, ``nx``,
+    ``normal_x``... in any case) would collide with them (the reader refuses a name twice) or,
+    written without normals, be read back as normals; two fields whose names differ only in case
+    collide in the readers too (they compare names case-insensitively). LAS / LAZ also refuse the
+    names of their point format's dimensions that this writer does not fill.
+
+    Examples
+    --------
+    >>> check_field_names("ply", {"u": None}, has_normals=True)
+    >>> check_field_names("ply", {"nx": None}, has_normals=True)
+    Traceback (most recent call last):
+    ...
+    ValueError: field name 'nx' would collide with the normals' column 'nx' in a PLY file (its reader takes x, y, z and nx, ny, nz, normal_x, normal_y, normal_z, normalx, normaly, normalz by name, in any case); rename the field, e.g. 'nx_field'
+    """
+    if fmt not in ("ply", "pcd", "xyz", "csv", "pts", "las", "laz"):
+        return
+    seen: dict[str, str] = {}
+    for name in fields:
+        low = name.lower()
+        if low in _COORDINATES or low in _NORMAL_COMPONENTS:
+            what = (f"the coordinate column {low!r}" if low in _COORDINATES else
+                    f"the normals' column {low!r}" if has_normals else "a normal component (written without normals, "
+                    "a trio of these is read back as the normals)")
+            raise ValueError(
+                f"field name {name!r} would collide with {what} in a {fmt.upper()} file (its reader takes x, y, z and "
+                f"{', '.join(_NORMAL_COMPONENTS)} by name, in any case); rename the field, e.g. {name + '_field'!r}"
+                + ("" if has_normals or low in _COORDINATES else ", or pass normals as the cloud's normals")
+            )
+        if fmt in ("las", "laz") and low in _LAS_OTHER:
+            raise ValueError(f"field name {name!r} is a dimension of the LAS point format that this writer leaves at "
+                             f"zero; rename the field, e.g. {name + '_field'!r} (fields named {sorted(_LAS_STANDARD)} "
+                             "fill those dimensions)")
+        if low in seen:
+            raise ValueError(f"field names {seen[low]!r} and {name!r} differ only in case: the readers compare names "
+                             "case-insensitively and would refuse the file; rename one of them")
+        seen[low] = name
+
+
+#: LAS coordinates are written to within this fraction of the cloud's median nearest-neighbour distance.
+LAS_PRECISION = 1e-3
+
+#: The largest integer coordinate used (LAS stores signed 32-bit integers; 2^31 - 1 is their largest).
+_LAS_STEPS = 2**30
+
+
+def las_scales(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(offsets, scales)`` of LAS coordinates for ``points``, or ValueError when LAS cannot hold them.
+
+    LAS stores ``x = X * scale + offset`` with ``X`` a 32-bit integer: the offsets are the centre of
+    the bounding box and each axis' scale its half-extent over 2^30 (the finest that fits). The
+    points are then quantised and checked: every coordinate must come back within
+    :data:`LAS_PRECISION` times the median nearest-neighbour distance, and no two distinct points
+    may land on one. A cloud of small spacing spread over a large extent (one stray point far
+    away) fails this, and the error says so rather than writing points on top of each other.
+    """
+    from scipy.spatial import cKDTree
+
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    offsets = (lo + hi) / 2
+    extent = hi - lo
+    big = float(extent.max())
+    fallback = big if big > 0 else max(1.0, float(np.abs(lo).max()))
+    scales = np.where(extent > 0, extent, fallback) / (2 * _LAS_STEPS) * 1.0000001
+    q = np.round((points - offsets) / scales).astype(np.int64)
+    back = q * scales + offsets
+    err = float(np.abs(back - points).max())
+    n = points.shape[0]
+    sample = points[np.linspace(0, n - 1, min(n, 10000)).round().astype(np.int64)] if n > 1 else points
+    spacing = float(np.median(cKDTree(points).query(sample, k=2)[0][:, 1])) if n > 1 else np.inf
+    key = np.lexsort(q.T[::-1])
+    same = np.all(q[key[1:]] == q[key[:-1]], axis=1)
+    merged = int(same.sum()) - int(np.all(points[key[1:]] == points[key[:-1]], axis=1)[same].sum())
+    if merged or not err <= LAS_PRECISION * spacing:
+        far = ""
+        if np.isfinite(spacing) and spacing > 0:
+            centre = np.median(points, axis=0)
+            r = np.linalg.norm(points - centre, axis=1)
+            out = int((r > 10 * np.quantile(r, 0.99) + 1e3 * spacing).sum())
+            far = f"; {out} point(s) lie far from the rest (beyond 10 times the 99th-percentile radius)" if out else ""
+        raise ValueError(
+            f"LAS cannot hold this cloud: it stores coordinates as 32-bit integers of one scale per axis, and the cloud "
+            f"spans {big:.3g} while its points are {spacing:.3g} apart (median nearest-neighbour distance), so they "
+            f"would be stored only to within {err:.3g} ({err / spacing if spacing > 0 else np.inf:.2g} spacings, "
+            f"more than {LAS_PRECISION:g})" + (f" and {merged} point(s) would land on others" if merged else "")
+            + f"{far}; remove the far points (manifold_sph.scans.cleaning.remove_outliers) or write a format of "
+            "doubles (ply, pcd, npz)"
+        )
+    return offsets, scales
+
 
 def _write_las(tmp, points, normals, fields, compress: bool):
     """LAS 1.4, point format 7 (with colour) or 6; other fields and normals as float64 extra bytes.
 
-    Coordinates are stored as 32-bit integers: the scale is chosen so that the
-    largest extent spans about 2^30 steps (relative precision ~1e-9)."""
-    import laspy
+    Coordinates are stored as 32-bit integers: the scale is chosen so that each axis' extent spans
+    2^31 steps (relative precision ~5e-10), checked against the point spacing (:func:`las_scales`)."""
+    laspy = import_laspy("writing LAS/LAZ files")
 
     fmt = 7 if any(k in fields for k in ("red", "green", "blue")) else 6
     header = laspy.LasHeader(point_format=fmt, version="1.4")
-    lo, hi = points.min(axis=0), points.max(axis=0)
-    extent = float(np.max(hi - lo)) or max(1.0, float(np.abs(lo).max()))
-    header.offsets = (lo + hi) / 2
-    header.scales = np.full(3, extent / 2**30)
+    header.offsets, header.scales = las_scales(points)
     extra = {k: v for k, v in fields.items() if k not in _LAS_STANDARD}
     if normals is not None:
         extra = {"nx": normals[:, 0], "ny": normals[:, 1], "nz": normals[:, 2], **extra}
@@ -185,6 +287,7 @@ def _write_las(tmp, points, normals, fields, compress: bool):
 def write_format(tmp: Path, fmt: str, points: np.ndarray, normals: np.ndarray | None, flat: dict[str, np.ndarray],
                  raw_fields: dict[str, np.ndarray], binary: bool, cloud_for_vtk: PointCloud | np.ndarray) -> None:
     """Write the data in format ``fmt`` to the temporary file ``tmp``."""
+    check_field_names(fmt, flat if flat else raw_fields, normals is not None)
     if fmt == "vtk":
         from .convert import to_pyvista
 
