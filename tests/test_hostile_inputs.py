@@ -831,3 +831,235 @@ def test_pde_complex_fixed_values_are_refused(pde_surface):
 
     with pytest.raises(TypeError, match="fixed_values must be real"):
         pde.heat(pde_surface, np.zeros(300), dt=1e-3, steps=1, fixed=[0], fixed_values=1 + 2j)
+
+
+# ====================================================================================================
+# Issue 38, numerics core and file formats (the "hostile" section): one test per item, named after it.
+# ====================================================================================================
+def _sphere_with_wrong_normal_clusters(seed):
+    """A 3000-point sphere with exact normals, 60 clusters of 1-4 adjacent normals turned inward."""
+    from scipy.spatial import cKDTree
+
+    c = shapes.sphere(3000)
+    rng = np.random.default_rng(seed)
+    n = c.normals.copy()
+    tree = cKDTree(c.points)
+    for centre in rng.choice(len(c.points), 60, replace=False):
+        n[tree.query(c.points[centre], k=4)[1][: rng.integers(1, 5)]] *= -1.0
+    return c, n
+
+
+@pytest.mark.parametrize("seed", [2, 6])
+def test_item0_wrong_normals_are_repaired_not_a_refusal(seed):
+    # these seeds raised "N particle(s) have no neighbour inside the kernel support ... their normals
+    # disagree with their neighbours'": flips of neighbouring lonely particles took each other's neighbours
+    from manifold_sph import Surface
+    from manifold_sph.exceptions import ManifoldSPHWarning
+
+    c, n = _sphere_with_wrong_normal_clusters(seed)
+    wrong = np.einsum("ij,ij->i", n, c.normals) < 0
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ManifoldSPHWarning)
+        s = Surface(c.points, n)
+    assert any("disagreed with every nearby point's" in str(w.message) for w in caught)
+    assert s.neighborhood.counts.min() >= 6
+    still = np.einsum("ij,ij->i", s.normals, c.normals) < 0
+    assert still.sum() <= 0.1 * wrong.sum()  # measured: 153 -> 13 and 145 -> 6 (clusters of 6+ are not lonely)
+    assert np.all(wrong[s.flipped])  # every flip turned a wrong normal
+    f = c.points[:, 0] * c.points[:, 1] * c.points[:, 2]
+    err = np.abs(s.laplacian(f) + 12 * f)[~still]
+    assert np.median(err) < 0.05 * np.abs(12 * f).max()
+
+
+def test_item0_normal_across_the_surface_and_far_strays_are_repaired():
+    # a normal lying in the tangent plane agrees with nobody at a strict threshold (was: ValueError
+    # "fewer than 6 neighbours whose normals agree"); strays far away get widened supports
+    from manifold_sph import Surface
+    from manifold_sph.exceptions import ManifoldSPHWarning
+
+    c = shapes.sphere(2000)
+    p = np.vstack([c.points, [[40.0, 0, 0], [0, 1e5, 0], [0, 0, -3e3]]])
+    n = np.vstack([c.normals, [[1.0, 0, 0], [0, 0, 1.0], [0, 1.0, 0]]])
+    n[100] = np.cross(n[100], [0.0, 0.0, 1.0])
+    n[100] /= np.linalg.norm(n[100])
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ManifoldSPHWarning)
+        s = Surface(p, n, normal_threshold=0.5)
+    text = " ".join(str(w.message) for w in caught)
+    assert "100" in str(s.repaired.tolist()) and "see .repaired" in text and "see .widened" in text
+    assert s.normals[100] @ c.normals[100] > 0.95
+    assert s.neighborhood.counts.min() >= 6 and {2000, 2001, 2002} <= set(s.widened.tolist())
+    assert np.all(np.isfinite(s.laplacian_matrix().data))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", range(6))
+def test_item0_noisy_sphere_of_bare_points_builds_on_every_seed(seed):
+    # the issue's cloud: 20,000 points, Gaussian noise of 0.5 spacings; seeds 1, 3, 4 were refused
+    from manifold_sph import Surface
+
+    base = shapes.sphere(20000).points
+    q = base + np.random.default_rng(seed).normal(scale=0.5 * np.sqrt(4 * np.pi / 20000), size=base.shape)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for scheme in ("msph", "standard"):
+            assert Surface(q, scheme=scheme).neighborhood.counts.min() >= 2
+
+
+def test_item3_far_outlier_leaves_the_area_elements_of_the_rest():
+    # one point 1e6 away: its widened support made 251 particles "near-duplicates" of each other
+    # (closer than 0.01 of the outlier's h), solved as one: total area 6.24 instead of 12.57
+    from manifold_sph import Surface
+
+    c = shapes.sphere(500)
+    ref = Surface(c.points, c.normals).dV.sum()
+    for far in (1e6, 1e3):
+        p = np.vstack([c.points, [[far, 0.0, 0.0]]])
+        n = np.vstack([c.normals, [[1.0, 0.0, 0.0]]])
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            s = Surface(p, n)
+        assert s.area.n_merged == 0
+        assert abs(s.dV[:500].sum() - ref) < 1e-3 * ref  # 12.411 with and without the outlier
+
+
+def test_item7_cspm_on_random_points_reports_its_inconsistent_rows():
+    # relative error 1.5-4.7 at 100k random points went unwarned: the condition test does not see these
+    # rows; the quadratic-consistency test does
+    from manifold_sph import Surface
+    from manifold_sph.exceptions import ManifoldSPHWarning
+
+    cloud = shapes.Sphere().sample(20000, "random", seed=0)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ManifoldSPHWarning)
+        s = Surface(cloud, scheme="cspm")
+    msg = [str(w.message) for w in caught if "Laplacian of a quadratic" in str(w.message)]
+    assert msg and "scheme='msph' is exact on quadratics" in msg[0]
+    d = s.quadratic_defect
+    assert (d > 3).sum() >= 10 and "particle(s) get the Laplacian of a quadratic wrong by more than 3" in msg[0]
+    x = cloud.points
+    f = x[:, 0] * x[:, 1] * x[:, 2]
+    row_err = np.abs(s.laplacian(f) + 12 * f)
+    assert np.median(row_err[d > 3]) > 10 * np.median(row_err[d <= 1])  # the flagged rows are the bad ones
+    with warnings.catch_warnings(record=True) as caught:  # standard: moderately wrong nearly everywhere
+        warnings.simplefilter("always", ManifoldSPHWarning)
+        Surface(cloud, scheme="standard")
+    assert any("wrong by 0.38 (relative) at the median particle" in str(w.message) for w in caught)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ManifoldSPHWarning)
+        m = Surface(cloud, scheme="msph")
+    assert not any("Laplacian of a quadratic" in str(w.message) for w in caught)
+    assert m.quadratic_defect.max() < 1e-6  # exact on quadratics
+    assert Surface(shapes.sphere(2000), scheme="cspm").quadratic_defect.max() < 0.05  # near-uniform: no warning
+
+
+def _scan_with_stray(n=20000, far=1e7):
+    rng = np.random.default_rng(0)
+    p = rng.normal(size=(n, 3))
+    p = 0.1 * p / np.linalg.norm(p, axis=1)[:, None]  # a 20 cm sphere
+    p[-1] = [far, 0.0, 0.0]
+    return p
+
+
+@pytest.mark.parametrize("ext", ["las", "laz"])
+def test_item1_las_refuses_to_quantise_points_onto_each_other(tmp_path, ext):
+    # one stray 1e7 away: 18,020 of 20,000 points landed on others without a word
+    p = _scan_with_stray()
+    with pytest.raises(ValueError, match=r"LAS cannot hold this cloud.*spans 1e\+07.*within 0.00233 \(2 spacings.*1 point\(s\) "
+                                         r"lie far.*ply, pcd, npz"):
+        write(tmp_path / f"s.{ext}", p)
+    assert not (tmp_path / f"s.{ext}").exists()
+    write(tmp_path / f"ok.{ext}", p[:-1])  # without the stray: within 1e-3 spacings
+    back = read(tmp_path / f"ok.{ext}").points
+    spacing = np.sqrt(4 * np.pi * 0.01 / 20000)
+    assert np.abs(back - p[:-1]).max() < 1e-3 * spacing
+    write(tmp_path / f"moderate.{ext}", _scan_with_stray(far=100.0))  # 100 m away: still exact enough
+    assert np.abs(read(tmp_path / f"moderate.{ext}").points - _scan_with_stray(far=100.0)).max() < 1e-3 * spacing
+
+
+@pytest.mark.parametrize("ext", ["las", "laz", "ply", "csv", "pcd", "xyz"])
+@pytest.mark.parametrize("name", ["nx", "NZ", "normal_y", "x", "Z"])
+def test_item2_fields_named_like_normals_or_coordinates_refused_at_write(tmp_path, cloud, ext, name):
+    # nx replaced the normals in LAS/LAZ, and made PLY/CSV files that read refused ("more than once")
+    with pytest.raises(ValueError, match=rf"field name '{name}' would collide with .*rename the field"):
+        write(tmp_path / f"c.{ext}", cloud, fields={name: np.arange(40.0)})
+    with pytest.raises(ValueError, match=rf"field name '{name}' would collide"):
+        write(tmp_path / f"p.{ext}", cloud.points, fields={name: np.arange(40.0)})  # without normals too
+    assert not list(tmp_path.iterdir())
+    write(tmp_path / f"ok.{ext}", cloud, fields={name + "_field": np.arange(40.0)})
+    back, f = read(tmp_path / f"ok.{ext}", return_fields=True)
+    np.testing.assert_allclose(back.normals, cloud.normals, atol=1e-12)
+    np.testing.assert_array_equal(f[name + "_field" if ext in ("las", "laz") else (name + "_field").lower()]
+                                  if (name + "_field") not in f else f[name + "_field"], np.arange(40.0))
+
+
+def test_item2_field_names_differing_in_case_refused(tmp_path, cloud):
+    with pytest.raises(ValueError, match="'u' and 'U' differ only in case"):
+        write(tmp_path / "c.ply", cloud, fields={"u": np.zeros(40), "U": np.ones(40)})
+
+
+def test_item6_laz_header_count_smaller_than_its_records(tmp_path, cloud):
+    import struct
+
+    write(tmp_path / "c.laz", cloud)
+    raw = bytearray((tmp_path / "c.laz").read_bytes())
+    raw[247:255] = struct.pack("<Q", 30)  # LAS 1.4: the 64-bit point count; the chunks hold 40
+    (tmp_path / "x.laz").write_bytes(bytes(raw))
+    with pytest.raises(ReadError, match="compressed chunks hold 40 point records, more than the header's count 30"):
+        read(tmp_path / "x.laz")
+    laspy = pytest.importorskip("laspy")  # a laspy-written file, point format 3 (point-wise chunks)
+    header = laspy.LasHeader(point_format=3, version="1.2")
+    header.scales, header.offsets = [1e-6] * 3, [0, 0, 0]
+    las = laspy.LasData(header)
+    las.x, las.y, las.z = np.random.default_rng(0).random((60000, 3)).T  # two chunks of 50,000
+    las.write(str(tmp_path / "l.laz"))
+    raw = bytearray((tmp_path / "l.laz").read_bytes())
+    raw[107:111] = struct.pack("<I", 40000)  # LAS 1.2: the 32-bit point count
+    (tmp_path / "y.laz").write_bytes(bytes(raw))
+    with pytest.raises(ReadError, match="hold at least 50001 point records, more than the header's count 40000"):
+        read(tmp_path / "y.laz")
+    assert len(read(tmp_path / "l.laz")) == 60000
+
+
+@pytest.mark.parametrize("name", ["x", "X", "scan_angle", "synthetic"])
+def test_item14_las_field_named_like_a_las_dimension(tmp_path, cloud, name):
+    # a field named x was a bare IndexError from laspy
+    with pytest.raises(ValueError, match=rf"field name '{name}' "):
+        write(tmp_path / "c.las", cloud, fields={name: np.arange(40.0)})
+
+
+def test_item_las_extra_missing_laspy_says_what_to_install(tmp_path, cloud, monkeypatch):
+    # laspy is the optional extra "las": without it, reading and writing LAS say how to install it
+    monkeypatch.setitem(sys.modules, "laspy", None)
+    with pytest.raises(ImportError, match=r"pip install 'manifold-sph\[las\]'"):
+        write(tmp_path / "c.las", cloud)
+    (tmp_path / "d.las").write_bytes(b"LASF" + bytes(400))
+    with pytest.raises(ImportError, match=r"manifold-sph\[las\]"):
+        read(tmp_path / "d.las")
+
+
+@pytest.mark.parametrize("scale", [1e-100, 1e-60, 1e-3, 1e3, 1e60, 1e100])
+def test_item15_stable_laplacian_is_scale_free(scale):
+    # from about 1e100 the stable Laplacian raised "height_tol must have shape (N,)..." (the roughness
+    # fit's sums of t^4 overflowed); K is invariant and M scales as s^2, exactly
+    from manifold_sph import Surface
+
+    c = shapes.sphere(500)
+    ref = Surface(c.points, c.normals)
+    s = Surface(c.points * scale, c.normals)
+    K0, K = ref.stiffness_matrix(), s.stiffness_matrix()
+    assert abs(K - K0).max() <= 1e-12 * abs(K0).max()
+    np.testing.assert_allclose(s.mass_matrix().diagonal() / scale**2, ref.mass_matrix().diagonal(), rtol=1e-12)
+    f = c.points[:, 2]
+    np.testing.assert_allclose(s.laplacian(f) * scale**2, ref.laplacian(f), rtol=1e-9, atol=1e-9)
+    assert s.stable_report == ref.stable_report
+
+
+@pytest.mark.parametrize("scale", [1e-160, 1e160])
+def test_item15_scales_beyond_double_precision_refused_with_the_range(scale):
+    from manifold_sph import Surface
+
+    c = shapes.sphere(500)
+    with pytest.raises(ValueError, match=r"(must lie in \[1e-145, 1e\+145\]|more than 1e\+150).*multiply the points by a "
+                                         r"power of ten"):
+        Surface(c.points * scale, c.normals)
