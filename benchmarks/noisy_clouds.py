@@ -38,7 +38,7 @@ MODELS = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "model
 
 
 def _normals(points: np.ndarray) -> np.ndarray:
-    from manifold_sph.scans.normals import estimate_normals
+    from manifold_sph.normals import estimate_normals
 
     return estimate_normals(points, degree=2)
 

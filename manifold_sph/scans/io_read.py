@@ -29,6 +29,7 @@ import os
 import re
 from collections.abc import Iterable, Iterator
 from pathlib import Path
+from types import ModuleType
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -809,7 +810,7 @@ def from_pv_mesh(mesh: pv.DataSet) -> tuple[np.ndarray, np.ndarray | None, dict[
 _LAS_SKIP = {"X", "Y", "Z"}
 
 
-def import_laspy(purpose: str = "reading LAS/LAZ files"):
+def import_laspy(purpose: str = "reading LAS/LAZ files") -> ModuleType:
     """The ``laspy`` module (with its LAZ backend ``lazrs``), or an ImportError naming the extra to install."""
     try:
         import laspy
