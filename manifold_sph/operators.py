@@ -25,7 +25,7 @@ from numpy.typing import ArrayLike
 from ._sparse import RowBlocks
 from ._validation import as_field, as_positive_field, check_bool, check_in, check_positive
 from .area import AreaElements, area_elements, check_area_method
-from .assembly import DEFECT_MEDIAN_TOL, DEFECT_TOL, Assembled, ColumnAreas, assemble
+from .assembly import DEFECT_TOL, Assembled, ColumnAreas, assemble
 from .diagnostics import BuildReport, collecting, note
 from .frames import offsets_array, tangent_frames
 from .kernels import get_kernel
@@ -144,22 +144,19 @@ class OperatorSet:
         self._cache = {}
 
     def _warn_inconsistent(self, n: int) -> None:
-        """A warning when rows fail the quadratic-consistency test (:func:`manifold_sph.assembly.quadratic_defect`)."""
-        defect = self._ops.defect
+        """A warning when rows of the scheme asked for fail the quadratic-consistency test
+        (:func:`manifold_sph.assembly.quadratic_defect`); rows that fell back are reported as such."""
+        defect = np.where(self._ops.used_code == 0, self._ops.defect, 0.0)
         bad = np.flatnonzero(defect > DEFECT_TOL)
-        median = float(np.median(defect)) if defect.size else 0.0
-        if not bad.size and median <= DEFECT_MEDIAN_TOL:
-            return
-        used = sorted(set(self._ops.scheme_used[bad].tolist())) if bad.size else [self.scheme.name]
-        why = ("this scheme is not consistent on irregular or random points (or neighbours across a thin gap, "
-               "without the normal filter); scheme='msph' is exact on quadratics"
-               if used == [self.scheme.name] else f"rows computed by {' and '.join(map(repr, used))}: too few or "
-               "ill-placed neighbours")
-        what = (f"{bad.size} of {n} particle(s) get the Laplacian of a quadratic wrong by more than {DEFECT_TOL:g} "
-                f"(relative; largest {defect.max():.3g}, first indices {bad[:8].tolist()})" if bad.size else
-                f"its Laplacian of a quadratic is wrong by {median:.2g} (relative) at the median particle")
-        warnings.warn(f"scheme {self.scheme.name!r}: {what}: {why}; see .quadratic_defect", ManifoldSPHWarning,
-                      stacklevel=4)
+        if bad.size:
+            note(
+                "inconsistent", f"{bad.size} of {n} point(s) of the {self.scheme.name!r} scheme get the Laplacian of a "
+                f"quadratic wrong by more than {DEFECT_TOL:g} (relative; largest {defect.max():.3g})",
+                detail="This scheme is not consistent on irregular or random points (or neighbours across a thin gap, "
+                "without the normal filter); scheme='msph' is exact on quadratics. OperatorSet.quadratic_defect has "
+                "the per-point values.",
+                count=bad.size, indices=bad,
+            )
 
     # ------------------------------------------------------------ properties
     @property

@@ -941,10 +941,9 @@ def test_item7_cspm_on_random_points_reports_its_inconsistent_rows():
     f = x[:, 0] * x[:, 1] * x[:, 2]
     row_err = np.abs(s.laplacian(f) + 12 * f)
     assert np.median(row_err[d > 3]) > 10 * np.median(row_err[d <= 1])  # the flagged rows are the bad ones
-    with warnings.catch_warnings(record=True) as caught:  # standard: moderately wrong nearly everywhere
-        warnings.simplefilter("always", ManifoldSPHWarning)
-        Surface(cloud, scheme="standard")
-    assert any("wrong by 0.38 (relative) at the median particle" in str(w.message) for w in caught)
+    with warnings.catch_warnings():  # standard: moderately wrong nearly everywhere, by design (not warned)
+        warnings.simplefilter("ignore", ManifoldSPHWarning)
+        assert np.median(Surface(cloud, scheme="standard").quadratic_defect) > 0.3
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ManifoldSPHWarning)
         m = Surface(cloud, scheme="msph")
