@@ -1006,6 +1006,8 @@ def test_item6_laz_header_count_smaller_than_its_records(tmp_path, cloud):
     (tmp_path / "x.laz").write_bytes(bytes(raw))
     with pytest.raises(ReadError, match="compressed chunks hold 40 point records, more than the header's count 30"):
         read(tmp_path / "x.laz")
+    with pytest.raises(ReadError, match="compressed chunks hold 40 point records"):  # streamed: not short either
+        list(read_las_chunks(tmp_path / "x.laz", chunk_size=7))
     laspy = pytest.importorskip("laspy")  # a laspy-written file, point format 3 (point-wise chunks)
     header = laspy.LasHeader(point_format=3, version="1.2")
     header.scales, header.offsets = [1e-6] * 3, [0, 0, 0]

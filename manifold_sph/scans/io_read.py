@@ -881,7 +881,9 @@ def read_las_chunks(path: str | os.PathLike[str],
 
     Yields ``(points, fields)``: (n, 3) float64 scaled coordinates and a dict of
     the other dimensions (intensity, classification, red, green, blue, gps_time,
-    extra bytes...) for the chunk. Memory stays bounded by one chunk.
+    extra bytes...) for the chunk. Memory stays bounded by one chunk. A header whose
+    point count disagrees with the records the file holds is a :class:`ReadError`
+    before the first chunk.
 
     Examples
     --------
@@ -902,6 +904,7 @@ def read_las_chunks(path: str | os.PathLike[str],
     except Exception as exc:  # laspy raises its own LaspyException and others
         raise ReadError(path, f"laspy could not read it ({type(exc).__name__}: {exc})") from None
     with reader:
+        _check_las_records(path, reader.header)  # a header count that disagrees with the records: never short
         try:
             for pts in reader.chunk_iterator(chunk_size):
                 names = [d for d in pts.point_format.dimension_names if d not in _LAS_SKIP]
@@ -913,20 +916,13 @@ def read_las_chunks(path: str | os.PathLike[str],
             raise ReadError(path, f"laspy could not read it ({type(exc).__name__}: {exc})") from None
 
 
-def read_las(path: str | os.PathLike[str]) -> _Read:
-    laspy = import_laspy()
-
-    try:
-        with laspy.open(str(path)) as reader:
-            h = reader.header
-            n = int(h.point_count)
-            compressed = bool(h.are_points_compressed) if hasattr(h, "are_points_compressed") else False
-            need = int(h.offset_to_point_data) + n * int(h.point_format.size)
-            evlr = int(getattr(h, "start_of_first_evlr", 0) or 0) if int(getattr(h, "number_of_evlrs", 0) or 0) else 0
-    except Exception as exc:
-        raise ReadError(path, f"laspy could not read it ({type(exc).__name__}: {exc})") from None
-    if n == 0:
-        raise ReadError(path, "the file holds no points (its header's point count is 0)")
+def _check_las_records(path, h) -> int:
+    """The header's point count of the open file ``path`` (header ``h``), checked against the records the
+    file holds (uncompressed: its size; LAZ: :func:`_laz_record_count`); ReadError when they disagree."""
+    n = int(h.point_count)
+    compressed = bool(h.are_points_compressed) if hasattr(h, "are_points_compressed") else False
+    need = int(h.offset_to_point_data) + n * int(h.point_format.size)
+    evlr = int(getattr(h, "start_of_first_evlr", 0) or 0) if int(getattr(h, "number_of_evlrs", 0) or 0) else 0
     size = Path(path).stat().st_size
     if not compressed and need > size:
         raise ReadError(path, f"file truncated: the header declares {n} points ({need} bytes with the header), "
@@ -943,6 +939,19 @@ def read_las(path: str | os.PathLike[str]) -> _Read:
         if held is not None and held[0] > n:
             raise ReadError(path, f"the file's compressed chunks hold {'at least ' if not held[1] else ''}{held[0]} "
                                   f"point records, more than the header's count {n}: the header count is too small")
+    return n
+
+
+def read_las(path: str | os.PathLike[str]) -> _Read:
+    laspy = import_laspy()
+
+    try:
+        with laspy.open(str(path)) as reader:
+            n = int(reader.header.point_count)
+    except Exception as exc:
+        raise ReadError(path, f"laspy could not read it ({type(exc).__name__}: {exc})") from None
+    if n == 0:
+        raise ReadError(path, "the file holds no points (its header's point count is 0)")
     pts, cols = [], {}
     for xyz, f in read_las_chunks(path, chunk_size=max(1, min(n, 2_000_000))):
         pts.append(xyz)
