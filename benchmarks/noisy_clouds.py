@@ -3,7 +3,7 @@
 Prints one row per cloud: how it was made, its size, whether the default build
 (``scheme="msph"``) and ``scheme="standard"`` succeeded, and what the build repaired or
 reported (normals flipped to agree with their neighbours, normals replaced by their
-neighbours', particles whose support was widened, particles left unfiltered).
+neighbours', particles whose support was widened, strays among them, particles left unfiltered).
 
 Clouds:
 
@@ -52,7 +52,7 @@ def _build(points, normals, scheme):
         except Exception as exc:  # noqa: BLE001 - the table reports every failure
             return f"ERROR {type(exc).__name__}: {str(exc)[:70]}", ""
     parts = []
-    for name in ("flipped", "repaired", "widened", "unfiltered"):
+    for name in ("flipped", "repaired", "widened", "strays", "unfiltered"):
         idx = getattr(s, name, None)
         if idx is not None and len(idx):
             parts.append(f"{name} {len(idx)}")

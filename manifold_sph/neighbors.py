@@ -640,6 +640,9 @@ def _merge_groups(pieces, n, counts, n_filtered, index_dtype):
 #: Rounds of :func:`widen_lonely` (each repairs the rows left lonely by the previous one's flips).
 LONELY_ROUNDS = 6
 
+#: A widened particle whose smoothing length ends above this many times the median is reported as a stray.
+STRAY_FACTOR = 10.0
+
 #: :func:`widen_lonely` replaces the normal of a particle short of neighbours when it makes more
 #: than 60 degrees (either sign) with the mean normal of the largest agreeing group of its nearest
 #: points: a normal across the surface, not a wrong orientation (an edge's normal, between two faces
@@ -670,6 +673,10 @@ class LonelyRepair:
     unfiltered : ndarray of int
         Particles that even then had fewer than ``need`` normal-compatible neighbours: their row
         holds their ``target`` nearest points without the normal filter.
+    strays : ndarray of int
+        Widened particles whose smoothing length ended more than :data:`STRAY_FACTOR` times the
+        median: points far from the cloud, whose area elements (of the scale of their support)
+        dominate sums and integrals over it.
     need, target : int
         The fewest neighbours a row must have, and the count a widened row reaches.
     normal_threshold : float
@@ -682,6 +689,7 @@ class LonelyRepair:
     flipped: np.ndarray
     repaired: np.ndarray
     unfiltered: np.ndarray
+    strays: np.ndarray
     need: int
     target: int
     normal_threshold: float
@@ -706,6 +714,11 @@ class LonelyRepair:
             out.append(f"{self.widened.size} particle(s) had fewer than {self.need} neighbours inside the kernel support "
                        f"(isolated points or sparse parts of the cloud, first indices {first(self.widened)}): their "
                        f"smoothing length was widened to reach {self.target} neighbours; see .widened")
+        if self.strays.size:
+            out.append(f"{self.strays.size} particle(s) lie far from the cloud (their supports grew to more than "
+                       f"{STRAY_FACTOR:g} times the median smoothing length; strays, first indices {first(self.strays)}): "
+                       "their area elements, of their supports' size, dominate sums and integrals over the cloud; "
+                       "remove them (manifold_sph.scans.cleaning.remove_outliers); see .strays")
         if self.unfiltered.size:
             out.append(f"{self.unfiltered.size} particle(s) found fewer than {self.need} neighbours whose normals agree "
                        f"with theirs anywhere in the cloud (first indices {first(self.unfiltered)}): their rows hold "
@@ -880,7 +893,9 @@ def widen_lonely(
     if uniq[1].size:
         uniq[1] = uniq[1][np.einsum("rd,rd->r", nrm[uniq[1]], np.asarray(normals)[uniq[1]]) < 0]
         uniq[1] = np.setdiff1d(uniq[1], uniq[2])
-    return LonelyRepair(nb, nrm, hv, uniq[0], uniq[1], uniq[2], unfiltered, need, target, float(normal_threshold))
+    strays = uniq[0][hv[uniq[0]] > STRAY_FACTOR * np.median(hv)] if uniq[0].size else uniq[0]
+    return LonelyRepair(nb, nrm, hv, uniq[0], uniq[1], uniq[2], unfiltered, strays, need, target,
+                        float(normal_threshold))
 
 
 def _splice_rows(nb, rows, pts, nrm, hv, normal_threshold, tree, workers):

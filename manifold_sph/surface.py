@@ -238,7 +238,8 @@ class Surface(OperatorSet, PointViews):
         """Give particles with fewer than the scheme's minimum of neighbours (isolated points, sparse
         parts of a scan, normals that disagree with their neighbours') enough neighbours, repairing
         their normals where needed: :func:`manifold_sph.neighbors.widen_lonely`. RuntimeWarnings give
-        the counts; :attr:`widened`, :attr:`flipped`, :attr:`repaired` and :attr:`unfiltered` the indices.
+        the counts; :attr:`widened`, :attr:`flipped`, :attr:`repaired`, :attr:`unfiltered` and :attr:`strays`
+        the indices.
         Returns the neighbourhood and the (possibly repaired) normals.
         """
         need = max(self.scheme.min_neighbors, 2)
@@ -247,8 +248,9 @@ class Surface(OperatorSet, PointViews):
         fix = widen_lonely(nb, pts, nrm, hv, need=need, target=self.neighbors, normal_threshold=normal_threshold,
                            tree=tree)
         self.widened, self.flipped, self.repaired, self.unfiltered = fix.widened, fix.flipped, fix.repaired, fix.unfiltered
+        self.strays = fix.strays
         kinds = [(key, idx) for key, idx in (("flipped", fix.flipped), ("repaired", fix.repaired), ("widened", fix.widened),
-                                             ("unfiltered", fix.unfiltered)) if idx.size]
+                                             ("strays", fix.strays), ("unfiltered", fix.unfiltered)) if idx.size]
         for (key, idx), message in zip(kinds, fix.messages()):  # messages() lists the same kinds in this order
             summary, _, see = message.rpartition("; see ")
             note(key, summary, detail=f"The indices are in Surface.{see}.", count=idx.size, indices=idx)

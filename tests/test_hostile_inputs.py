@@ -889,6 +889,7 @@ def test_item0_normal_across_the_surface_and_far_strays_are_repaired():
     assert "100" in str(s.repaired.tolist()) and "see .repaired" in text and "see .widened" in text
     assert s.normals[100] @ c.normals[100] > 0.95
     assert s.neighborhood.counts.min() >= 6 and {2000, 2001, 2002} <= set(s.widened.tolist())
+    assert s.strays.tolist() == [2000, 2001, 2002] and "see .strays" in text  # their area elements dominate sums
     assert np.all(np.isfinite(s.laplacian_matrix().data))
 
 
