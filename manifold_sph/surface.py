@@ -9,7 +9,7 @@ from numpy.typing import ArrayLike
 
 from .diagnostics import BuildReport, note
 from .frames import FramePair, PairOffsets, check_frames, project_pairs, tangent_frames
-from .neighbors import GRID_MIN_POINTS, build_tree, find_neighbors, widen_lonely
+from .neighbors import GRID_MIN_POINTS, build_tree, check_scale, find_neighbors, widen_lonely
 from .operators import OperatorSet
 from .pointcloud import PointCloud, PointViews, as_cloud
 
@@ -135,6 +135,7 @@ class Surface(OperatorSet, PointViews):
         self.normals_estimated = cloud.normals is None
         self._resolve(kernel, scheme, neighbors, max_condition)
         if cloud.normals is None:
+            check_scale(cloud.points)  # before the normals' fit: a cloud too large for double precision is refused
             degree = int(min(max(getattr(self.scheme, "degree", 2), 2), 4))
             cloud = PointCloud(cloud.points, _estimate_normals(cloud.points, self.scheme), geometry=cloud.geometry)
             note("normals", "normals were estimated from the points", severity="info",
