@@ -89,21 +89,28 @@ H_RANGE = (1e-145, 1e145)
 
 
 def check_scale(points: np.ndarray, h: float | np.ndarray | None = None) -> None:
-    """Raise ValueError when the coordinates span more than :data:`MAX_EXTENT` or ``h`` leaves :data:`H_RANGE`.
+    """Raise ValueError when the coordinates span more than :data:`MAX_EXTENT` or less than the smallest
+    smoothing length, or when ``h`` leaves :data:`H_RANGE`.
 
     Examples
     --------
     >>> import numpy as np
     >>> check_scale(np.eye(3) * 1e100, 1e99)
-    >>> check_scale(np.eye(3) * 1e-160, 1e-161)
+    >>> check_scale(np.eye(3) * 1e-140, 1e-146)
     Traceback (most recent call last):
     ...
-    ValueError: h (smoothing length, about the point spacing) must lie in [1e-145, 1e+145], got 1e-161: areas (h^2) and kernel values (1/h^2) would leave double precision; multiply the points by a power of ten (the operators scale exactly: a Laplacian by 1/s^2 when the points are multiplied by s)
+    ValueError: h (smoothing length, about the point spacing) must lie in [1e-145, 1e+145], got 1e-146: areas (h^2) and kernel values (1/h^2) would leave double precision; multiply the points by a power of ten (the operators scale exactly: a Laplacian by 1/s^2 when the points are multiplied by s)
     """
     pts = np.asarray(points)
     if pts.size:
         with np.errstate(over="ignore"):
             extent = float(np.max(pts.max(axis=0) - pts.min(axis=0)))
+        if 0 < extent < H_RANGE[0]:
+            raise ValueError(
+                f"points span {extent:.3g} (their largest coordinate extent), less than {H_RANGE[0]:g}: their spacing "
+                "would leave double precision; multiply the points by a power of ten (the operators scale exactly: a "
+                "Laplacian by 1/s^2 when the points are multiplied by s)"
+            )
         if not extent <= MAX_EXTENT:
             raise ValueError(
                 f"points span {extent:.3g} (their largest coordinate extent), more than {MAX_EXTENT:g}: squared distances "
