@@ -1062,8 +1062,7 @@ def test_item15_scales_beyond_double_precision_refused_with_the_range(scale):
     from manifold_sph import Surface
 
     c = shapes.sphere(500)
-    with pytest.raises(ValueError, match=r"(must lie in \[1e-145, 1e\+145\]|more than 1e\+150).*multiply the points by a "
-                                         r"power of ten"):
+    with pytest.raises(ValueError, match=r"(less than 1e-145|more than 1e\+150).*multiply the points by a power of ten"):
         Surface(c.points * scale, c.normals)
     with pytest.raises(ValueError, match=r"(less than 1e-145|more than 1e\+150)"):
         Surface(c.points * scale)  # bare points: refused before the normals' fit (1e160: an IndexError there)
