@@ -193,7 +193,7 @@ def scan_pipeline(path: Path, *, mesh_reference: bool, dt: float, steps: int, pi
     off = L.row != L.col
     print(
         f"   standard+shepard: built in {tb:.2f} s, min off-diagonal weight {L.data[off].min():.3e} (>= 0: M-matrix), "
-        f"max |row sum| {np.abs(np.asarray(S.laplacian_matrix(form="strong").sum(axis=1))).max():.1e}"
+        f"max |row sum| {np.abs(np.asarray(S.laplacian_matrix(form='strong').sum(axis=1))).max():.1e}"
     )
     t0 = time.perf_counter()
     u, err = heat_run(S, source, dt, steps)
