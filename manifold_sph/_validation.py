@@ -29,7 +29,7 @@ __all__ = [
 ]
 
 
-def _describe(a) -> str:
+def describe(a) -> str:
     a = np.asarray(a)
     return f"array of shape {a.shape} and dtype {a.dtype}"
 

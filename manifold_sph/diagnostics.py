@@ -83,18 +83,27 @@ class Adaptation(Result):
     severity: str = "adapted"
 
 
-class BuildReport:
+@dataclasses.dataclass(repr=False, eq=False)
+class BuildReport(Result):
     """The adaptations of one build, in order; feed it with :func:`note` inside :func:`collecting`.
 
     Parameters
     ----------
     subject : str
         What was built, as the summary names it (``"Surface of 2,903 points"``).
+    adaptations : list of Adaptation
+        The entries, one per key, in the order they were first recorded (``to_dict`` lists them;
+        ``to_dict(json=True)`` gives indices as lists).
     """
 
-    def __init__(self, subject: str) -> None:
-        self.subject = str(subject)
+    subject: str
+    adaptations: list[Adaptation] = dataclasses.field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        self.subject = str(self.subject)
         self._items: dict[str, Adaptation] = {}
+        for item in list(self.adaptations):
+            self.add(item)
 
     def add(self, item: Adaptation) -> None:
         """Record ``item``; a later entry with the same key replaces the earlier one."""
@@ -102,6 +111,7 @@ class BuildReport:
             raise TypeError(f"item must be an Adaptation, got {type(item).__name__}")
         self._items.pop(item.key, None)
         self._items[item.key] = item
+        self.adaptations[:] = self._items.values()
 
     def __iter__(self) -> Iterator[Adaptation]:
         return iter(list(self._items.values()))
@@ -143,15 +153,6 @@ class BuildReport:
 
     def __repr__(self) -> str:
         return f"BuildReport({self.subject!r}, {[a.key for a in self._items.values()]})"
-
-    def to_dict(self) -> dict[str, Any]:
-        """``{"subject": ..., "adaptations": [...]}``, JSON-ready (indices as lists)."""
-        out = []
-        for a in self._items.values():
-            d = a.to_dict()
-            d["indices"] = None if a.indices is None else [int(i) for i in np.asarray(a.indices)]
-            out.append(d)
-        return {"subject": self.subject, "adaptations": out}
 
     def warn(self, keys: list[str] | None = None) -> None:
         """One :class:`~manifold_sph.ManifoldSPHWarning` with :meth:`summary`, if an entry of ``keys`` adapted.

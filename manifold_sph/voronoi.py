@@ -57,7 +57,7 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike
 
 from . import _jit
-from ._validation import _describe, as_points, check_finite, check_int, check_positive
+from ._validation import describe, as_points, check_finite, check_int, check_positive
 from .threads import run_chunks
 
 __all__ = ["VoronoiCells", "voronoi_cells", "lift_offsets", "roughness", "stiffness_matrix", "DUPLICATE_TOL"]
@@ -282,7 +282,7 @@ def voronoi_cells(
     """
     indptr = np.ascontiguousarray(indptr)
     if indptr.ndim != 1 or indptr.size < 1 or not np.issubdtype(indptr.dtype, np.integer):
-        raise ValueError(f"indptr must be a 1-D integer array of row offsets (N + 1,), got {_describe(indptr)}")
+        raise ValueError(f"indptr must be a 1-D integer array of row offsets (N + 1,), got {describe(indptr)}")
     xy = as_points("xy", xy, dim=2)
     if indptr[0] != 0 or indptr[-1] != xy.shape[0] or np.any(np.diff(indptr) < 0):
         raise ValueError(
@@ -292,17 +292,17 @@ def voronoi_cells(
     n = indptr.size - 1
     radius = np.ascontiguousarray(radius, dtype=np.float64)
     if radius.shape != (n,) or np.any(np.isnan(radius)) or np.any(radius <= 0):
-        raise ValueError(f"radius must have shape ({n},) with positive values (inf allowed), got {_describe(radius)}")
+        raise ValueError(f"radius must have shape ({n},) with positive values (inf allowed), got {describe(radius)}")
     dup_tol = check_positive("dup_tol", dup_tol, allow_zero=True)
     if height is not None:
         height = np.ascontiguousarray(height, dtype=np.float64)
         if height.shape != (xy.shape[0],):
-            raise ValueError(f"height must have shape ({xy.shape[0]},) (one offset a pair), got {_describe(height)}")
+            raise ValueError(f"height must have shape ({xy.shape[0]},) (one offset a pair), got {describe(height)}")
         check_finite("height", height)
         if height_tol is not None:
             height_tol = np.ascontiguousarray(height_tol, dtype=np.float64)
             if height_tol.shape != (n,) or np.any(~(height_tol >= 0)):
-                raise ValueError(f"height_tol must have shape ({n},) with values >= 0, got {_describe(height_tol)}")
+                raise ValueError(f"height_tol must have shape ({n},) with values >= 0, got {describe(height_tol)}")
         xy, scale, keep = lift_offsets(xy, height, LIFT_SLOPE, tol=0.0 if height_tol is None else np.repeat(height_tol, np.diff(indptr)))
         # bisector beyond the search radius: it can cut only cells already flagged incomplete
         far = np.flatnonzero(scale > 1.0)  # only lifted offsets can have left the search radius

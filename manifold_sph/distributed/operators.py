@@ -263,12 +263,12 @@ class TiledOperators:
 
     def mass_matrix(self, order: str = "input") -> sp.csr_matrix:
         """The stable Laplacian's diagonal mass ``M`` (N, N); needs ``keep`` "stable"."""
-        from .solve import _tile_vector
+        from .solve import tile_vector
 
         self._check_open()
         if "stable" not in self.keep:
             raise ValueError(f"the stable matrices were not kept (keep={self.keep!r})")
-        m = _tile_vector(self, "M")
+        m = tile_vector(self, "M")
         if order == "input":
             out = np.empty_like(m)
             out[self.order] = m

@@ -75,7 +75,7 @@ def assemble(ts, name: str) -> sp.csr_matrix:
     return ts._global_matrix(name, "tile")
 
 
-def _tile_vector(ts, name: str, width: int | None = None) -> np.ndarray:
+def tile_vector(ts, name: str, width: int | None = None) -> np.ndarray:
     from .tiles import TileData
 
     parts = [np.asarray(TileData(ts._tile_path(t))[name]) for t in range(len(ts.chunks))]
@@ -85,7 +85,7 @@ def _tile_vector(ts, name: str, width: int | None = None) -> np.ndarray:
 def _local_heat(ts, u, a_dt, steps):
     from ..solvers import spd_solver
 
-    K, m = assemble(ts, "K"), _tile_vector(ts, "M")
+    K, m = assemble(ts, "K"), tile_vector(ts, "M")
     solver = spd_solver(sp.diags(m) + a_dt * K)
     its = []
     for _ in range(steps):
@@ -97,7 +97,7 @@ def _local_heat(ts, u, a_dt, steps):
 def _local_poisson(ts, f):
     from ..solvers import spd_solver
 
-    K, m = assemble(ts, "K"), _tile_vector(ts, "M")
+    K, m = assemble(ts, "K"), tile_vector(ts, "M")
     b = m * (f - np.dot(m, f) / m.sum())
     free = np.ones(m.size, dtype=bool)
     free[0] = False  # one value held; the zero-mean shift below gives the unique solution
@@ -128,9 +128,9 @@ def held_particles(pts, src, m):
 
 
 def _local_geodesic(ts, src):
-    K, m = assemble(ts, "K"), _tile_vector(ts, "M")
+    K, m = assemble(ts, "K"), tile_vector(ts, "M")
     dx, dy = assemble(ts, "dx"), assemble(ts, "dy")
-    U, V = _tile_vector(ts, "u", 3), _tile_vector(ts, "v", 3)
+    U, V = tile_vector(ts, "u", 3), tile_vector(ts, "v", 3)
     pts = np.asarray(np.load(ts._points_file, mmap_mode="r"))
     return geodesic_from_matrices(K, m, dx, dy, U, V, pts, src)
 
@@ -164,7 +164,7 @@ def geodesic_from_matrices(K, m, dx, dy, U, V, pts, src):
 def _local_eigs(ts, k, sigma):
     from ..spectrum import stable_eigenpairs
 
-    K, m = assemble(ts, "K"), _tile_vector(ts, "M")
+    K, m = assemble(ts, "K"), tile_vector(ts, "M")
     ev = stable_eigenpairs(K, m, k, sigma=sigma, component="all")
     return ev.values, ev.vectors, {"iterations": [], "method": ev.method}
 

@@ -367,7 +367,8 @@ class TiledSurface(TiledOperators):
         """Points (and normals, when the file stores them as extra dimensions) as memory-mapped .npy copies."""
         import laspy
 
-        from ..scans.io_read import NORMAL_NAMES, read_las_chunks
+        from ..scans.io_lidar import read_las_chunks
+        from ..scans.io_read import NORMAL_NAMES
 
         st = path.stat()
         tag = hashlib.blake2b(f"{path.resolve()}|{st.st_size}|{st.st_mtime_ns}".encode(), digest_size=8).hexdigest()

@@ -56,11 +56,12 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .._validation import check_in, check_output_path, check_real_array
-from .convert import cloud_arrays
-from .io_read import ReadError, read_las_chunks
-from .io_write import atomic_target, write_format
-from .sources import FORMATS, file_source, format_of, settle, announce
 from ..pointcloud import PointCloud
+from .convert import cloud_arrays
+from .io_lidar import read_las_chunks
+from .io_read import ReadError
+from .io_write import atomic_target, write_format
+from .sources import FORMATS, announce, file_source, format_of, settle
 
 __all__ = [
     "ReadError",

@@ -18,7 +18,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .io_read import NORMAL_NAMES, import_laspy
+from .io_lidar import import_laspy
+from .io_read import NORMAL_NAMES
 
 if TYPE_CHECKING:
     from ..pointcloud import PointCloud
