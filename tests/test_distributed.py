@@ -279,7 +279,7 @@ def test_stable_rows_bit_equal_on_random_points():
 def test_local_engine_equals_single_process(stable, single, cloud):
     x = cloud.points
     u0 = np.exp(-10 * ((x - [0, 0, 1]) ** 2).sum(axis=1))
-    ref = pde.heat(single, u0, 1e-3, 3, method="implicit", laplacian="stable").u
+    ref = pde.heat(single, u0, dt=1e-3, steps=3, method="implicit", laplacian="stable").u
     u = stable.gather(stable.heat(u0, 1e-3, 3, method="implicit", engine="local"))
     assert rel(u, ref) < 1e-10
     assert stable.last_solve["engine"] == "local" and stable.last_solve["ranks"] == 1

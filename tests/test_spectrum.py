@@ -70,7 +70,9 @@ def test_scale_free_and_refused_out_of_range():
         lam = quiet_surface(c.points * scale, c.normals).eigs(8).values * scale**2
         np.testing.assert_allclose(lam, ref, rtol=1e-8, atol=1e-12)
     with pytest.raises(ValueError, match=r"points: the mean area element .* outside \[1e-280"):
-        quiet_surface(c.points * 1e-155, c.normals).eigs(8)
+        quiet_surface(c.points * 1e-141, c.normals).eigs(8)  # built (spacing 1e-142), areas below eigs' range
+    with pytest.raises(ValueError, match=r"points span 2e-155 .* less than 1e-145"):
+        quiet_surface(c.points * 1e-155, c.normals)  # refused at the build, before any fit
 
 
 def test_components_largest_all_and_by_particle():
