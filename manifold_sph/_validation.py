@@ -29,7 +29,7 @@ __all__ = [
 ]
 
 
-def describe(a) -> str:
+def describe(a: object) -> str:
     a = np.asarray(a)
     return f"array of shape {a.shape} and dtype {a.dtype}"
 

@@ -701,35 +701,38 @@ class LonelyRepair:
     target: int
     normal_threshold: float
 
-    def messages(self) -> list[str]:
-        """One sentence for each kind of repair made (empty when none)."""
-        out = []
-
-        def first(idx):
-            return idx[:8].tolist()
-
-        t = self.normal_threshold
+    def entries(self) -> list[tuple[str, str, str, np.ndarray]]:
+        """``(key, summary, detail, indices)`` for each kind of repair made, in user terms: what a
+        build report (:mod:`manifold_sph.diagnostics`) lists."""
+        t, out = self.normal_threshold, []
         if self.flipped.size:
-            out.append(f"{self.flipped.size} normal(s) disagreed with every nearby point's (n_i . n_j <= {t:g}; first "
-                       f"indices {first(self.flipped)}) and were flipped; see .flipped")
+            out.append(("flipped", f"{self.flipped.size} normal(s) pointed against all their neighbours' and were flipped",
+                        f"Each disagreed with every nearby point's normal (n_i . n_j <= normal_threshold = {t:g}) and "
+                        "agrees once flipped: a wrongly oriented normal. Check the orientation of the normals given, or "
+                        "give none to have them estimated.", self.flipped))
         if self.repaired.size:
-            out.append(f"{self.repaired.size} normal(s) lay across the surface of their nearest points or agreed with "
-                       f"too few of them either way (n_i . n_j > {t:g}; noisy fits or stray points, first indices "
-                       f"{first(self.repaired)}): each was replaced by the mean normal of the largest group of "
-                       "agreeing normals among its nearest points; see .repaired")
+            out.append(("repaired", f"{self.repaired.size} normal(s) lay across the surface of their nearest points "
+                        f"(first indices {self.repaired[:8].tolist()}) and were replaced by their neighbours' consensus",
+                        f"They agreed with too few of their nearest points either way (n_i . n_j > {t:g}): noisy fits or "
+                        "stray points. Each was replaced by the mean normal of the largest group of agreeing normals "
+                        "among its nearest points.", self.repaired))
         if self.widened.size:
-            out.append(f"{self.widened.size} particle(s) had fewer than {self.need} neighbours inside the kernel support "
-                       f"(isolated points or sparse parts of the cloud, first indices {first(self.widened)}): their "
-                       f"smoothing length was widened to reach {self.target} neighbours; see .widened")
+            out.append(("widened", f"{self.widened.size} isolated or sparse point(s) got wider supports (reaching "
+                        f"{self.target} neighbours)",
+                        f"They had fewer than {self.need} neighbours inside the kernel support (stray points, or sparse "
+                        "parts of the cloud); their smoothing length was widened, so their operators are smoother and "
+                        "less accurate there. Remove stray points, or sample those parts more densely.", self.widened))
         if self.strays.size:
-            out.append(f"{self.strays.size} particle(s) lie far from the cloud (their supports grew to more than "
-                       f"{STRAY_FACTOR:g} times the median smoothing length; strays, first indices {first(self.strays)}): "
-                       "their area elements, of their supports' size, dominate sums and integrals over the cloud; "
-                       "remove them (manifold_sph.scans.cleaning.remove_outliers); see .strays")
+            out.append(("strays", f"{self.strays.size} point(s) lie far from the cloud (first indices "
+                        f"{self.strays[:8].tolist()})",
+                        f"Their supports grew to more than {STRAY_FACTOR:g} times the median smoothing length, so their "
+                        "area elements, of their supports' size, dominate sums and integrals over the cloud. Remove them "
+                        "(manifold_sph.scans.cleaning.remove_outliers).", self.strays))
         if self.unfiltered.size:
-            out.append(f"{self.unfiltered.size} particle(s) found fewer than {self.need} neighbours whose normals agree "
-                       f"with theirs anywhere in the cloud (first indices {first(self.unfiltered)}): their rows hold "
-                       f"their {self.target} nearest points without the normal filter; see .unfiltered")
+            out.append(("unfiltered", f"{self.unfiltered.size} point(s) found no neighbours whose normals agree with "
+                        "theirs and use their nearest points without the normal filter",
+                        f"Fewer than {self.need} points anywhere in the cloud have normals agreeing with theirs "
+                        f"(n_i . n_j > {t:g}); their rows hold their {self.target} nearest points.", self.unfiltered))
         return out
 
 

@@ -250,11 +250,8 @@ class Surface(OperatorSet, PointViews):
                            tree=tree)
         self.widened, self.flipped, self.repaired, self.unfiltered = fix.widened, fix.flipped, fix.repaired, fix.unfiltered
         self.strays = fix.strays
-        kinds = [(key, idx) for key, idx in (("flipped", fix.flipped), ("repaired", fix.repaired), ("widened", fix.widened),
-                                             ("strays", fix.strays), ("unfiltered", fix.unfiltered)) if idx.size]
-        for (key, idx), message in zip(kinds, fix.messages()):  # messages() lists the same kinds in this order
-            summary, _, see = message.rpartition("; see ")
-            note(key, summary, detail=f"The indices are in Surface.{see}.", count=idx.size, indices=idx)
+        for key, summary, detail, idx in fix.entries():
+            note(key, summary, detail=detail, count=idx.size, indices=idx)
         return fix.neighborhood, fix.normals
 
     def _wider_candidates(self, rows: np.ndarray):

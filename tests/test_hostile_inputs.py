@@ -703,11 +703,13 @@ def test_item5_eigs_sigma_is_honoured_below_1500_points():
     assert np.all(np.abs(lam - 6.0) < 0.1), lam  # the l = 2 cluster, not the 5 smallest
 
 
-def test_item9_eigs_at_1e_minus_155_refused_with_the_range():
+def test_item9_eigs_below_1e_minus_140_refused_with_the_range():
     c = shapes.sphere(500)
-    s = _quiet_surface(c.points * 1e-155, c.normals)
+    s = _quiet_surface(c.points * 1e-141, c.normals)  # builds (spacing 1e-142); areas below eigs' range
     with pytest.raises(ValueError, match=r"points: .* outside \[1e-280, 1e\+280\] .* Rescale the points"):
         s.eigs(10)
+    with pytest.raises(ValueError, match=r"points span 2e-155 .* less than 1e-145"):  # refused at the build
+        _quiet_surface(c.points * 1e-155, c.normals)
 
 
 def test_item13_eigs_refine_with_most_of_the_cloud():
@@ -861,13 +863,14 @@ def test_item0_wrong_normals_are_repaired_not_a_refusal(seed):
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ManifoldSPHWarning)
         s = Surface(c.points, n)
-    assert any("disagreed with every nearby point's" in str(w.message) for w in caught)
+    assert any("pointed against all their neighbours' and were flipped" in str(w.message) for w in caught)
+    assert "disagreed with every nearby point's" in s.report()["flipped"].detail
     assert s.neighborhood.counts.min() >= 6
     still = np.einsum("ij,ij->i", s.normals, c.normals) < 0
     assert still.sum() <= 0.1 * wrong.sum()  # measured: 153 -> 13 and 145 -> 6 (clusters of 6+ are not lonely)
     assert np.all(wrong[s.flipped])  # every flip turned a wrong normal
     f = c.points[:, 0] * c.points[:, 1] * c.points[:, 2]
-    err = np.abs(s.laplacian(f) + 12 * f)[~still]
+    err = np.abs(s.laplacian(f, form="strong") + 12 * f)[~still]
     assert np.median(err) < 0.05 * np.abs(12 * f).max()
 
 
@@ -885,12 +888,13 @@ def test_item0_normal_across_the_surface_and_far_strays_are_repaired():
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ManifoldSPHWarning)
         s = Surface(p, n, normal_threshold=0.5)
-    text = " ".join(str(w.message) for w in caught)
-    assert "100" in str(s.repaired.tolist()) and "see .repaired" in text and "see .widened" in text
+    text, report = str(caught[0].message), s.report()  # the build's one summary
+    assert "100" in str(s.repaired.tolist()) and report["repaired"].summary in text and "widened" in report
     assert s.normals[100] @ c.normals[100] > 0.95
     assert s.neighborhood.counts.min() >= 6 and {2000, 2001, 2002} <= set(s.widened.tolist())
-    assert s.strays.tolist() == [2000, 2001, 2002] and "see .strays" in text  # their area elements dominate sums
-    assert np.all(np.isfinite(s.laplacian_matrix().data))
+    assert s.strays.tolist() == [2000, 2001, 2002]  # their area elements dominate sums
+    assert report["strays"].indices.tolist() == [2000, 2001, 2002] and "lie far from the cloud" in text
+    assert np.all(np.isfinite(s.laplacian_matrix(form="strong").data))
 
 
 @pytest.mark.slow
@@ -935,12 +939,12 @@ def test_item7_cspm_on_random_points_reports_its_inconsistent_rows():
         warnings.simplefilter("always", ManifoldSPHWarning)
         s = Surface(cloud, scheme="cspm")
     msg = [str(w.message) for w in caught if "Laplacian of a quadratic" in str(w.message)]
-    assert msg and "scheme='msph' is exact on quadratics" in msg[0]
+    assert msg and "scheme='msph' is exact on quadratics" in s.report()["inconsistent"].detail
     d = s.quadratic_defect
-    assert (d > 3).sum() >= 10 and "particle(s) get the Laplacian of a quadratic wrong by more than 3" in msg[0]
+    assert (d > 3).sum() >= 10 and "point(s) of the 'cspm' scheme get the Laplacian of a quadratic wrong by more than 3" in msg[0]
     x = cloud.points
     f = x[:, 0] * x[:, 1] * x[:, 2]
-    row_err = np.abs(s.laplacian(f) + 12 * f)
+    row_err = np.abs(s.laplacian(f, form="strong") + 12 * f)
     assert np.median(row_err[d > 3]) > 10 * np.median(row_err[d <= 1])  # the flagged rows are the bad ones
     with warnings.catch_warnings():  # standard: moderately wrong nearly everywhere, by design (not warned)
         warnings.simplefilter("ignore", ManifoldSPHWarning)
