@@ -236,7 +236,7 @@ def test_widened_rows_spliced_equal_a_full_search():
     stray = np.array([[0.3, 0.0, 1.1], [0.0, 0.4, -1.08]])
     p = np.vstack([c.points[keep], stray])
     q = np.vstack([c.normals[keep], stray / np.linalg.norm(stray, axis=1)[:, None]])
-    with pytest.warns(RuntimeWarning, match="widened"):
+    with pytest.warns(RuntimeWarning, match="wider supports"):
         s = Surface(p, q, area="shepard", h=0.017)
     assert s.widened.size >= 2
     nb = s.neighborhood
