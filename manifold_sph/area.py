@@ -302,7 +302,7 @@ def _numerical(A: sp.csr_matrix, nb: Neighborhood, xy: np.ndarray | PairOffsets,
         # the merged system: the representatives' rows, each column moved to its group's unknown (entries
         # of one group in a row are left unsummed: every solver step sums them; a sparse product did
         # the same at 13x the cost of the iteration on a million random points). Not copied: the solver
-        # reads A's entries through the row and column maps (a copy was 12 bytes an entry, 320 MB per
+        # reads A's entries through the row and column maps (a copy would take 12 bytes an entry, 320 MB per
         # million random points, at the build's peak)
         B = _Merged(A, rep, label)
         key = _sweep_key(xy)

@@ -187,7 +187,7 @@ def _check_duplicates(pts: np.ndarray) -> None:
     """Raise ValueError if two rows of ``pts`` are identical, reporting how many.
 
     Rows are hashed to one 64-bit key each (a sort of N integers); only rows
-    whose keys collide are compared exactly (131,072 points: 10 ms, was 27 ms).
+    whose keys collide are compared exactly (131,072 points: 10 ms; a row-wise comparison of every row takes 27 ms).
     """
     bits = np.ascontiguousarray(pts + 0.0).view(np.uint64)  # + 0.0: -0.0 and 0.0 are the same point
     key = np.zeros(bits.shape[0], dtype=np.uint64)

@@ -436,8 +436,8 @@ def detect_boundary(
 
     Notes
     -----
-    Measured on public test meshes whose vertices are used as bare points (issue 16;
-    ``python tests/test_boundary.py`` prints them): against the mesh's boundary
+    Measured on public test meshes whose vertices are used as bare points
+    (``python tests/test_boundary.py`` prints them): against the mesh's boundary
     vertices, with the meshes' normals the teapot gives recall 0.79 with 11 %
     false positives in 6 pieces (its mesh has 6 boundary loops; without the
     ``resolve`` test 0.79 / 24 %; before any of these filters 0.67 / 49 % in 9;

@@ -365,7 +365,7 @@ def remove_outliers(
     spacings of noise, 0.93 / 1.0 at 0.3, 0.81 / 1.0 at 0.5), and no sample is
     removed up to half a spacing of noise (3 of 8,000 at one spacing). A stray
     point midway inside a part thinner than about three spacings (neighbours on
-    both sides) fits no surface and stays. This falls short of issue 16's 95 % target
+    both sides) fits no surface and stays. This falls short of a 95 % recall
     on the coarse models: there many uniform outliers land within half a spacing
     of the surface.
 

@@ -1,4 +1,4 @@
-"""Higher-order corrected SPH: ``"msph3"``, ``"msph4"`` and ``"msph5"`` (issue 9).
+"""Higher-order corrected SPH: ``"msph3"``, ``"msph4"`` and ``"msph5"``.
 
 The corrected family (CSPM, MSPH) matches the Taylor expansion of ``f_j - f_i``
 to second order. Carrying the expansion to degree ``q`` in the tangent-plane
