@@ -20,13 +20,14 @@ from scipy.spatial import cKDTree
 
 from .._validation import as_points, check_int, check_positive
 from ..pointcloud import PointCloud
+from ..results import Result
 from ..threads import get_num_threads
 
 __all__ = ["CleanResult", "merge_duplicates", "remove_outliers", "voxel_downsample", "clean"]
 
 
-@dataclass(frozen=True)
-class CleanResult:
+@dataclass(frozen=True, repr=False)
+class CleanResult(Result):
     """The cleaned points and what was removed.
 
     Attributes

@@ -18,7 +18,7 @@ import numpy as np
 from .io_read import NORMAL_NAMES, ReadError
 
 if TYPE_CHECKING:
-    from .io_read import _Read
+    from .io_read import Reading
 
 __all__ = ["read_las_chunks", "read_las", "read_e57", "import_laspy"]
 
@@ -160,7 +160,7 @@ def _check_las_records(path, h) -> int:
     return n
 
 
-def read_las(path: str | os.PathLike[str]) -> _Read:
+def read_las(path: str | os.PathLike[str]) -> Reading:
     laspy = import_laspy()
 
     try:
@@ -187,7 +187,7 @@ def read_las(path: str | os.PathLike[str]) -> _Read:
 # ----------------------------------------------------------------------------
 # E57 (pye57, optional)
 # ----------------------------------------------------------------------------
-def read_e57(path: str | os.PathLike[str]) -> _Read:
+def read_e57(path: str | os.PathLike[str]) -> Reading:
     """Every scan of an E57 file in world coordinates (each scan's pose applied, spherical scans
     converted, invalid points dropped); intensity and colours as fields, ``scan`` the scan index
     when there are several. Needs the optional package pye57."""

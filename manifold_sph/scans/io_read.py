@@ -40,7 +40,7 @@ if TYPE_CHECKING:
     import pyvista as pv
 
     #: What every reader returns: points (N, 3), normals (N, 3) or None, other fields, faces (F, 3) or None.
-    _Read: TypeAlias = "tuple[np.ndarray, np.ndarray | None, dict[str, np.ndarray], np.ndarray | None]"
+    Reading: TypeAlias = "tuple[np.ndarray, np.ndarray | None, dict[str, np.ndarray], np.ndarray | None]"
 
 __all__ = ["ReadError", "read_format", "NORMAL_NAMES"]
 
@@ -323,7 +323,7 @@ def _polys_to_faces(path, name: str, polys, n: int) -> np.ndarray:
     return fan(sizes, flat)
 
 
-def read_ply(path: str | os.PathLike[str], want_faces: bool) -> _Read:
+def read_ply(path: str | os.PathLike[str], want_faces: bool) -> Reading:
     raw = Path(path).read_bytes()
     fmt, elements, start = _ply_header(path, raw)
     vertex, faces = None, None
@@ -490,7 +490,7 @@ def _unpack_rgb(raw_rgb: dict):
     return fields
 
 
-def read_pcd(path: str | os.PathLike[str]) -> _Read:
+def read_pcd(path: str | os.PathLike[str]) -> Reading:
     raw = Path(path).read_bytes()
     names, sizes, types, counts, n, mode, pos = _pcd_header(path, raw)
     if mode == "binary_compressed":
@@ -573,7 +573,7 @@ def _is_number(t: str) -> bool:
         return False
 
 
-def read_text(path: str | os.PathLike[str], fmt: str) -> _Read:
+def read_text(path: str | os.PathLike[str], fmt: str) -> Reading:
     # utf-8-sig: a byte-order mark (spreadsheet exports) is not part of the first column's name
     text = Path(path).read_text(encoding="utf-8-sig", errors="replace").splitlines()
     lines = [ln for ln in text if ln.strip() and not ln.lstrip().startswith(("#", "//"))]
@@ -641,7 +641,7 @@ _OBJ_V, _OBJ_VN, _OBJ_F = _obj_lines(b"v"), _obj_lines(b"vn"), _obj_lines(b"f")
 _OBJ_V_OR_F = re.compile(rb"^[ \t]*(v|f)[ \t]", re.M)
 
 
-def read_obj(path: str | os.PathLike[str], want_faces: bool) -> _Read:
+def read_obj(path: str | os.PathLike[str], want_faces: bool) -> Reading:
     """``v`` lines (x y z, optionally w or r g b colours), ``vn`` lines, ``f`` lines (1-based,
     negative indices relative to the vertices above the face); tabs separate like spaces."""
     raw = Path(path).read_bytes()
@@ -751,7 +751,7 @@ def _check_npy_sizes(path, fmt: str) -> None:
         return  # np.load reports it
 
 
-def read_numpy(path: str | os.PathLike[str], fmt: str) -> _Read:
+def read_numpy(path: str | os.PathLike[str], fmt: str) -> Reading:
     _check_npy_sizes(path, fmt)
     try:
         obj = np.load(path, allow_pickle=False)
@@ -779,7 +779,7 @@ def read_numpy(path: str | os.PathLike[str], fmt: str) -> _Read:
     return points, normals, fields, None
 
 
-def read_vtk(path: str | os.PathLike[str]) -> _Read:
+def read_vtk(path: str | os.PathLike[str]) -> Reading:
     import pyvista as pv
 
     try:
@@ -803,7 +803,7 @@ def from_pv_mesh(mesh: pv.DataSet) -> tuple[np.ndarray, np.ndarray | None, dict[
     return points, normals, fields
 
 
-def read_format(path: str | os.PathLike[str], fmt: str, want_faces: bool) -> _Read:
+def read_format(path: str | os.PathLike[str], fmt: str, want_faces: bool) -> Reading:
     """Dispatch to the reader of ``fmt``: (points, normals, fields, faces)."""
     if fmt == "ply":
         return read_ply(path, want_faces)
