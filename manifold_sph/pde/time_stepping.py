@@ -4,7 +4,7 @@ How long to run is said relative to the cloud, so that one call means the same o
 cloud 0.25 across and on one 658 across:
 
 - ``reach=``: how far the solution travels, as a fraction of the cloud's diameter
-  (:func:`cloud_diameter`): for heat, the standard deviation ``sqrt(2 k t)`` of the heat
+  (:func:`cloud_diameter`): for heat, the standard deviation ``sqrt(2 a t)`` (diffusivity a) of the heat
   kernel (``reach=0.1``: a hot spot spreads over a tenth of the object; ``reach=1``:
   nearly flat); for waves, the distance ``c t`` a front travels (``reach=1``: across
   the object);
@@ -365,7 +365,7 @@ def heat(
     >>> from manifold_sph import Surface
     >>> from manifold_sph.reference import shapes
     >>> cloud = shapes.sphere(2000)
-    >>> z = cloud.points[:, 2]                      # a degree-1 harmonic: decays as exp(-2 k t)
+    >>> z = cloud.points[:, 2]                      # a degree-1 harmonic: decays as exp(-2 t) (diffusivity 1)
     >>> sol = heat(Surface(cloud), z, t_end=0.1, method="crank-nicolson")
     >>> bool(np.allclose(sol.u, np.exp(-0.2) * z, atol=2e-3)), float(sol.times[-1])
     (True, 0.1)
