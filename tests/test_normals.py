@@ -969,3 +969,15 @@ def test_point_like_input_everywhere():
 def test_bad_auto_arguments(kwargs, match):
     with pytest.raises(ValueError, match=match):
         estimate_normals(shapes.sphere(200).points, **kwargs)
+
+
+def test_unique_sorted_is_np_unique():
+    from manifold_sph.normals.arrays import unique_sorted
+
+    x = np.random.default_rng(0).integers(0, 1000, (300, 7))
+    u, inv = np.unique(x, return_inverse=True)
+    np.testing.assert_array_equal(unique_sorted(x), u)
+    got_u, got_inv = unique_sorted(x, return_inverse=True)
+    np.testing.assert_array_equal(got_u, u)
+    np.testing.assert_array_equal(got_inv, inv.ravel())
+    assert unique_sorted(np.zeros(0, dtype=np.int64)).size == 0

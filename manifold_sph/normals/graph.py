@@ -19,6 +19,7 @@ from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
 from . import tuning
+from .arrays import unique_sorted
 from .fitting import knn
 
 
@@ -53,7 +54,7 @@ def _pair_edges(pts, nrm, rows, cols):
     N = pts.shape[0]
     off = rows != cols
     a, b = np.minimum(rows[off], cols[off]), np.maximum(rows[off], cols[off])
-    key = np.unique(a * N + b)
+    key = unique_sorted(a * N + b)
     a, b = key // N, key % N
     e = pts[b] - pts[a]
     length = np.linalg.norm(e, axis=1)
@@ -127,7 +128,7 @@ def spanning_forest(N: int, a: np.ndarray, b: np.ndarray, s: np.ndarray, length:
     # the sign and confidence of each tree edge, looked up by its key
     key = a * N + b
     tkey = np.minimum(ta, tb) * N + np.maximum(ta, tb)
-    pos = np.searchsorted(key, tkey)  # key is sorted (np.unique)
+    pos = np.searchsorted(key, tkey)  # key is sorted
     tsign = np.where(s[pos] < 0, -1.0, 1.0)
     tconf = conf[pos]
     roots = np.unique(labels, return_index=True)[1]

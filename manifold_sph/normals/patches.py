@@ -32,6 +32,7 @@ from scipy.spatial import cKDTree
 
 from ..threads import get_num_threads
 from . import tuning
+from .arrays import unique_sorted
 from .graph import tree_signs
 from .winding import best_signs, integer_signs, objective, winding_numbers
 
@@ -45,7 +46,7 @@ def _edges(pts: np.ndarray, nrm: np.ndarray, neighbors: np.ndarray, sigma: np.nd
     cols = neighbors[:, 1:].ravel().astype(np.int64)
     off = rows != cols
     a, b = np.minimum(rows[off], cols[off]), np.maximum(rows[off], cols[off])
-    key = np.unique(a * N + b)
+    key = unique_sorted(a * N + b)
     a, b = key // N, key % N
     e = pts[b] - pts[a]
     length = np.maximum(np.linalg.norm(e, axis=1), 1e-300)

@@ -13,6 +13,7 @@ import scipy.sparse as sp
 
 from .. import _jit
 from ..threads import run_chunks
+from .arrays import unique_sorted
 
 try:
     import numba
@@ -48,7 +49,7 @@ def winding_numbers(queries: np.ndarray, points: np.ndarray, normals: np.ndarray
     key = np.floor((P - P.min(axis=0)) / L).astype(np.int64)
     dims = key.max(axis=0) + 1
     lin = (key[:, 0] * dims[1] + key[:, 1]) * dims[2] + key[:, 2]
-    _, cell = np.unique(lin, return_inverse=True)
+    _, cell = unique_sorted(lin, return_inverse=True)
     cell = cell.ravel()
     nc = int(cell.max()) + 1
     order = np.argsort(cell, kind="stable").astype(np.int64)
@@ -59,7 +60,7 @@ def winding_numbers(queries: np.ndarray, points: np.ndarray, normals: np.ndarray
     crad2 = np.zeros(nc)
     np.maximum.at(crad2, cell, d2)
     akey = cell * n_labels + label
-    ukey, ainv = np.unique(akey, return_inverse=True)
+    ukey, ainv = unique_sorted(akey, return_inverse=True)
     ainv = ainv.ravel()
     na = ukey.size
     aw = np.bincount(ainv, weights=area, minlength=na)
