@@ -981,3 +981,24 @@ def test_unique_sorted_is_np_unique():
     np.testing.assert_array_equal(got_u, u)
     np.testing.assert_array_equal(got_inv, inv.ravel())
     assert unique_sorted(np.zeros(0, dtype=np.int64)).size == 0
+
+
+@pytest.mark.parametrize("degree", [1, 2, 3, 4])
+def test_jet_fit_compiled_and_numpy_agree(degree):
+    # the compiled kernel of the jet fits and its numpy twin: the same normals, residuals and
+    # kurtosis to round-off, with weights, per-row degrees (0 keeps the frame) and row centres
+    from manifold_sph.normals.fitting import covariance, jet_fit, jet_fit_numpy, knn
+
+    c = shapes.torus(1500, sampling="random", seed=1)
+    dist, idx = knn(c.points, 24)
+    frame = covariance(c.points, idx[:, :10])[1][:, :, 0]
+    w = np.random.default_rng(0).random(idx.shape)
+    degs = np.where(np.arange(1500) % 7 == 0, 0, degree)
+    out = []
+    for fit in (jet_fit, jet_fit_numpy):
+        r, k = np.zeros(1500), np.zeros(1500)
+        out.append((fit(c.points, idx, frame, degs, weights=w, residual=r, kurtosis=k), r, k))
+    np.testing.assert_allclose(out[0][0], out[1][0], atol=1e-9)
+    np.testing.assert_allclose(out[0][1], out[1][1], atol=1e-9)
+    np.testing.assert_allclose(out[0][2], out[1][2], rtol=1e-6)
+    np.testing.assert_array_equal(out[0][0][degs == 0], frame[degs == 0])

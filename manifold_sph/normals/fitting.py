@@ -19,7 +19,9 @@ from scipy.spatial import cKDTree
 
 from .._validation import as_points, check_int
 from ..pointcloud import as_cloud, is_point_array
-from ..threads import get_num_threads
+from .. import _jit
+from .._jit.compile import njit
+from ..threads import get_num_threads, run_chunks
 from . import tuning
 
 
@@ -83,6 +85,167 @@ def jet_fit(pts: np.ndarray, neighbors: np.ndarray, frame: np.ndarray, degree: i
     """Normals of degree-``degree`` height-function fits in the tangent frames of ``frame``.
 
     ``degree`` is an int or a per-particle int array (0 keeps the frame normal);
+    ``weights`` (N, k) zero out neighbours. Row ``r`` is centred on ``pts[r]``, or on
+    ``centers[r]`` when given (fits of a subset of rows). ``residual`` (N,) receives the
+    weighted RMS residual over the fit radius, ``kurtosis`` (N,) the weighted
+    ``mean(r^4) / mean(r^2)^2`` of the residuals (3 for Gaussian noise, near 1 for two layers:
+    the two sides of a part thinner than the neighbourhood). Compiled (:func:`jet_rows`, on
+    threads) unless the kernels are off; the numpy twin is :func:`jet_fit_numpy`.
+    """
+    if not _jit.ENABLED:
+        return jet_fit_numpy(pts, neighbors, frame, degree, weights, residual, centers, kurtosis)
+    centers = pts if centers is None else centers
+    N = frame.shape[0]
+    out = np.ascontiguousarray(frame, dtype=np.float64).copy()
+    if N == 0:
+        return out
+    degs = np.ascontiguousarray(np.broadcast_to(np.asarray(degree, dtype=np.int64), (N,)))
+    t1, t2 = tangents(out)
+    use_w = weights is not None
+    W = np.ascontiguousarray(weights, dtype=np.float64) if use_w else np.zeros((1, 1))
+    res = np.zeros(N)
+    kurt = np.full(N, 3.0)
+    args = (np.ascontiguousarray(pts, dtype=np.float64), np.ascontiguousarray(neighbors, dtype=np.int64),
+            np.ascontiguousarray(centers, dtype=np.float64), out.copy(), t1, t2, degs, W, use_w, _EXP_A, _EXP_B, out, res, kurt)
+    n_chunks = max(1, min(64, N // 256))
+    bounds = np.linspace(0, N, n_chunks + 1).astype(np.int64)
+    run_chunks(lambda c: jet_rows(bounds[c], bounds[c + 1], *args), n_chunks)
+    if residual is not None:
+        fitted = degs > 0
+        residual[fitted] = res[fitted]
+    if kurtosis is not None:
+        fitted = degs > 0
+        kurtosis[fitted] = kurt[fitted]
+    return out
+
+
+_MONOMIALS = [(a, d - a) for d in range(5) for a in range(d, -1, -1)]
+_EXP_A = np.array([a for a, _ in _MONOMIALS], dtype=np.int64)
+_EXP_B = np.array([b for _, b in _MONOMIALS], dtype=np.int64)
+
+
+@njit
+def jet_rows(lo: int, hi: int, pts: np.ndarray, nbr: np.ndarray, centers: np.ndarray, frame: np.ndarray, t1: np.ndarray, t2: np.ndarray,
+             degs: np.ndarray, weights: np.ndarray, use_w: bool, ea: np.ndarray, eb: np.ndarray, out: np.ndarray, residual: np.ndarray,
+             kurtosis: np.ndarray) -> None:  # pragma: no cover - compiled
+    """Rows ``lo:hi`` of :func:`jet_fit`: the normal equations of each height fit, solved by Gaussian
+    elimination with partial pivoting (the same regularisation as the numpy twin).
+
+    ``frame`` holds the input normals, ``out`` (N, 3) receives the fitted ones (a row whose system
+    is singular keeps its input normal), ``residual`` and ``kurtosis`` (N,) the residual statistics;
+    ``ea``, ``eb`` are the exponents of the monomials ``u^a v^b`` up to degree 4, ``weights`` is
+    read only with ``use_w``. Writes only rows ``lo:hi`` (chunks run on threads)."""
+    K = nbr.shape[1]
+    A = np.empty((15, 15))
+    b = np.empty(15)
+    vals = np.empty(15)
+    zs = np.empty(K)
+    us = np.empty(K)
+    vs = np.empty(K)
+    for i in range(lo, hi):
+        d = degs[i]
+        if d <= 0:
+            continue
+        m = (d + 1) * (d + 2) // 2
+        cx, cy, cz = centers[i, 0], centers[i, 1], centers[i, 2]
+        s2 = 0.0
+        for j in range(K):
+            q = nbr[i, j]
+            px, py, pz = pts[q, 0] - cx, pts[q, 1] - cy, pts[q, 2] - cz
+            x = px * t1[i, 0] + py * t1[i, 1] + pz * t1[i, 2]
+            y = px * t2[i, 0] + py * t2[i, 1] + pz * t2[i, 2]
+            us[j] = x
+            vs[j] = y
+            zs[j] = px * frame[i, 0] + py * frame[i, 1] + pz * frame[i, 2]
+            if x * x + y * y > s2:
+                s2 = x * x + y * y
+        s = np.sqrt(s2)
+        if not s > 0:
+            s = 1.0
+        for p in range(m):
+            b[p] = 0.0
+            for r in range(m):
+                A[p, r] = 0.0
+        for j in range(K):
+            u = us[j] / s
+            v = vs[j] / s
+            for p in range(m):
+                vals[p] = u ** ea[p] * v ** eb[p]
+            w = weights[i, j] if use_w else 1.0
+            for p in range(m):
+                wp = w * vals[p]
+                b[p] += wp * zs[j]
+                for r in range(p, m):
+                    A[p, r] += wp * vals[r]
+        tr = 0.0
+        for p in range(m):
+            tr += A[p, p]
+            for r in range(p):
+                A[p, r] = A[r, p]
+        for p in range(m):
+            A[p, p] += 1e-10 * tr + 1e-300
+        # Gaussian elimination with partial pivoting
+        singular = False
+        for c in range(m):
+            piv = c
+            big = abs(A[c, c])
+            for r in range(c + 1, m):
+                if abs(A[r, c]) > big:
+                    big = abs(A[r, c])
+                    piv = r
+            if not big > 0:
+                singular = True
+                break
+            if piv != c:
+                for r in range(m):
+                    A[c, r], A[piv, r] = A[piv, r], A[c, r]
+                b[c], b[piv] = b[piv], b[c]
+            for r in range(c + 1, m):
+                f = A[r, c] / A[c, c]
+                if f != 0.0:
+                    for t in range(c, m):
+                        A[r, t] -= f * A[c, t]
+                    b[r] -= f * b[c]
+        if singular:
+            continue
+        for c in range(m - 1, -1, -1):
+            acc = b[c]
+            for t in range(c + 1, m):
+                acc -= A[c, t] * b[t]
+            b[c] = acc / A[c, c]
+        gx = b[1] / s
+        gy = b[2] / s
+        nx = frame[i, 0] - gx * t1[i, 0] - gy * t2[i, 0]
+        ny = frame[i, 1] - gx * t1[i, 1] - gy * t2[i, 1]
+        nz = frame[i, 2] - gx * t1[i, 2] - gy * t2[i, 2]
+        norm = np.sqrt(nx * nx + ny * ny + nz * nz)
+        if np.isfinite(norm) and norm > 0:
+            out[i, 0] = nx / norm
+            out[i, 1] = ny / norm
+            out[i, 2] = nz / norm
+        m2 = 0.0
+        m4 = 0.0
+        sw = 0.0
+        for j in range(K):
+            u = us[j] / s
+            v = vs[j] / s
+            fit = 0.0
+            for p in range(m):
+                fit += b[p] * u ** ea[p] * v ** eb[p]
+            e = zs[j] - fit
+            w = weights[i, j] if use_w else 1.0
+            m2 += w * e * e
+            m4 += w * e * e * e * e
+            sw += w
+        residual[i] = np.sqrt(m2 / max(sw, 1e-300)) / s
+        kurtosis[i] = m4 * sw / max(m2 * m2, 1e-300) if m2 > 0 else 3.0
+
+
+def jet_fit_numpy(pts: np.ndarray, neighbors: np.ndarray, frame: np.ndarray, degree: int | np.ndarray, weights: np.ndarray | None = None,
+                  residual: np.ndarray | None = None, centers: np.ndarray | None = None, kurtosis: np.ndarray | None = None) -> np.ndarray:
+    """The numpy twin of :func:`jet_fit` (batched solves), also used when the kernels are off.
+
+    ``degree`` is an int or a per-particle int array (0 keeps the frame normal);
     ``weights`` (N, k) zero out neighbours. Rows are batched by degree. Row ``r`` is
     centred on ``pts[r]``, or on ``centers[r]`` when given (fits of a subset of rows).
     ``residual`` (N,) receives the weighted RMS residual over the fit radius, ``kurtosis`` (N,)
@@ -110,8 +273,9 @@ def jet_fit(pts: np.ndarray, neighbors: np.ndarray, frame: np.ndarray, degree: i
             mons = _monomials(int(d))
             V = np.stack([u**a * v**b for a, b in mons], axis=2)
             w = np.ones_like(u) if weights is None else weights[r]
-            A = np.einsum("nkp,nk,nkq->npq", V, w, V)
-            rhs = np.einsum("nkp,nk,nk->np", V, w, z)
+            Vw = V * w[..., None]
+            A = np.matmul(Vw.transpose(0, 2, 1), V)
+            rhs = np.matmul(Vw.transpose(0, 2, 1), z[..., None])[..., 0]
             tr = np.trace(A, axis1=1, axis2=2)
             A += (1e-10 * tr + 1e-300)[:, None, None] * np.eye(len(mons))
             c = np.linalg.solve(A, rhs[..., None])[..., 0]
@@ -121,7 +285,7 @@ def jet_fit(pts: np.ndarray, neighbors: np.ndarray, frame: np.ndarray, degree: i
             ok = np.all(np.isfinite(n), axis=1)
             out[r[ok]] = unit(n[ok])
             if residual is not None or kurtosis is not None:
-                res = z - np.einsum("nkp,np->nk", V, c)
+                res = z - np.matmul(V, c[..., None])[..., 0]
             if residual is not None:
                 residual[r] = np.sqrt((w * res * res).sum(axis=1) / np.maximum(w.sum(axis=1), 1e-300)) / s[:, 0]
             if kurtosis is not None:
