@@ -18,16 +18,17 @@ from .graph import tree_signs
 from .winding import winding_numbers
 
 
-def closed_sheets(pts: np.ndarray, nrm: np.ndarray, neighbors: np.ndarray, probes: np.ndarray, delta: np.ndarray, area: np.ndarray, h: np.ndarray) -> np.ndarray | None:
-    """Label of the closed sheet of every particle (-1: none), or None: nothing to judge apart.
+def sheet_segments(pts: np.ndarray, nrm: np.ndarray, neighbors: np.ndarray) -> tuple[np.ndarray, int, np.ndarray] | None:
+    """The sheets of a cloud: labels (0 to ``n - 1``; ``n`` for particles in none), ``n``, and the normals
+    oriented consistently inside each sheet (on its own edges, by the reflection rule).
 
     Sheets are the components of the k-NN graph kept where both ends lie near each other's
     tangent plane with nearly parallel normal lines, without junctions and bridges: surfaces
-    that cross (interpenetrating parts of a model) fall apart there. A sheet of at least
-    ``tuning.SHEET_MIN`` particles is closed where its own winding number, with its propagated signs,
-    is decisive at its probes (``|mean(w_in + w_out)| >= tuning.SHEET_CLOSED``) and it is not wholly
-    inside the others. None unless two closed sheets exist and one crosses another (docs/normals.md,
-    step 4, surfaces that pass through each other).
+    that cross (interpenetrating parts of a model) fall apart there. Sheets have at least
+    ``tuning.SHEET_MIN`` particles (and ``tuning.SHEET_FRACTION`` of the cloud); particles left
+    out join a neighbouring sheet over up to ``tuning.SHEET_GROW`` rings. None where more than
+    ``tuning.SHEET_MAX_JUNCTION`` of the particles are junctions (coarse or noisy: not trusted) or
+    fewer than two sheets exist.
     """
     N = pts.shape[0]
     ko = min(tuning.ORIENT_K, neighbors.shape[1])
@@ -103,6 +104,22 @@ def closed_sheets(pts: np.ndarray, nrm: np.ndarray, neighbors: np.ndarray, probe
     Sg = Sg + Sg.T  # (a pair found from both ends has the same sign twice)
     roots = np.unique(csgraph.connected_components(Sg, directed=False)[1], return_index=True)[1]
     sn = nrm * tree_signs(N, Sg, roots, lambda child, par: np.sign(np.asarray(Sg[child, par]).ravel()))[:, None]
+    return lab, int(big.size), sn
+
+
+def closed_sheets(pts: np.ndarray, nrm: np.ndarray, neighbors: np.ndarray, probes: np.ndarray, delta: np.ndarray, area: np.ndarray, h: np.ndarray) -> np.ndarray | None:
+    """Label of the closed sheet of every particle (-1: none), or None: nothing to judge apart.
+
+    The sheets of :func:`sheet_segments`. A sheet is closed where its own winding number, with
+    its propagated signs, is decisive at its probes (``|mean(w_in + w_out)| >= tuning.SHEET_CLOSED``)
+    and it is not wholly inside the others. None unless two closed sheets exist and one crosses
+    another (docs/normals.md, step 4, surfaces that pass through each other).
+    """
+    segments = sheet_segments(pts, nrm, neighbors)
+    if segments is None:
+        return None
+    lab, n_sheets, sn = segments
+    big = np.arange(n_sheets)
     q = np.vstack([pts[probes] - delta[:, None] * sn[probes], pts[probes] + delta[:, None] * sn[probes]])
     W = winding_numbers(q, pts, sn, area, 0.2 * h, lab, big.size + 1)
     own = lab[probes]
@@ -130,24 +147,34 @@ def closed_sheets(pts: np.ndarray, nrm: np.ndarray, neighbors: np.ndarray, probe
     return ids[lab]
 
 
+def _own_means(pts, nrm, lab, n_labels, area, h, delta, probes):
+    """Area-weighted mean of ``w_in + w_out`` of each label's own field at its probes."""
+    q = np.vstack([pts[probes] - delta[:, None] * nrm[probes], pts[probes] + delta[:, None] * nrm[probes]])
+    W = winding_numbers(q, pts, nrm, area, 0.2 * h, lab, n_labels)
+    own = lab[probes]
+    m = probes.size
+    S = W[np.arange(m), own] + W[m + np.arange(m), own]
+    wt = np.bincount(own, weights=area[probes], minlength=n_labels)
+    return np.bincount(own, weights=area[probes] * S, minlength=n_labels) / np.maximum(wt, 1e-300), wt
+
+
 def separate_parts(pts: np.ndarray, nrm: np.ndarray, neighbors: np.ndarray, distances: np.ndarray, nested: str,
                    sigma: np.ndarray | None = None) -> np.ndarray:
     """Every closed part outward by its own field (``nested="separate"``), or as oriented (``"cavity"``).
 
-    The parts are the connected components of the graph of the ``tuning.ORIENT_K`` nearest. A part
-    is closed where the mean of ``w_in + w_out`` of its own field at its probes is at least
-    ``tuning.PART_CLOSED`` in size; one whose own field reads it inward (a part inside another,
-    oriented as the wall of a cavity by the whole field) is flipped.
+    Parts are first the connected components of the graph of the ``tuning.ORIENT_K`` nearest, then
+    the sheets of :func:`sheet_segments` (closed surfaces that touch or cross others fall apart
+    there). A part is closed where the mean of ``w_in + w_out`` of its own field at its probes is
+    at least ``tuning.PART_CLOSED`` in size. One whose own field reads it inward (a part inside
+    another, oriented as the wall of a cavity by the whole field) is flipped; a sheet whose signs
+    are mixed (its own field not decisive) but closed with the signs propagated on its own edges
+    takes those, outward. The sheets are used on clean clouds only (``sigma`` None): on a noisy
+    scan they also cut one surface apart where its density changes, and a piece read inward by
+    its own field was flipped (docs/normals.md, parts).
     """
     if nested == "cavity":
         return nrm
     N = pts.shape[0]
-    ko = min(tuning.ORIENT_K, neighbors.shape[1])
-    rows = np.repeat(np.arange(N, dtype=np.int64), ko - 1)
-    G = sp.coo_matrix((np.ones(rows.size), (rows, neighbors[:, 1:ko].ravel())), shape=(N, N))
-    n_parts, part = csgraph.connected_components(G, directed=False)
-    if n_parts < 2:
-        return nrm
     ka = min(8, distances.shape[1])
     r = distances[:, ka - 1]
     r = np.where(r > 0, r, np.median(r[r > 0]) if np.any(r > 0) else 1.0)
@@ -157,12 +184,31 @@ def separate_parts(pts: np.ndarray, nrm: np.ndarray, neighbors: np.ndarray, dist
     if N > tuning.MAX_PROBES:
         probes = np.sort(np.random.default_rng(0).choice(N, tuning.MAX_PROBES, replace=False))
     delta = h[probes] if sigma is None else np.maximum(h[probes], tuning.PROBE_NOISE * sigma[probes])
-    q = np.vstack([pts[probes] - delta[:, None] * nrm[probes], pts[probes] + delta[:, None] * nrm[probes]])
-    W = winding_numbers(q, pts, nrm, area, 0.2 * h, part, n_parts)
-    own = part[probes]
-    m = probes.size
-    S = W[np.arange(m), own] + W[m + np.arange(m), own]
-    wt = np.bincount(own, weights=area[probes], minlength=n_parts)
-    mean = np.bincount(own, weights=area[probes] * S, minlength=n_parts) / np.maximum(wt, 1e-300)
+    ko = min(tuning.ORIENT_K, neighbors.shape[1])
+    rows = np.repeat(np.arange(N, dtype=np.int64), ko - 1)
+    G = sp.coo_matrix((np.ones(rows.size), (rows, neighbors[:, 1:ko].ravel())), shape=(N, N))
+    n_parts, part = csgraph.connected_components(G, directed=False)
+    out = nrm
+    if n_parts > 1:
+        mean, wt = _own_means(pts, out, part, n_parts, area, h, delta, probes)
+        flip = (wt > 0) & (mean <= -tuning.PART_CLOSED)
+        out = np.where(flip[part][:, None], -out, out)
+    if not tuning.PART_SHEETS or sigma is not None:  # clean clouds only (noisy: sheets cut one surface apart)
+        return out
+    segments = sheet_segments(pts, out, neighbors)
+    if segments is None:
+        return out
+    lab, n_sheets, sn = segments
+    mean, wt = _own_means(pts, out, lab, n_sheets + 1, area, h, delta, probes)
     flip = (wt > 0) & (mean <= -tuning.PART_CLOSED)
-    return np.where(flip[part][:, None], -nrm, nrm)
+    flip[n_sheets] = False
+    mixed = (wt > 0) & (np.abs(mean) < tuning.PART_CLOSED)
+    mixed[n_sheets] = False
+    res = np.where(flip[lab][:, None], -out, out)
+    if mixed.any():
+        mean_s, _ = _own_means(pts, sn, lab, n_sheets + 1, area, h, delta, probes)
+        take = mixed & (np.abs(mean_s) >= tuning.PART_CLOSED)
+        if take.any():
+            sign = np.where(mean_s < 0, -1.0, 1.0)
+            res = np.where(take[lab][:, None], sn * sign[lab][:, None], res)
+    return res
