@@ -9,9 +9,12 @@ normals). The steps live in modules named after their concept:
   undetermined directions among candidate fits;
 - :mod:`.graph`, :mod:`.orientation`: consistent orientation over the spanning forest, then
   the outward check with the generalised winding number (:mod:`.winding`);
-- :mod:`.shells`: closed surfaces that pass through each other, judged apart;
+- :mod:`.patches`: the global orientation of noisy clouds (patch signs chosen for the whole cloud);
+- :mod:`.shells`: closed surfaces that pass through each other, and closed parts turned outward
+  by their own field (the sheets of parts that touch or cross);
 - :mod:`.visibility`, :mod:`.poles`: optional sign checks (``orient="visible"``, ``poles=True``);
 - :mod:`.confidence`: the per-particle confidence;
+- :mod:`.arrays`: distinct integer keys by one sort;
 - :mod:`.tuning`: every tuning constant, in one place.
 
 The method and its measurements are in ``docs/normals.md``.
