@@ -31,6 +31,7 @@ Examples
 from .cases import (CASES, run_case, run_cavity, run_line1d, run_planewave, run_pml, run_scattering,
                     run_tez_cavity, run_tez_circular_cavity, run_tez_pml, run_tez_scattering, run_waveguide,
                     scattering_layout, tez_cavity_frequency, tez_disk_frequency, tez_disk_mode, tez_scattering_layout)
+from .certify import pml_certificate, restricted
 from .constants import C0, EPS0, ETA0, MU0
 from .dirichlet import KroneckerSystem
 from .interfaces import (EPS_AVERAGES, INTERFACES, TEZ_INTERFACES, cell_fraction, jump_permittivity,
@@ -42,8 +43,8 @@ from .mie import (SCATTERERS, TEZ_SCATTERERS, mie_coefficients, scattered_field,
                   tez_scattered_field, tez_total_field, total_field, wavenumber)
 from .operators import (COUPLINGS, DEFAULT_COUPLING, DEFAULT_H_RATIO, FORMS, cross_gradient, cross_pairs, sbp_pair)
 from .pml import PML, sigma_max
-from .results import (CaseResult, CavityResult, FieldHistory, LineResult, PlanewaveResult, PMLResult, RunResult,
-                      ScatteringResult, TEzCavityResult, TEzPMLResult, TEzScatteringResult, WaveguideResult)
+from .results import (CaseResult, CavityResult, FieldHistory, LineResult, PlanewaveResult, PMLCertificate, PMLResult,
+                      RunResult, ScatteringResult, TEzCavityResult, TEzPMLResult, TEzScatteringResult, WaveguideResult)
 from .sources import GaussianPulse, Sinusoid, Source, line_source, point_source
 from .stability import cfl_number, leapfrog_growth, spectral_radius_bound
 from .tez import DISK_H_RATIO, TEzPMLSolver, TEzSolver
@@ -69,5 +70,5 @@ __all__ = [
     "scattering_layout", "tez_scattering_layout", "run_scattering", "run_tez_scattering",
     "RunResult", "FieldHistory", "CaseResult", "LineResult", "CavityResult", "PlanewaveResult", "WaveguideResult",
     "PMLResult", "ScatteringResult", "TEzScatteringResult", "TEzCavityResult", "TEzPMLResult",
-    "KroneckerSystem",
+    "KroneckerSystem", "restricted", "pml_certificate", "PMLCertificate",
 ]

@@ -29,7 +29,7 @@ from ..results import Result
 
 __all__ = ["RunResult", "FieldHistory", "CaseResult", "LineResult", "CavityResult", "PlanewaveResult",
            "WaveguideResult", "PMLResult", "ScatteringResult", "TEzScatteringResult", "TEzCavityResult",
-           "TEzPMLResult"]
+           "TEzPMLResult", "PMLCertificate"]
 
 
 @dataclass(frozen=True, repr=False, eq=False)
@@ -115,8 +115,36 @@ class CavityResult(CaseResult):
 
 
 @dataclass(frozen=True, repr=False, eq=False, kw_only=True)
+class PMLCertificate(Result):
+    """:func:`~manifold_sph.spem.certify.pml_certificate`: a layer's reflection measured on probes, in dB.
+
+    ``normal_db`` and ``oblique_db`` (45 degrees) are ``20 log10(max |E - E_ref| / max |E_ref|)`` at each
+    probe (None where the pulse never reaches it), for the layout, support ``h_ratio`` (h / dr) and
+    coupling of the run it certifies; ``seconds`` is the wall time of its two runs.
+    """
+
+    normal_db: float | None
+    oblique_db: float | None
+    layout: str
+    pml_cells: int
+    h_ratio: float
+    coupling: str
+    seconds: float
+
+    @property
+    def worst_db(self) -> float | None:
+        """The larger of the two reflections (None when neither is defined)."""
+        vals = [v for v in (self.normal_db, self.oblique_db) if v is not None]
+        return max(vals) if vals else None
+
+
+@dataclass(frozen=True, repr=False, eq=False, kw_only=True)
 class PlanewaveResult(CaseResult):
-    """:func:`~manifold_sph.spem.cases.run_planewave`; the line measures on lattice layouts only."""
+    """:func:`~manifold_sph.spem.cases.run_planewave`; the line measures on lattice layouts only.
+
+    ``pml_reflection_db``: the worst reflection of the run's layer measured by
+    :func:`~manifold_sph.spem.certify.pml_certificate` (None where not measured: ``certify=False``, or
+    the "mimetic" and "direct" couplings by default)."""
 
     layout: str
     form: str
@@ -125,11 +153,13 @@ class PlanewaveResult(CaseResult):
     error_centre: float
     adjacent_line_difference: float | None = None
     alternating_amplitude: float | None = None
+    pml_reflection_db: float | None = None
 
 
 @dataclass(frozen=True, repr=False, eq=False, kw_only=True)
 class WaveguideResult(CaseResult):
-    """:func:`~manifold_sph.spem.cases.run_waveguide`: frequency, cut-off and the evaluation line."""
+    """:func:`~manifold_sph.spem.cases.run_waveguide`: frequency, cut-off and the evaluation line;
+    ``pml_reflection_db`` as :class:`PlanewaveResult`'s."""
 
     layout: str
     form: str
@@ -138,6 +168,7 @@ class WaveguideResult(CaseResult):
     line_x: float
     ppw: float
     pml_cells: int
+    pml_reflection_db: float | None = None
 
 
 @dataclass(frozen=True, repr=False, eq=False, kw_only=True)

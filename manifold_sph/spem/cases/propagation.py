@@ -26,12 +26,13 @@ from numpy.typing import ArrayLike
 from scipy.special import j1
 
 from ..._validation import check_in, check_int, check_positive
+from ..certify import CERTIFIED_COUPLINGS, inside_box, pml_certificate, pml_probe, pulse, pulse_problem, restricted
 from ..constants import C0
 from ..layouts import Layout, make_layout, tez_layout
 from ..operators import DEFAULT_COUPLING
 from ..pml import PML
 from ..results import PlanewaveResult, PMLResult, TEzPMLResult, WaveguideResult
-from ..sources import GaussianPulse, Sinusoid, Source, point_source
+from ..sources import Sinusoid, Source, point_source
 from ..tez import DISK_H_RATIO, TEzPMLSolver
 from ..tmz import TMzSolver
 
@@ -136,6 +137,18 @@ def alternating_amplitude(points: ArrayLike, field: ArrayLike, dr: float, mask: 
     return float(max(vals)) if vals else float("nan")
 
 
+def _certificate(certify: bool | None, solver: TMzSolver, layout: str, pml_cells: int, *, kernel, form: str,
+                 seed) -> float | None:
+    """The worst reflection of the run's layer in dB (:func:`.certify.pml_certificate`), or None."""
+    if certify is None:
+        certify = solver.coupling in CERTIFIED_COUPLINGS
+    if not certify:
+        return None
+    return pml_certificate(layout, pml_cells=pml_cells, h_ratio=solver.h / solver.layout.dr, coupling=solver.coupling,
+                           kernel=kernel, form=form, mimetic_fast=bool(getattr(solver, "mimetic_fast", False)),
+                           seed=seed if isinstance(seed, (int, type(None))) else 0).worst_db
+
+
 def _with_pml(interior, pml_cells, dr, sides="all", order=3, reflection=1e-6):
     pml = PML(pml_cells * dr, order=order, reflection=reflection, interior=interior, sides=sides)
     return pml, pml.outer_bounds()
@@ -146,7 +159,8 @@ def run_planewave(*, size: float = 0.5, freq: float = 3.6e9, ppw: float = 40.0, 
                   layout: str = "yee", form: str = "fpm", kernel: str | Kernel | type[Kernel] = "cubic", h_ratio: float | None = None,
                   courant: float = 0.9, coupling: str = DEFAULT_COUPLING, travel: float = 0.8, ramp: float = 2.0,
                   seed: int | np.random.Generator | None = 0,
-                  source_span: str = "full", frames: int = 0, progress: bool = False) -> PlanewaveResult:
+                  source_span: str = "full", frames: int = 0, certify: bool | None = None,
+                  progress: bool = False) -> PlanewaveResult:
     """Free-space plane wave in a ``size`` square with PML on all sides ([2] sec. 4.5).
 
     A hard line source (a ramped sinusoid) on the band of E particles within
@@ -160,7 +174,10 @@ def run_planewave(*, size: float = 0.5, freq: float = 3.6e9, ppw: float = 40.0, 
     absorbs grazing incidence). ``adjacent_line_difference`` reports the
     largest difference between
     neighbouring lines parallel to the propagation (the failure of [2]:
-    O(1) on the staggered layout), relative to the amplitude.
+    O(1) on the staggered layout), relative to the amplitude. ``certify``:
+    also measure the layer's reflection on this layout, support and coupling
+    (:func:`.certify.pml_certificate`, reported as ``pml_reflection_db``; by
+    default for the couplings of :data:`.certify.CERTIFIED_COUPLINGS`).
     """
     size = check_positive("size", size)
     check_in("source_span", source_span, ("full", "interior"))
@@ -204,7 +221,8 @@ def run_planewave(*, size: float = 0.5, freq: float = 3.6e9, ppw: float = 40.0, 
         ppw=C0 / freq / dr, pml_cells=pml_cells, error_centre=relative_error(s.e_field[inside][centre], exact[centre]),
         adjacent_line_difference=adjacent_line_difference(e, s.e_field, dr, axis=0, mask=inside) if lattice else None,
         alternating_amplitude=alternating_amplitude(e, s.e_field, dr, mask=inside) if lattice else None,
-        fields=field_history(e, s.e_field, s.t, res, frames), consistency=s.consistency_residual())
+        fields=field_history(e, s.e_field, s.t, res, frames), consistency=s.consistency_residual(),
+        pml_reflection_db=_certificate(certify, s, layout, pml_cells, kernel=kernel, form=form, seed=seed))
 
 
 @timed
@@ -213,7 +231,7 @@ def run_waveguide(*, width: float = 0.5, length: float = 0.4, pml_thickness: flo
                   layout: str = "yee", form: str = "fpm", kernel: str | Kernel | type[Kernel] = "cubic",
                   h_ratio: float | None = None,
                   courant: float = 0.9, coupling: str = DEFAULT_COUPLING, ramp: float = 0.0, frames: int = 0,
-                  progress: bool = False) -> WaveguideResult:
+                  certify: bool | None = None, progress: bool = False) -> WaveguideResult:
     """Parallel-plate waveguide ([2] sec. 4.4): PEC plates x = 0 and x = ``width``, TM1 source at y = 0.
 
     The E particles of the row y = 0 are driven with
@@ -222,6 +240,7 @@ def run_waveguide(*, width: float = 0.5, length: float = 0.4, pml_thickness: flo
     ``y = length``. The exact field is the TM1 profile times the 1D
     propagator of the source signal (:func:`guided_exact`). Error along the
     line of E particles nearest ``x = line_x``, excluding the PML, at ``t_end``.
+    ``certify``: the layer's reflection, as in :func:`run_planewave`.
     """
     width = check_positive("width", width)
     ppw = check_positive("ppw", ppw)
@@ -265,13 +284,15 @@ def run_waveguide(*, width: float = 0.5, length: float = 0.4, pml_thickness: flo
                            step_seconds=res.seconds, error=relative_error(s.e_field[on_line], exact), dt=dt, dr=dr,
                            layout=layout, form=form, freq=freq, f_cutoff=fc, line_x=float(xs), ppw=C0 / freq / dr,
                            pml_cells=npml, fields=field_history(e, s.e_field, s.t, res, frames),
-                           consistency=s.consistency_residual())
+                           consistency=s.consistency_residual(),
+                           pml_reflection_db=_certificate(certify, s, layout, npml, kernel=kernel, form=form, seed=0))
 
 
 @timed
 def run_pml(*, cells: int = 60, pml_cells: int = 10, order: int = 3, reflection: float = 1e-6,
             layout: str = "yee", form: str = "fpm", kernel: str | Kernel | type[Kernel] = "cubic", h_ratio: float | None = None,
-            courant: float = 0.9, coupling: str = DEFAULT_COUPLING, dr: float = 1e-3, progress: bool = False) -> PMLResult:
+            courant: float = 0.9, coupling: str = DEFAULT_COUPLING, dr: float = 1e-3, seed: int | None = 0,
+            pml_check: bool = True, progress: bool = False) -> PMLResult:
     """PML reflection: a pulse in a ``cells`` square with PML, against a reference run without echo.
 
     A soft point source (differentiated-Gaussian-like modulated pulse, about
@@ -279,58 +300,35 @@ def run_pml(*, cells: int = 60, pml_cells: int = 10, order: int = 3, reflection:
     probes lie 5 spacings in front of the right layer (normal incidence) and
     in front of the top-right corner along the diagonal (oblique, 45 deg).
     The reference domain is large enough that no echo reaches the probes
-    within the window. Reflection = max |E - E_ref| / max |E_ref| at each
-    probe, in dB.
+    within the window; the test domain is cut out of the reference solver
+    (:func:`.certify.restricted`: the same weights in the shared domain, so
+    that on irregular layouts the difference is the layer's reflection, not a
+    difference of discretisations). Reflection = max |E - E_ref| / max |E_ref|
+    at each probe, in dB; ``consistency`` is the reference's (the cut
+    operators are its rows, inconsistent only at the cut behind the layer).
+    ``pml_check``: refuse a support outside the layer's validated range
+    (:data:`.tmz.PML_H_RATIO_MAX`), as :class:`.TMzSolver` does.
     """
     cells = check_int("cells", cells, minimum=10)
     pml_cells = check_int("pml_cells", pml_cells, minimum=1)
-    L = cells * dr
-    half = cells // 2
-    c = (half * dr, half * dr)
-    lam = 20 * dr
-    f0 = C0 / lam
-    tau = 1.0 / (math.pi * f0) * 1.5
-    wave = GaussianPulse(t0=4 * tau, tau=tau, freq=f0)
-    probes_xy = np.array([[L - 5 * dr, c[1]], [L - 5 * dr, L - 5 * dr]])
-    # window: pulse passes the farthest probe, plus the round trip through the layer
-    far = float(np.hypot(*(probes_xy[1] - c)))
-    t_end = 8 * tau + (far + 2 * (5 + pml_cells + 2) * dr * math.sqrt(2)) / C0
-    interior = (0.0, L, 0.0, L)
-    pml = PML(pml_cells * dr, order=order, reflection=reflection, interior=interior)
-    # reference: the shortest echo path source -> wall -> probe (>= half + 2 margin cells) exceeds c t_end
-    margin = int(math.ceil(max(0.0, C0 * t_end / dr - half) / 2)) + 4
-    results = {}
-    total_steps, seconds, particles = 0, 0.0, {}
-    runs = []
-    for name, bounds, p in (("test", pml.outer_bounds(), pml),
-                            ("reference", (-margin * dr, L + margin * dr, -margin * dr, L + margin * dr), None)):
-        lay = make_layout(layout, bounds, dr)
-        src = point_source(lay.e, c, wave, kind="soft")
-        s = TMzSolver(lay, h_ratio=h_ratio, kernel=kernel, form=form, coupling=coupling, pml=p, courant=courant,
-                      sources=[src])
-        runs.append((name, lay, s))
-    # one step for both runs, within both stability limits (the larger domain may be the stiffer one)
-    dt, steps = fit_dt(t_end, min(s.dt for _, _, s in runs))
-    for name, lay, s in runs:
-        s.set_dt(dt)
-        idx = [int(np.argmin(((lay.e - q) ** 2).sum(1))) for q in probes_xy]
-        res = s.run(steps, probes=idx, progress=progress)
-        results[name] = res.probes
-        total_steps += steps
-        seconds += res.seconds
-        particles[name] = lay.n_particles
-    diff = np.abs(results["test"] - results["reference"]).max(axis=0)
-    ref = np.abs(results["reference"]).max(axis=0)
-    # A probe the pulse never reaches in the reference (the staggered layout's
-    # decoupled E sublattices) has no defined reflection: reported as None.
-    ok = ref > 1e-9 * np.abs(results["reference"]).max()
-    rel = np.where(ok, diff / np.where(ok, ref, 1.0), np.nan)
-    db = [float(20 * np.log10(v)) if np.isfinite(v) else None for v in rel]
-    return PMLResult(case="pml", particles=particles["test"], steps=total_steps, seconds=seconds,
-                     step_seconds=seconds, error=float(rel[0]) if np.isfinite(rel[0]) else None, dt=dt, dr=dr,
-                     reference_particles=particles["reference"], reflection_normal_db=db[0],
-                     reflection_oblique_db=db[1], pml_cells=pml_cells, order=order, target_reflection=reflection,
-                     layout=layout, consistency=runs[0][2].consistency_residual())
+    dr = check_positive("dr", dr)
+    pml, probes_xy, c, t_end, ref_bounds = pulse_problem(cells, pml_cells, dr, order, reflection, layout)
+    wave, _ = pulse(dr)
+    lay = make_layout(layout, ref_bounds, dr, seed=seed)
+    ref = TMzSolver(lay, h_ratio=h_ratio, kernel=kernel, form=form, coupling=coupling, courant=courant,
+                    sources=[point_source(lay.e, c, wave, kind="soft")])
+    if pml_check:  # the layer's validated support (the reference has no layer: checked here)
+        TMzSolver.check_pml_support(ref.h / dr, coupling)
+    test = restricted(ref, inside_box(lay.e, pml.outer_bounds(), 1e-6 * dr), pml=pml)
+    dt, steps = fit_dt(t_end, ref.dt)
+    ref.set_dt(dt)
+    test.set_dt(dt)
+    db, seconds = pml_probe(test, ref, probes_xy, steps, progress=progress)
+    rel = [None if v is None else 10 ** (v / 20) for v in db]
+    return PMLResult(case="pml", particles=test.layout.n_particles, steps=2 * steps, seconds=seconds,
+                     step_seconds=seconds, error=rel[0], dt=dt, dr=dr, reference_particles=lay.n_particles,
+                     reflection_normal_db=db[0], reflection_oblique_db=db[1], pml_cells=pml_cells, order=order,
+                     target_reflection=reflection, layout=layout, consistency=ref.consistency_residual())
 
 
 def run_tez_pml(*, cells: int = 60, pml_cells: int = 10, order: int = 3, reflection: float = 1e-6,

@@ -1,0 +1,232 @@
+"""What certifies a run with absorbing layers: the PML reflection measured on probes.
+
+A PML is measured by two runs of one pulse: a domain with the layer, and a larger reference domain
+without it, large enough that no echo reaches the probes within the window; the reflection is
+``max |E - E_ref| / max |E_ref|`` at each probe. The two runs must use the *same operators* in the
+domain they share, or their difference is the difference of two discretisations, not the layer's
+reflection: on irregular layouts the "sbp" and "mimetic" corrections are global (a change of the
+domain changes every weight a little), and two random layouts differ by their discretisation errors
+(about 1e-2 at 20 particles per wavelength, read as -40 dB). :func:`restricted` therefore cuts the
+test domain out of the reference solver itself: the E particles outside the kept region are held at
+zero (a PEC wall behind the layer) and dropped with the H particles no kept E particle sees; every
+weight, volume and material value of the kept particles is the reference's. The cut operators are
+a principal part of the reference's energy-conserving pair, so the reference's stable step holds.
+
+:func:`pml_probe` runs the pair and returns the reflection per probe in dB;
+:func:`pml_certificate` measures the layer a case uses on a small pulse problem with the case's
+layout, support, coupling and layer (cached per configuration): the plane wave and the waveguide
+report it as ``pml_reflection_db``, and :func:`.cases.run_pml` is the same measurement at full size.
+
+Examples
+--------
+>>> from manifold_sph.spem import TMzSolver, yee_layout
+>>> s = TMzSolver(yee_layout((0.0, 0.02, 0.0, 0.02), 1e-3))
+>>> keep = (s.layout.e[:, 0] < 0.0105)
+>>> sub = restricted(s, keep)
+>>> sub.dt == s.dt, sub.n_e < s.n_e
+(True, True)
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from .._validation import check_int, check_positive
+from .constants import C0
+from .layouts import Layout, make_layout
+from .pml import PML
+from .results import PMLCertificate
+from .sources import GaussianPulse, Source, point_source
+from .tmz import TMzSolver
+
+__all__ = ["restricted", "pml_probe", "pml_certificate", "pulse", "pulse_problem", "inside_box", "CERTIFICATE_CELLS",
+           "CERTIFIED_COUPLINGS"]
+
+#: Interior of the certificate's pulse problem, in spacings (the source at its centre, the probes 5
+#: spacings in front of the right layer and of the top-right corner).
+CERTIFICATE_CELLS = 20
+
+#: The couplings whose cases measure their layer's certificate by default: "mimetic" is left out (its
+#: global set-up on the certificate's reference domain costs minutes), "direct" is refused by
+#: :func:`restricted` (not energy-conserving).
+CERTIFIED_COUPLINGS = ("sbp", "adjoint")
+
+
+def restricted(solver: TMzSolver, keep: ArrayLike, *, pml: PML | None = None) -> TMzSolver:
+    """The solver's problem on the E particles ``keep``, the others held at zero (a PEC wall), with ``pml``.
+
+    Every kept particle keeps the reference solver's weights, volumes, materials, sources and time
+    step; the dropped E particles are held at zero, and the H particles that no kept free E particle
+    sees are dropped too (they can no longer reach the field). Couplings "sbp", "mimetic" and
+    "adjoint" (energy-conserving: the cut pair is a principal part of the reference's, so its step
+    stays stable); "direct" is refused. The H rows that saw a dropped E particle lose that column, so
+    the sub-problem's :meth:`~.TMzSolver.consistency_residual` is O(1) at the cut (a PEC wall without
+    its closure): its certificate is the reference's.
+
+    Parameters
+    ----------
+    solver : TMzSolver
+        The reference (its fields are not used).
+    keep : (n_E,) bool array
+        The E particles of the sub-problem (usually those strictly inside a box).
+    pml : PML, optional
+        Absorbing layers of the sub-problem (their conductivities at the kept particles).
+    """
+    if not isinstance(solver, TMzSolver):
+        raise TypeError(f"solver must be a TMzSolver, got {type(solver).__name__}")
+    if solver.coupling == "direct":
+        raise ValueError("restricted needs an energy-conserving coupling ('sbp', 'mimetic' or 'adjoint'); the "
+                         "'direct' coupling's stability is not inherited by a sub-problem")
+    if pml is not None and not isinstance(pml, PML):
+        raise TypeError(f"pml must be a PML or None, got {type(pml).__name__}")
+    keep = np.asarray(keep)
+    if keep.dtype != bool or keep.shape != (solver.n_e,):
+        raise ValueError(f"keep must be a bool array of shape ({solver.n_e},), got {keep.dtype} {keep.shape}")
+    for src in solver.sources:
+        if not keep[src.indices].all():
+            raise ValueError("keep must contain every source particle")
+    lay = solver.layout
+    rows = keep[solver.free]  # kept rows of the E operators
+    Dxe, Dye = solver.Dx_e[rows], solver.Dy_e[rows]
+    seen_y = np.asarray(abs(Dxe).sum(axis=0)).ravel() > 0
+    seen_x = np.asarray(abs(Dye).sum(axis=0)).ravel() > 0
+    if lay.shared:
+        seen_x = seen_y = seen_x | seen_y
+    e_idx, hx_idx, hy_idx = np.flatnonzero(keep), np.flatnonzero(seen_x), np.flatnonzero(seen_y)
+    if not len(hx_idx) or not len(hy_idx):
+        raise ValueError("keep leaves no free E particle coupled to the H particles")
+    new = -np.ones(solver.n_e, dtype=np.int64)
+    new[e_idx] = np.arange(len(e_idx))
+    hx = lay.hx[hx_idx]
+    sub = object.__new__(TMzSolver)
+    sub.__dict__.update({k: v for k, v in solver.__dict__.items()
+                         if k not in ("_plan", "_fused", "_consistency", "_spectrum", "_pool")})
+    sub._pool = None
+    sub.layout = Layout(lay.e[e_idx], hx, hx if lay.shared else lay.hy[hy_idx], lay.dr, lay.name,
+                        lay.e_fixed[e_idx], lay.bounds, lay.h_ratio)
+    sub.pml = pml
+    sub.n_e = len(e_idx)
+    sub.eps_r, sub.sigma = solver.eps_r[e_idx], solver.sigma[e_idx]
+    sub.mu_r_x, sub.mu_r_y = solver.mu_r_x[hx_idx], solver.mu_r_y[hy_idx]
+    sub.sources = [Source(new[s.indices], s.waveform, s.kind) for s in solver.sources]
+    sub.driven = solver.driven[e_idx]
+    sub.free = new[solver.free[rows]]
+    sub.Dx_e, sub.Dy_e = Dxe[:, hy_idx].tocsr(), Dye[:, hx_idx].tocsr()
+    sub.Dx_hy = solver.Dx_hy[hy_idx][:, e_idx].tocsr()
+    sub.Dy_hx = solver.Dy_hx[hx_idx][:, e_idx].tocsr()
+    sub.vol_e = solver.vol_e[rows]
+    for name, idx in (("vol_hx", hx_idx), ("vol_hy", hy_idx)):
+        if getattr(solver, name, None) is not None:
+            setattr(sub, name, getattr(solver, name)[idx])
+    sub._set_losses()
+    sub.reset()
+    return sub
+
+
+def pml_probe(test: TMzSolver, reference: TMzSolver, probes: ArrayLike, steps: int, *,
+              progress: bool = False) -> tuple[list, float]:
+    """Reflection in dB at each probe point, ``20 log10(max |E - E_ref| / max |E_ref|)`` over ``steps`` steps,
+    and the seconds of the two runs.
+
+    ``test`` and ``reference`` run with the test's step from their current state; ``probes`` (P, 2) are
+    points (the nearest E particle of each solver). A probe the pulse never reaches in the reference
+    (less than 1e-9 of the largest recorded value) gives None.
+    """
+    pts = np.atleast_2d(np.asarray(probes, dtype=np.float64))
+    out, seconds = [], 0.0
+    for s in (test, reference):
+        if s is reference:
+            s.set_dt(test.dt)
+        res = s.run(steps, probes=s.probe_indices(pts), progress=progress)
+        out.append(res.probes)
+        seconds += res.seconds
+    diff = np.abs(out[0] - out[1]).max(axis=0)
+    ref = np.abs(out[1]).max(axis=0)
+    ok = ref > 1e-9 * max(float(ref.max()), 1e-300)
+    return [float(20 * np.log10(max(d / r, 1e-300))) if k else None for d, r, k in zip(diff, ref, ok)], seconds
+
+
+def pulse(dr: float) -> tuple[GaussianPulse, float]:
+    """The probe pulse (a modulated Gaussian, about 20 spacings per wavelength at its centre) and its ``tau``."""
+    f0 = C0 / (20 * dr)
+    tau = 1.5 / (math.pi * f0)
+    return GaussianPulse(t0=4 * tau, tau=tau, freq=f0), tau
+
+
+def pulse_problem(cells: int, pml_cells: int, dr: float, order: int, reflection: float,
+                  layout: str = "yee") -> tuple[PML, np.ndarray, tuple[float, float], float, tuple[float, ...]]:
+    """Geometry of the pulse problem: ``(pml, probe points, centre, window t_end, reference bounds)``.
+
+    The source sits at the centre of a ``cells`` square, the probes 5 spacings in front of the right
+    layer and of the top-right corner. On the staggered layout, whose two E sublattices (i + j even and
+    odd) only the walls couple, a probe off the source's sublattice moves one spacing inwards.
+    """
+    L = cells * dr
+    half = cells // 2
+    c = (half * dr, half * dr)
+    _, tau = pulse(dr)
+    probes = np.array([[L - 5 * dr, c[1]], [L - 5 * dr, L - 5 * dr]])
+    if layout == "staggered" and (cells - 5 + half) % 2:
+        probes[0, 0] -= dr
+    far = float(np.hypot(*(probes[1] - c)))
+    # window: the pulse passes the farthest probe, plus the round trip through the layer
+    t_end = 8 * tau + (far + 2 * (5 + pml_cells + 2) * dr * math.sqrt(2)) / C0
+    pml = PML(pml_cells * dr, order=order, reflection=reflection, interior=(0.0, L, 0.0, L))
+    # reference: the shortest echo path source -> wall -> probe (>= half + 2 margin cells) exceeds c t_end
+    margin = int(math.ceil(max(0.0, C0 * t_end / dr - half) / 2)) + 4
+    return pml, probes, c, t_end, (-margin * dr, L + margin * dr, -margin * dr, L + margin * dr)
+
+
+def inside_box(points: np.ndarray, bounds: Sequence[float], tol: float) -> np.ndarray:
+    """Points strictly inside the box ``bounds`` (by more than ``tol``)."""
+    x0, x1, y0, y1 = bounds
+    return (points[:, 0] > x0 + tol) & (points[:, 0] < x1 - tol) & (points[:, 1] > y0 + tol) & (points[:, 1] < y1 - tol)
+
+
+@functools.lru_cache(maxsize=32)
+def _certificate(layout: str, h_ratio: float | None, coupling: str, pml_cells: int, order: int, reflection: float,
+                 kernel: str, form: str, mimetic_fast: bool, seed: int | None) -> PMLCertificate:
+    dr = 1e-3
+    pml, probes, c, t_end, ref_bounds = pulse_problem(CERTIFICATE_CELLS, pml_cells, dr, order, reflection, layout)
+    wave, _ = pulse(dr)
+    lay = make_layout(layout, ref_bounds, dr, seed=seed)
+    kw = {"mimetic_fast": True} if mimetic_fast else {}
+    ref = TMzSolver(lay, h_ratio=h_ratio, kernel=kernel, form=form, coupling=coupling,
+                    sources=[point_source(lay.e, c, wave, kind="soft")], **kw)
+    test = restricted(ref, inside_box(lay.e, pml.outer_bounds(), 1e-6 * dr), pml=pml)
+    steps = int(math.ceil(t_end / ref.dt - 1e-9))
+    db, seconds = pml_probe(test, ref, probes, steps)
+    return PMLCertificate(normal_db=db[0], oblique_db=db[1], layout=layout, pml_cells=pml_cells,
+                          h_ratio=float(ref.h / dr), coupling=coupling, seconds=seconds)
+
+
+def pml_certificate(layout: str, *, pml_cells: int, order: int = 3, reflection: float = 1e-6,
+                    h_ratio: float | None = None, coupling: str = "sbp", kernel: str = "cubic", form: str = "fpm",
+                    mimetic_fast: bool = False, seed: int | None = 0) -> PMLCertificate:
+    """The reflection of a split-field PML with these settings, measured on probes (cached per configuration).
+
+    A soft pulse (about 20 spacings per wavelength at its centre) at the centre of a
+    :data:`CERTIFICATE_CELLS` square with the layer on every side, against the reference without it
+    (:func:`pml_probe`, the test domain cut out of the reference solver by :func:`restricted`), on the
+    layout ``layout`` (:func:`.layouts.make_layout`, ``seed``) with the support, coupling and layer of
+    the case: ``pml_cells`` spacings thick, profile ``order``, normal reflection target ``reflection``.
+
+    Examples
+    --------
+    >>> cert = pml_certificate("yee", pml_cells=6)
+    >>> cert.normal_db < -60, cert.oblique_db < -60
+    (True, True)
+    """
+    pml_cells = check_int("pml_cells", pml_cells, minimum=1)
+    order = check_int("order", order, minimum=0)
+    reflection = check_positive("reflection", reflection)
+    if h_ratio is not None:
+        h_ratio = float(check_positive("h_ratio", h_ratio))
+    kname = kernel if isinstance(kernel, str) else getattr(kernel, "name", str(kernel))
+    return _certificate(layout, h_ratio, coupling, pml_cells, order, float(reflection), kname, form,
+                        bool(mimetic_fast), seed)
