@@ -6,6 +6,9 @@ the CLI itself (``manifold_sph.spem.cli.main([... "--json"])``, in-process) and 
 code, error, error over the default-lattice error, steps over the default's, set-up and run seconds.
 Where the Yee FDTD references of ``benchmarks/spem_vs_yee.py`` / ``benchmarks/spem_tez.py`` apply (the
 TMz cavity, the cylinder scatterers), the staircased Yee error at the same spacing is printed beside.
+``PML dB`` is the reflection of the run's absorbing layer measured on probes: the plane wave's and the
+waveguide's ``pml_reflection_db`` (``spem.certify.pml_certificate`` on the run's layout, support and
+coupling), the pml case's worse of its normal and oblique reflections.
 
 The line ``VIOLATION`` marks a run that exits 0 with an error above ``--limit`` (default 10) times its
 default-lattice error (issue's target: none); ``steps x`` above 2 marks a time step collapsed by the
@@ -78,6 +81,16 @@ def error_of(d: dict) -> float | None:
     return 10 ** (max(flat) / 20) if flat else None
 
 
+def pml_db(d: dict) -> str:
+    """The run's PML reflection in dB, as printed (blank where the case has none or did not measure it)."""
+    v = d.get("pml_reflection_db")
+    if v is None and d.get("case") == "pml":
+        vals = [d.get("reflection_normal_db"), d.get("reflection_oblique_db")]
+        vals = [x for x in vals if x is not None]
+        v = max(vals) if vals else None
+    return "" if v is None else f"{v:.1f}"
+
+
 def timing(d: dict, wall: float) -> tuple[float, float]:
     """(set-up, run) seconds from the case's own fields."""
     if "setup_seconds" in d:
@@ -126,7 +139,7 @@ def main() -> None:
     rows = []
     violations = 0
     head = (f"{'case':>22s} {'layout':>16s} {'h/dr':>7s} {'exit':>4s} {'error':>9s} {'err x':>7s} {'steps':>8s} "
-            f"{'steps x':>7s} {'setup s':>8s} {'run s':>8s} {'Yee':>9s}")
+            f"{'steps x':>7s} {'setup s':>8s} {'run s':>8s} {'Yee':>9s} {'PML dB':>7s}")
     print(head)
     print("-" * len(head))
     for case in a.cases.split(","):
@@ -140,9 +153,9 @@ def main() -> None:
         yee = None if a.no_yee else yee_reference(case, extra)
         setup, run = timing(base, wall)
         print(f"{case:>22s} {'yee (default)':>16s} {'default':>7s} {0:>4d} {e0:9.3g} {1.0:7.2f} {s0:8d} {1.0:7.2f} "
-              f"{setup:8.2f} {run:8.2f} {yee if yee is None else format(yee, '9.3g')!s:>9s}", flush=True)
+              f"{setup:8.2f} {run:8.2f} {yee if yee is None else format(yee, '9.3g')!s:>9s} {pml_db(base):>7s}", flush=True)
         rows.append({"case": case, "layout": "yee", "h_ratio": None, "exit": 0, "error": e0, "steps": s0,
-                     "setup_seconds": setup, "run_seconds": run, "yee_error": yee})
+                     "setup_seconds": setup, "run_seconds": run, "yee_error": yee, "pml_db": pml_db(base)})
         chosen = layouts if a.layouts is None else [x for x in layouts if x in a.layouts.split(",")]
         for layout in chosen:
             for hr in a.h_ratios.split(","):
@@ -169,9 +182,10 @@ def main() -> None:
                 if s0 and steps > 2 * s0:
                     flag += "  steps>2x"
                 print(f"{case:>22s} {layout!s:>16s} {hr:>7s} {code:>4d} {e:9.3g} {ratio:7.2f} {steps:8d} "
-                      f"{steps / s0 if s0 else math.nan:7.2f} {setup:8.2f} {run:8.2f} {'':>9s}{flag}", flush=True)
+                      f"{steps / s0 if s0 else math.nan:7.2f} {setup:8.2f} {run:8.2f} {'':>9s} {pml_db(d):>7s}{flag}",
+                      flush=True)
                 rows.append({"case": case, "layout": layout, "h_ratio": hr, "exit": code, "error": e, "steps": steps,
-                             "setup_seconds": setup, "run_seconds": run, "error_ratio": ratio})
+                             "setup_seconds": setup, "run_seconds": run, "error_ratio": ratio, "pml_db": pml_db(d)})
     print(f"\n{violations} run(s) exit 0 with an error above {a.limit:g}x the default-lattice error")
     if a.json:
         Path(a.json).write_text(json.dumps(rows, indent=1))
