@@ -164,7 +164,7 @@ def pulse_problem(cells: int, pml_cells: int, dr: float, order: int, reflection:
 
     The source sits at the centre of a ``cells`` square, the probes 5 spacings in front of the right
     layer and of the top-right corner. On the staggered layout, whose two E sublattices (i + j even and
-    odd) only the walls couple, a probe off the source's sublattice moves one spacing inwards.
+    odd) only the walls couple, a probe off the sublattice that holds the source moves one spacing inwards.
     """
     L = cells * dr
     half = cells // 2
