@@ -155,8 +155,8 @@ def warm(client):
 
 
 def throughput(n, sampling="fibonacci", keep=("laplacian", "derivatives")):
-    from manifold_sph.reference import shapes
     from manifold_sph.distributed import TiledSurface
+    from manifold_sph.reference import shapes
 
     cloud = shapes.sphere(n, sampling=sampling, seed=1)
     opts = {"area": "shepard"}
@@ -437,9 +437,8 @@ def main():
         ("sphere, estimated normals", cloud.points, None, {"area": "shepard"}, -(-n // 4)),
     ]
     if not args.quick and args.scan.exists():
-        from manifold_sph.scans.io import read
-
         from manifold_sph import estimate_normals
+        from manifold_sph.scans.io import read
 
         scan = read(args.scan, normals="none")
         quarter = -(-scan.points.shape[0] // 4)

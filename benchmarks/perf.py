@@ -95,16 +95,16 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from manifold_sph import PointCloud, Surface, _jit, estimate_normals, read, threads
-from manifold_sph.reference import shapes
-from manifold_sph.reference.accuracy import exact_operators
 from manifold_sph.area import area_elements
 from manifold_sph.assembly import assemble
-from manifold_sph.reference.errors import error_summary
 from manifold_sph.frames import check_frames, project_neighborhood, tangent_frames
-from manifold_sph.reference.functions import cos_xz_sin_y
 from manifold_sph.kernels import get_kernel
 from manifold_sph.neighbors import GRID_MIN_POINTS, H_SAMPLE, find_neighbors, smoothing_length_for_count
 from manifold_sph.pde import heat
+from manifold_sph.reference import shapes
+from manifold_sph.reference.accuracy import exact_operators
+from manifold_sph.reference.errors import error_summary
+from manifold_sph.reference.functions import cos_xz_sin_y
 from manifold_sph.schemes import get_scheme
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))

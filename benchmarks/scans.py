@@ -41,13 +41,13 @@ import numpy as np
 from scipy.sparse import csgraph
 
 from manifold_sph import Surface
+from manifold_sph.normals import estimate_normals
+from manifold_sph.pde import heat
 from manifold_sph.reference import functions, shapes
 from manifold_sph.reference.accuracy import operator_errors
 from manifold_sph.scans.boundary import detect_boundary
 from manifold_sph.scans.cleaning import clean
 from manifold_sph.scans.io import read
-from manifold_sph.normals import estimate_normals
-from manifold_sph.pde import heat
 
 SCHEMES = ["standard", "cspm", "msph", "ncsph"]
 DEFAULT_SCANS = Path(__file__).resolve().parents[2] / "shared" / "data" / "scans"

@@ -7,8 +7,8 @@ Writes ``area_elements_sphere.png`` (dV on the points, two panels) and
 """
 
 import numpy as np
-
 from _common import can_render, parse, report
+
 from manifold_sph import Surface
 from manifold_sph.reference import shapes
 from manifold_sph.viz.plots import area_histogram

@@ -8,8 +8,8 @@ total heat, which diffusion conserves up to the scheme's error.
 """
 
 import numpy as np
-
 from _common import can_render, parse, report
+
 from manifold_sph import Surface, pde
 from manifold_sph.reference import shapes
 

@@ -10,14 +10,14 @@ Writes boxplots of the Laplacian errors and the error fields in the plane.
 """
 
 import numpy as np
-
 from _common import can_render, parse, report
+
 from manifold_sph import Domain2D
 from manifold_sph.reference import functions
 from manifold_sph.reference.accuracy import planar_errors
 from manifold_sph.reference.errors import absolute_error
-from manifold_sph.viz.plots import error_boxplot
 from manifold_sph.reference.sampling import square
+from manifold_sph.viz.plots import error_boxplot
 
 SCHEMES = ("standard", "cspm", "msph", "ncsph")
 

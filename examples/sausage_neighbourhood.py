@@ -8,11 +8,11 @@ at one tip also finds particles of the other tip; the normal filter
 """
 
 import numpy as np
-
 from _common import can_render, parse, report
+
 from manifold_sph import Surface
-from manifold_sph.reference import shapes
 from manifold_sph.neighbors import find_neighbors
+from manifold_sph.reference import shapes
 
 
 def main(argv=None) -> int:

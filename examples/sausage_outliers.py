@@ -10,8 +10,8 @@ pictures, the boxplot per scheme, and prints where the Tukey outliers are.
 """
 
 import numpy as np
-
 from _common import can_render, parse, report
+
 from manifold_sph import Surface
 from manifold_sph.reference import functions, shapes
 from manifold_sph.reference.errors import absolute_error, boxplot_summary

@@ -9,6 +9,7 @@ operator and, for CSPM, the panels f | exact | SPH | error and the gradient arro
 
 
 from _common import can_render, parse, report
+
 from manifold_sph import Surface
 from manifold_sph.reference import functions, shapes
 from manifold_sph.reference.errors import absolute_error, error_summary

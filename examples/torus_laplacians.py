@@ -10,6 +10,7 @@ the pointwise errors of the four schemes.
 import warnings
 
 from _common import can_render, parse, report
+
 from manifold_sph import Surface
 from manifold_sph.exceptions import ManifoldSPHWarning
 from manifold_sph.reference import functions, shapes

@@ -8,8 +8,8 @@ Laplacian, centred scheme at half the stability limit). Writes ``wave_sphere.gif
 """
 
 import numpy as np
-
 from _common import can_render, parse, report
+
 from manifold_sph import Surface, pde
 from manifold_sph.reference import shapes
 from manifold_sph.viz.plots import save_figure

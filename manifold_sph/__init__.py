@@ -19,13 +19,13 @@ from __future__ import annotations
 
 import importlib as _importlib
 
-from .pointcloud import PointCloud, as_cloud
-from .surface import Surface
 from .domain import Domain2D
-from .scans.io import read, write
-from .normals import estimate_normals
-from .threads import get_num_threads, set_num_threads
 from .exceptions import ManifoldSPHWarning
+from .normals import estimate_normals
+from .pointcloud import PointCloud, as_cloud
+from .scans.io import read, write
+from .surface import Surface
+from .threads import get_num_threads, set_num_threads
 
 __version__ = "0.2.0"
 

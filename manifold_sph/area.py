@@ -17,12 +17,12 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .diagnostics import note
 from . import _jit
 from ._sparse import MIN_THREADED_NNZ, RowBlocks, bicgstab_csr
 from ._validation import check_positive
-from .kernels import Kernel, QuinticSpline
+from .diagnostics import note
 from .frames import PairOffsets, offsets_of_rows
+from .kernels import Kernel, QuinticSpline
 from .neighbors import Neighborhood, release_freed_memory
 from .threads import get_num_threads, in_chunk, pool, run_chunks
 

@@ -20,8 +20,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from . import _jit
-from .kernels import Kernel, QuinticSpline
 from .frames import PairOffsets, offsets_at, offsets_of_rows
+from .kernels import Kernel, QuinticSpline
 from .neighbors import Neighborhood
 from .schemes import Scheme, get_scheme
 from .schemes.base import LocalPairs

@@ -58,8 +58,8 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numpy.typing import ArrayLike
 
-from .results import Result
 from ._validation import check_bool, check_in, check_int, check_positive
+from .results import Result
 
 __all__ = [
     "CHOLESKY_MAX_N",

@@ -58,9 +58,9 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.sparse.csgraph import connected_components
 
-from .results import Result
 from ._validation import check_in, check_int
 from .exceptions import ManifoldSPHWarning
+from .results import Result
 from .solvers import choose_spd_method, linear_solver, spd_solver
 
 __all__ = ["DENSE_MAX_N", "MAX_MASS", "MIN_MASS", "EIGS_METHODS", "Eigenpairs", "stable_eigenpairs"]

@@ -57,7 +57,7 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike
 
 from . import _jit
-from ._validation import describe, as_points, check_finite, check_int, check_positive
+from ._validation import as_points, check_finite, check_int, check_positive, describe
 from .threads import run_chunks
 
 __all__ = ["VoronoiCells", "voronoi_cells", "lift_offsets", "roughness", "stiffness_matrix", "DUPLICATE_TOL"]

@@ -16,7 +16,6 @@ import sys
 
 import pytest
 
-
 _CONFIG = None  # pytest's config, kept by pytest_configure for the probe's shared folder
 
 

@@ -7,9 +7,9 @@ import pytest
 from scipy.sparse import csgraph
 
 from manifold_sph import Surface
+from manifold_sph.pde import heat
 from manifold_sph.reference import shapes
 from manifold_sph.scans.boundary import angular_gaps, detect_boundary
-from manifold_sph.pde import heat
 
 
 @pytest.fixture(scope="module")

@@ -163,11 +163,10 @@ def test_models_lose_almost_nothing(name):
     path = DATA / "models" / f"{name}.obj"
     if not path.is_file():
         pytest.skip(f"{path} not found (the models live outside the repository)")
-    from manifold_sph.scans.io import read
-
     import warnings
 
     from manifold_sph import ManifoldSPHWarning
+    from manifold_sph.scans.io import read
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ManifoldSPHWarning)  # the meshes repeat seam vertices: merged, said

@@ -48,8 +48,6 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 
-
-
 def _demo(out, capsys, *options):
     assert main(["demo", "--out", str(out), "--n", "1002", "--json", *options]) == 0
     summary = json.loads(capsys.readouterr().out)

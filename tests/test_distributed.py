@@ -7,8 +7,8 @@ pytest.importorskip("dask")
 pytest.importorskip("distributed")
 
 from manifold_sph import Surface, pde  # noqa: E402
+from manifold_sph.distributed import TileBuildError, TiledSurface  # noqa: E402
 from manifold_sph.reference import shapes
-from manifold_sph.distributed import TiledSurface, TileBuildError  # noqa: E402
 
 RTOL = 1e-12
 

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from manifold_sph.reference import shapes
 from manifold_sph._sparse import RowBlocks
 from manifold_sph.frames import project_neighborhood, project_pairs, tangent_frames
 from manifold_sph.kernels import Kernel, QuinticSpline
 from manifold_sph.neighbors import find_neighbors
+from manifold_sph.reference import shapes
 
 
 @pytest.mark.parametrize("n_blocks", [1, 2, 3, 7])

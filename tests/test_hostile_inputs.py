@@ -12,8 +12,8 @@ import warnings
 import numpy as np
 import pytest
 
-from manifold_sph.reference import shapes
 from manifold_sph._validation import as_field, as_points
+from manifold_sph.reference import shapes
 from manifold_sph.scans.io import ReadError, read, read_las_chunks, read_mesh, write
 
 

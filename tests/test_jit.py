@@ -16,11 +16,11 @@ import numpy as np
 import pytest
 
 from manifold_sph import Domain2D, Surface, _jit
-from manifold_sph.reference import sampling, shapes
 from manifold_sph.area import kernel_values
 from manifold_sph.frames import project_neighborhood, project_pairs, tangent_frames
 from manifold_sph.kernels import QuinticSpline
 from manifold_sph.neighbors import find_neighbors
+from manifold_sph.reference import sampling, shapes
 
 RTOL = 1e-11
 

@@ -110,8 +110,8 @@ def test_pair_offsets_are_projected_identically():
     """Surfaces project pair offsets per chunk instead of storing them: the chunks, a few pairs and
     the whole array must equal the one-pass projection bit for bit (operators stay invariant)."""
     from manifold_sph import Surface
-    from manifold_sph.reference import shapes
     from manifold_sph.frames import PairOffsets, project_neighborhood
+    from manifold_sph.reference import shapes
 
     s = Surface(shapes.sphere(3000))
     nb = s.neighborhood

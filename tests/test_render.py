@@ -95,8 +95,9 @@ def test_robust_limits_narrow_heavy_tails_only():
 
 
 def test_diverging_map_centred_at_zero_for_signed_fields():
-    from manifold_sph.viz.style import DIVERGING, field_colormap
     from matplotlib import colormaps
+
+    from manifold_sph.viz.style import DIVERGING, field_colormap
 
     assert field_colormap(0.5, 2.0) == "viridis" and field_colormap(-3.0, -1.0) == "viridis"
     assert field_colormap(-1.0, 1.0, "magma") == "magma"
@@ -426,8 +427,9 @@ def test_splats_hide_the_back_side(cloud):
 
 @needs_gl
 def test_nan_and_inf_are_drawn_grey_and_counted(cloud):
-    from manifold_sph.viz.style import NAN_COLOR
     from matplotlib.colors import to_rgb
+
+    from manifold_sph.viz.style import NAN_COLOR
 
     f = cloud.points[:, 2].copy()
     f[cloud.points[:, 0] > 0.3] = np.inf  # e.g. particles a geodesic did not reach

@@ -16,9 +16,9 @@ import math
 import numpy as np
 import pytest
 
+from manifold_sph.pointcloud import PointCloud
 from manifold_sph.reference import functions as fn
 from manifold_sph.reference.functions import VectorField
-from manifold_sph.pointcloud import PointCloud
 from manifold_sph.reference.shapes import (
     DoubleTorus,
     ImplicitShape,

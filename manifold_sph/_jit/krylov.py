@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-
 from .compile import U, njit
 
 __all__ = ["csr_matvec_dot", "csr_matvec_dots2", "bicgstab_direction", "bicgstab_half", "bicgstab_step"]

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-
 from .compile import U, njit
 
 __all__ = ["ssor_count", "ssor_fill", "ssor_backward", "ssor_forward", "ssor_upper_times", "ssor_residual"]

@@ -49,11 +49,11 @@ def run_demo(out: str | os.PathLike[str], *, n: int = 4032, render: bool = True,
 
     from .. import pde
     from ..reference import functions
-    from ..viz import plots
     from ..reference.accuracy import exact_operators, format_rows, operator_errors
     from ..reference.errors import absolute_error, l2_error
     from ..reference.shapes import sphere
     from ..surface import Surface
+    from ..viz import plots
 
     out = out_dir(out)
     names = ["summary.json", "summary.txt", "boxplot_laplacian.png", "boxplot_gradient.png", "area_histogram.png"]

@@ -7,8 +7,18 @@ import json
 import numpy as np
 
 from .common import UserError, add_common_options, add_picture_options, cloud_from_args, positive_int_arg
-from .inputs import (add_colour_options, add_input, add_out, add_save, add_surface_options, build_surface,
-                     check_outputs, draw, progress, save_values)
+from .inputs import (
+    add_colour_options,
+    add_input,
+    add_out,
+    add_save,
+    add_surface_options,
+    build_surface,
+    check_outputs,
+    draw,
+    progress,
+    save_values,
+)
 
 __all__ = ["add_parsers"]
 

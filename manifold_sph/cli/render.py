@@ -8,8 +8,19 @@ from pathlib import Path
 import numpy as np
 
 from .common import UserError, add_picture_options
-from .inputs import (add_colour_options, add_input, add_out, add_save, add_surface_options, build_surface,
-                     check_outputs, draw, progress, read_input, save_values)
+from .inputs import (
+    add_colour_options,
+    add_input,
+    add_out,
+    add_save,
+    add_surface_options,
+    build_surface,
+    check_outputs,
+    draw,
+    progress,
+    read_input,
+    save_values,
+)
 
 __all__ = ["add_parsers"]
 

@@ -7,8 +7,17 @@ import sys
 
 import numpy as np
 
-from .common import (FOUR_SCHEMES, UserError, add_common_options, add_picture_options, check_free, check_size,
-                     cloud_from_args, sizes_arg, surface_kwargs)
+from .common import (
+    FOUR_SCHEMES,
+    UserError,
+    add_common_options,
+    add_picture_options,
+    check_free,
+    check_size,
+    cloud_from_args,
+    sizes_arg,
+    surface_kwargs,
+)
 from .inputs import add_input, add_out, check_outputs
 
 __all__ = ["add_parsers"]

@@ -153,8 +153,9 @@ def _poisson(job, R, its, secs):
 
 
 def _geodesic(job, R, its, secs):
-    from ..distributed.solve import GEODESIC_T, SOURCE_RADIUS
     from scipy.spatial import cKDTree
+
+    from ..distributed.solve import GEODESIC_T, SOURCE_RADIUS
 
     src = np.asarray(_load(job, "sources"), dtype=np.int64)
     pts = np.load(job["points"], mmap_mode="r")

@@ -13,12 +13,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from . import functions, shapes
-from .errors import ConvergenceTable, convergence_study, error_summary
-from .functions import ScalarFunction
 from ..pointcloud import PointCloud
 from ..schemes import SCHEMES
 from ..surface import Surface
+from . import functions, shapes
+from .errors import ConvergenceTable, convergence_study, error_summary
+from .functions import ScalarFunction
 
 __all__ = [
     "SHAPES", "SCALAR_FUNCTIONS", "make_cloud", "get_function", "operator_errors", "curvature_errors", "convergence",

@@ -31,9 +31,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .._validation import check_bool, check_finite, check_in, check_int, check_positive
 from ..exceptions import ManifoldSPHWarning
 from ..results import Result
-from .._validation import check_bool, check_finite, check_in, check_int, check_positive
 
 __all__ = [
     "absolute_error",

@@ -20,8 +20,8 @@ import warnings
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..exceptions import ManifoldSPHWarning
 from .._validation import as_field, as_points, check_finite, check_in, check_int, check_positive
+from ..exceptions import ManifoldSPHWarning
 from ..pointcloud import MIN_POINTS, PointCloud
 from . import sampling as _sampling
 

@@ -40,7 +40,6 @@ from ..pointcloud import MIN_POINTS
 from ..threads import get_num_threads
 
 
-
 class ImplicitShape(Protocol):
     """What the surface samplers need of a shape (:class:`manifold_sph.reference.shapes.ImplicitShape`)."""
 

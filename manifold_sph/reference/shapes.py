@@ -19,8 +19,8 @@ from numpy.typing import ArrayLike
 from .._validation import as_points, check_finite, check_int, check_positive
 from ..pointcloud import MIN_POINTS, PointCloud
 from . import sampling as _sampling
-from .sampling import square
 from .implicit import AREA_CACHE, AXIS_MIN, TINY, ImplicitShape, as_center
+from .sampling import square
 
 __all__ = [
     "ImplicitShape",

@@ -51,14 +51,19 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .._validation import (
-    as_field, as_points, check_bool, check_in, check_int, check_output_path, check_positive, check_real_array,
+    as_field,
+    as_points,
+    check_bool,
+    check_in,
+    check_int,
+    check_output_path,
+    check_positive,
+    check_real_array,
 )
 from .style import NAN_COLOR, color_limits, detect_up_axis, field_colormap, fit_title, splat_radii, up_vector
 
 if TYPE_CHECKING:  # no run-time imports: pyvista and the operator stack load only when used
-    from ..operators import OperatorSet
     from ..pde import Solution
-    from ..pointcloud import PointCloud
 
 __all__ = [
     "CAMERAS",
