@@ -26,8 +26,8 @@ Steps, each timed separately (median of ``--repeat`` runs, ``time.perf_counter``
   neighbourhood, the others on 27; area elements: numerical, msph4 does not use them);
 - ``end-to-end <scheme>``: the whole :class:`Surface` construction (cspm with the
   default ``area="numerical"`` and with ``"shepard"``; msph4 with ``"shepard"``);
-- ``matvec``: scipy's ``L @ f`` (one thread) and ``s.laplacian(f)`` (row blocks on threads) on the cspm Laplacian, and ``stream bytes``: reading the CSR
-  arrays once (``np.sum(data)``, ``np.max(indices)``, ``np.max(indptr)``);
+- ``matvec``: scipy's ``L @ f`` (one thread) and ``s.laplacian(f)`` (row blocks on threads) on the cspm Laplacian, and
+  ``stream bytes``: reading the CSR arrays once (``np.sum(data)``, ``np.max(indices)``, ``np.max(indptr)``);
 - ``heat``: :func:`manifold_sph.pde.heat`, implicit Euler, one step (the step-matrix
   build, the factorisation or the Jacobi set-up, and the solve): ``direct`` (sparse LU)
   up to 20,000 points, ``iterative`` (BiCGSTAB) always. Its error is that of the
@@ -69,8 +69,8 @@ neighbours; build = KD-tree + neighbour lists + ``generateAlphas``).
 Threads: nothing is limited (numpy, scipy ``workers=-1``, Kokkos/OpenMP all use
 every core). ``OMP_WAIT_POLICY`` defaults to ``PASSIVE`` here (set before the peers
 load): with OpenMP's default spinning, pycompadre's idle Kokkos threads kept a core
-busy and slowed every threaded step of ours measured after it in the same process. The load average before and after is printed, because other jobs
-may share the machine.
+busy and slowed every threaded step of ours measured after it in the same process. The load average before and after is printed,
+because other jobs may share the machine.
 """
 
 from __future__ import annotations
@@ -240,11 +240,13 @@ def bench_size(n, repeat, mem, peers, pc):
     t_build, _ = timed(lambda: cKDTree(pts), repeat)
     add("  of which tree build", t_build, None, None, "single-threaded")
     t_knn, _ = timed(lambda: tree.query(pts, k=32, distance_upper_bound=radius, workers=-1), repeat)
-    add("kdtree kNN k=32 (bare)", t_knn, None, traced_peak(lambda: tree.query(pts, k=32, distance_upper_bound=radius, workers=-1), mem), "prebuilt tree, workers=-1")
+    add("kdtree kNN k=32 (bare)", t_knn, None, traced_peak(lambda: tree.query(pts, k=32, distance_upper_bound=radius, workers=-1), mem),
+        "prebuilt tree, workers=-1")
 
     # the steps of the cspm pipeline
     t_h, _ = timed(lambda: smoothing_length_for_count(pts, k27, sup, tree=tree), repeat)
-    add("h (smoothing length)", t_h, e_cspm, traced_peak(lambda: smoothing_length_for_count(pts, k27, sup, tree=tree), mem), f"k-NN k={int(np.ceil(1.5 * k27)) + 4} on {min(n, H_SAMPLE)} strided points")
+    add("h (smoothing length)", t_h, e_cspm, traced_peak(lambda: smoothing_length_for_count(pts, k27, sup, tree=tree), mem),
+        f"k-NN k={int(np.ceil(1.5 * k27)) + 4} on {min(n, H_SAMPLE)} strided points")
     nbf = lambda: find_neighbors(pts, nrm, h=h, support=sup, tree=tree)
     t_nb, _ = timed(nbf, repeat)
     add("neighbours", t_nb, e_cspm, traced_peak(nbf, mem), f"{nb.indices.size} pairs")
@@ -262,7 +264,8 @@ def bench_size(n, repeat, mem, peers, pc):
         fn = lambda m=m: area_elements(m, nb, xy, kernel)
         area_t[m], _ = timed(fn, repeat)
         ops = assemble(nb, xy, areas[m].dV[nb.indices], kernel, get_scheme("cspm"), n_cols=n)
-        add(f"area {m}", area_t[m], lap_err(ops.lap @ f, lap_ex), traced_peak(fn, mem), f"error: cspm with these dV, {areas[m].n_negative} negative")
+        add(f"area {m}", area_t[m], lap_err(ops.lap @ f, lap_ex), traced_peak(fn, mem),
+            f"error: cspm with these dV, {areas[m].n_negative} negative")
 
     asm_t, asm_err = {}, {}
     for name in SCHEMES:
@@ -309,7 +312,8 @@ def bench_size(n, repeat, mem, peers, pc):
     add("matvec scipy L @ f", t_sp, e_cspm, traced_peak(lambda: L @ f, mem), f"nnz {L.nnz}, {nbytes / 2**20:.1f} MB CSR, one thread")
     s.laplacian(f, form="strong")  # splits L into row blocks once
     t_mv, _ = timed(lambda: s.laplacian(f, form="strong"), max(repeat, 3), min_time=0.05)
-    add("matvec s.laplacian(f)", t_mv, e_cspm, traced_peak(lambda: s.laplacian(f, form="strong"), mem), "row blocks on threads, input checks included")
+    add("matvec s.laplacian(f)", t_mv, e_cspm, traced_peak(lambda: s.laplacian(f, form="strong"), mem),
+        "row blocks on threads, input checks included")
     stream = lambda: (float(np.sum(L.data)), int(np.max(L.indices)), int(np.max(L.indptr)))
     t_st, _ = timed(stream, max(repeat, 3), min_time=0.05)
     add("stream matrix bytes", t_st, None, None, f"{nbytes / t_st / 1e9:.1f} GB/s; matvec/stream x{t_mv / t_st:.2f}")
@@ -327,7 +331,8 @@ def bench_size(n, repeat, mem, peers, pc):
             "error of the increment (u0 = z)" + (", includes LU" if solver == "direct" else ", BiCGSTAB 1e-10"))
 
     res = {
-        "e2e_cspm": t_e2e, "e2e_cspm_err": e_cspm, "e2e_cspm_1thread": t_e2e1, "bare_radius": t_bare, "bare_radius_w1": t_bare1, "bare_knn": t_knn,
+        "e2e_cspm": t_e2e, "e2e_cspm_err": e_cspm, "e2e_cspm_1thread": t_e2e1,
+        "bare_radius": t_bare, "bare_radius_w1": t_bare1, "bare_knn": t_knn,
         "e2e_msph4": t_m4, "e2e_msph4_err": e_m4, "matvec": t_mv, "matvec_scipy": t_sp, "stream": t_st, "peak_e2e_mb": p_e2e,
         "e2e_cspm_shepard": t_e2e_sh, "e2e_cspm_shepard_err": e_sh, "spectrum_err": spec,
         "assembly": asm_t, "assembly_err": asm_err, "heat": heat_t,
@@ -439,7 +444,8 @@ def targets(results):
         if "gmls_p2" in p:
             ratio = p["gmls_p2"]["time_s"] / r["e2e_cspm"]
             check(f"N={n} cspm build >= 3x faster than GMLS p2", ratio, ratio >= 3,
-                  f"x{ratio:.2f} (ours {r['e2e_cspm']:.3f} s, err {r['e2e_cspm_err']:.2e}; GMLS {p['gmls_p2']['time_s']:.3f} s, err {p['gmls_p2']['lap_l2']:.2e})")
+                  f"x{ratio:.2f} (ours {r['e2e_cspm']:.3f} s, err {r['e2e_cspm_err']:.2e}; "
+                  f"GMLS {p['gmls_p2']['time_s']:.3f} s, err {p['gmls_p2']['lap_l2']:.2e})")
             ratio = p["gmls_p2"]["time_s"] / r["e2e_cspm_shepard"]
             check(f"N={n} cspm build, area='shepard', >= 3x faster than GMLS p2", ratio, ratio >= 3,
                   f"x{ratio:.2f} (ours {r['e2e_cspm_shepard']:.3f} s, err {r['e2e_cspm_shepard_err']:.2e})")

@@ -58,7 +58,7 @@ def cotan(verts, faces):
     K = sp.csr_matrix((len(verts), len(verts)))
     rows, cols, vals = [], [], []
     for a in range(3):
-        i, j, k = faces[:, a], faces[:, (a + 1) % 3], faces[:, (a + 2) % 3]
+        j, k = faces[:, (a + 1) % 3], faces[:, (a + 2) % 3]
         e1, e2 = v[:, (a + 1) % 3] - v[:, a], v[:, (a + 2) % 3] - v[:, a]
         cot = np.einsum("ij,ij->i", e1, e2) / np.linalg.norm(np.cross(e1, e2), axis=1)
         rows += [j, k]

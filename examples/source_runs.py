@@ -54,7 +54,8 @@ def main(argv=None) -> int:
     ):
         w = pde.wave(s, u0, dt=dtw, steps=steps, c=c, every=max(1, steps // 4))
         print(f"wave ({label}): c = {c}, dt = {dtw} (limit {wl:.4g}), {steps} steps; "
-              f"max |u| {np.abs(w.snapshots[-1]).max():.3f}; mass {np.dot(s.dV, w.snapshots[0]):.4f} -> {np.dot(s.dV, w.snapshots[-1]):.4f}")
+              f"max |u| {np.abs(w.snapshots[-1]).max():.3f}; "
+              f"mass {np.dot(s.dV, w.snapshots[0]):.4f} -> {np.dot(s.dV, w.snapshots[-1]):.4f}")
         waves[label] = w
 
     out = []

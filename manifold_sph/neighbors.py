@@ -96,10 +96,10 @@ def check_scale(points: np.ndarray, h: float | np.ndarray | None = None) -> None
     --------
     >>> import numpy as np
     >>> check_scale(np.eye(3) * 1e100, 1e99)
-    >>> check_scale(np.eye(3) * 1e-140, 1e-146)
+    >>> check_scale(np.eye(3) * 1e-140, 1e-146)  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    ValueError: h (smoothing length, about the point spacing) must lie in [1e-145, 1e+145], got 1e-146: areas (h^2) and kernel values (1/h^2) would leave double precision; multiply the points by a power of ten (the operators scale exactly: a Laplacian by 1/s^2 when the points are multiplied by s)
+    ValueError: h (smoothing length, about the point spacing) must lie in [1e-145, 1e+145], got 1e-146: areas (h^2) and ...
     """
     pts = np.asarray(points)
     if pts.size:
@@ -498,27 +498,27 @@ def _grid_search(pts, nr, radii, normal_threshold, workers, index_dtype):
     run_chunks(lambda c: _jit.grid_sort_columns(int(col_cuts[c]), int(col_cuts[c + 1]), pts, ax_z, colptr, order),
                col_cuts.size - 1, workers)
     use = nr is not None
-    ps = np.empty((n, 3))
-    ns = np.empty((n, 3)) if use else np.zeros((1, 3))
-    zs = np.empty(n)
-    ca = np.empty(n, dtype=np.int64)
-    cb = np.empty(n, dtype=np.int64)
-    nr_c = np.ascontiguousarray(nr) if use else ns
+    # the sorted copies (points, normals, third coordinate, column coordinates) in a dict that the
+    # closures read and that is cleared once the rows are found: the memory goes before the scatter
+    buf = {"ps": np.empty((n, 3)), "ns": np.empty((n, 3)) if use else np.zeros((1, 3)), "zs": np.empty(n),
+           "ca": np.empty(n, dtype=np.int64), "cb": np.empty(n, dtype=np.int64)}
+    nr_c = np.ascontiguousarray(nr) if use else buf["ns"]
     starts = list(range(0, n, _GRID_ROWS))
     run_chunks(lambda c: _jit.grid_gather(starts[c], min(starts[c] + _GRID_ROWS, n), order, pts, nr_c, use, lo, cell,
-                                          ax_a, ax_b, ax_z, n_a, n_b, ps, ns, zs, ca, cb), len(starts), workers)
+                                          ax_a, ax_b, ax_z, n_a, n_b, buf["ps"], buf["ns"], buf["zs"], buf["ca"], buf["cb"]),
+               len(starts), workers)
     counts = np.empty(n, dtype=np.int64)
     n_filtered = np.zeros(n, dtype=np.int64)
-    found = [None] * len(starts)
+    found: list = [None] * len(starts)  # each chunk's buffers from the compiled search, cleared after the scatter
     like = np.zeros(0, dtype=index_dtype if n < 2**31 - 1 else np.int64)  # the chunks' buffers: column indices
 
-    def search(c):  # one pass: each chunk's neighbours in its own buffer, in sorted order
+    def search(c: int) -> None:  # one pass: each chunk's neighbours in its own buffer, in sorted order
         s0, s1 = starts[c], min(starts[c] + _GRID_ROWS, n)
-        found[c] = _jit.grid_rows(s0, s1, order, ps, ns, zs, ca, cb, n_a, n_b, colptr, cell, radii, normal_threshold,
-                                  use, 32, counts, n_filtered, like)
+        found[c] = _jit.grid_rows(s0, s1, order, buf["ps"], buf["ns"], buf["zs"], buf["ca"], buf["cb"], n_a, n_b, colptr,
+                                  cell, radii, normal_threshold, use, 32, counts, n_filtered, like)
 
     run_chunks(search, len(starts), workers)
-    del ps, ns, zs, ca, cb
+    buf.clear()
     indptr = np.zeros(n + 1, dtype=np.int64)
     np.cumsum(counts, out=indptr[1:])
     if indptr[-1] >= 2**31 - 1:
@@ -526,7 +526,7 @@ def _grid_search(pts, nr, radii, normal_threshold, workers, index_dtype):
     indices = np.empty(int(indptr[-1]), dtype=index_dtype)
     run_chunks(lambda c: _jit.grid_scatter(starts[c], min(starts[c] + _GRID_ROWS, n), order, found[c][0], found[c][1],
                                            indptr, indices), len(starts), workers)
-    del found
+    found.clear()
     release_freed_memory(n)
     return indptr.astype(index_dtype), indices, int(n_filtered.sum())
 

@@ -252,7 +252,7 @@ def test_uniformly_random_open_cylinder(seed):
 def test_specks_are_dropped():
     """Lone candidates (pieces under min_piece, or without a particle whose gap exceeds seed_gap)
     are dropped; min_piece=1 and seed_gap=max_gap keep every candidate."""
-    p, n, h = (np.random.default_rng(4).uniform(-1, 1, (3000, 2)), None, None)
+    p = np.random.default_rng(4).uniform(-1, 1, (3000, 2))
     p = np.c_[p, np.zeros(len(p))]
     n = np.tile([0.0, 0, 1], (len(p), 1))
     inner = np.abs(p[:, :2]).max(axis=1) < 0.8

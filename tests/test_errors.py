@@ -269,7 +269,8 @@ def test_fit_order_bad_inputs():
         fit_order([0.1, 0.05, 0.2], [1.0, 0.5, 2.0], kind="h")
     with pytest.raises(ValueError, match=r"sizes must be positive, got sizes\[0\] = -1.0"):
         fit_order([-1, 100], [0.1, 0.05])
-    with pytest.raises(ValueError, match=r"errors must be positive to fit an order on a log scale, got errors\[1\] = 0.0 \(a zero or negative error cannot be fitted\)"):
+    with pytest.raises(ValueError, match=r"errors must be positive to fit an order on a log scale, got errors\[1\] = 0.0 "
+                                         r"\(a zero or negative error cannot be fitted\)"):
         fit_order([100, 200], [0.1, 0.0])
     with pytest.raises(ValueError, match=r"errors\[0\] = -0.1"):
         fit_order([100, 200], [-0.1, 0.05])

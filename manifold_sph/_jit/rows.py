@@ -1,4 +1,5 @@
-"""The weights of the corrected schemes, row by row (:mod:`manifold_sph.assembly`): small dense inverses and the cspm, msph, ncsph and moment rows."""
+"""The weights of the corrected schemes, row by row (:mod:`manifold_sph.assembly`): small dense
+inverses and the cspm, msph, ncsph and moment rows."""
 
 from __future__ import annotations
 
@@ -158,8 +159,9 @@ def _derivative_rows(k, x, y, q, t, dv, rows, c0):
 @inline
 def _add_taylor_outer(A, rows, k, x, y, n, lead_one):
     """``A[:n, :n] += rows[k, :n] cols^T`` with the Taylor columns ``cols = (x, y, x^2/2, xy, y^2/2)``
-    (after a column of ones with ``lead_one``): the columns stay in registers instead of a scratch array (the same products and sums: 14 % faster
-    MSPH weights, measured at N = 131072, one thread, 16 paired runs)."""
+    (after a column of ones with ``lead_one``): the columns stay in registers instead of a scratch
+    array (the same products and sums: 14 % faster MSPH weights, measured at N = 131072, one thread,
+    16 paired runs)."""
     k3 = 0.5 * x * x
     k4 = x * y
     k5 = 0.5 * y * y

@@ -10,9 +10,10 @@ __all__ = ["ssor_count", "ssor_fill", "ssor_backward", "ssor_forward", "ssor_upp
 # The matrix ``A = D + L + U + B`` is cut into row blocks ``bounds[b]:bounds[b + 1]``; ``L`` and
 # ``U`` are the strictly lower and upper parts inside the blocks, ``B`` the couplings between
 # blocks. :func:`ssor_count` and :func:`ssor_fill` copy ``U`` and ``L + B`` of the matrix with
-# its unknowns permuted (a sweep order) into two CSR arrays and ``D`` into a vector; the split-preconditioned operator ``(D + L)^-1 A (D + U)^-1`` is
-# then applied in two passes that read each entry once (Eisenstat's trick): ``t = (D + U)^-1 x``
-# backward over ``U``, then ``out = t + (D + L)^-1 (x - D t + B t)`` forward over ``L + B``.
+# its unknowns permuted (a sweep order) into two CSR arrays and ``D`` into a vector; the
+# split-preconditioned operator ``(D + L)^-1 A (D + U)^-1`` is then applied in two passes that
+# read each entry once (Eisenstat's trick): ``t = (D + U)^-1 x`` backward over ``U``, then
+# ``out = t + (D + L)^-1 (x - D t + B t)`` forward over ``L + B``.
 # Blocks are independent inside a pass.
 @njit
 def ssor_count(g0, g1, bounds, perm, iperm, indptr, indices, data, n_upper, n_rest, diag, partial):

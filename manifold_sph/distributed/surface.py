@@ -268,7 +268,8 @@ class TiledSurface(TiledOperators):
         if isinstance(h, np.ndarray) or (h is not None and np.ndim(h) == 1):
             key_src.update(np.asarray(h, dtype=np.float64).tobytes())
         meta = {"n": n, "options": {k: (v if isinstance(v, (str, int, float, type(None))) else repr(v)) for k, v in opts.items()},
-                "normal_options": self.normal_options, "tile_points": self.tile_points, "grid": None if grid is None else list(map(int, grid)), "keep": list(keep),
+                "normal_options": self.normal_options, "tile_points": self.tile_points,
+                "grid": None if grid is None else list(map(int, grid)), "keep": list(keep),
                 "halo": self.halo, "format": TILE_FORMAT, "source": key_src.hexdigest()}
         self._key = hashlib.blake2b(json.dumps(meta, sort_keys=True, default=str).encode(), digest_size=16).hexdigest()
         self._points_file = str(self.cache_dir / f"points-{self._key}.npy")
@@ -513,9 +514,11 @@ class TiledSurface(TiledOperators):
         for t in range(T):
             specs.append({
                 "tile": t, "lo": int(self.bounds[t]), "hi": int(self.bounds[t + 1]), "box": boxes[t].tolist(),
-                "bbox": self.bbox.tolist(), "boxes": blist, "bounds": bnds, "chain": self._chain, "points": self._points_file, "normals": self._normals_file,
+                "bbox": self.bbox.tolist(), "boxes": blist, "bounds": bnds, "chain": self._chain,
+                "points": self._points_file, "normals": self._normals_file,
                 "h_file": self._h_file, "options": self.options, "normal_options": self.normal_options, "halo": self.halo,
-                "kq": kq, "keep": self.keep, "order": self._order_file, "path": self._tile_path(t), "key": f"{self._key}-{t}", "reuse": True,
+                "kq": kq, "keep": self.keep, "order": self._order_file, "path": self._tile_path(t),
+                "key": f"{self._key}-{t}", "reuse": True,
                 "threads": 1 if self.scheduler != "synchronous" else None, "_fail": t in fail_tiles,
             })
         tasks = [delayed(build_tile, pure=False)(s, dask_key_name=f"msph-tile-{self._key[:8]}-{s['tile']}") for s in specs]

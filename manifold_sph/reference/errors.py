@@ -262,7 +262,8 @@ def _as_mask(mask, n: int) -> np.ndarray:
             raise ValueError(f"mask must be a boolean array of shape ({n},) or an array of indices, got shape {m.shape}")
         return m
     if m.ndim != 1 or (m.size and not np.issubdtype(m.dtype, np.integer)):
-        raise TypeError(f"mask must be a boolean array of shape ({n},) or a 1-D array of integer indices, got {m.dtype} array of shape {m.shape}")
+        raise TypeError(f"mask must be a boolean array of shape ({n},) or a 1-D array of integer indices, "
+                        f"got {m.dtype} array of shape {m.shape}")
     if m.size and (m.min() < -n or m.max() >= n):
         raise ValueError(f"mask indices must lie in [-{n}, {n}), got range [{m.min()}, {m.max()}]")
     out = np.zeros(n, dtype=bool)

@@ -558,7 +558,8 @@ def detect_boundary(
             seeded |= size >= seed_size
         mask = cand & (size[lab] >= min_piece) & seeded[lab]
         if not isinstance(surface, OperatorSet) and resolve is not None and mask.any():
-            veto = _unresolved_gaps(pts, nrm, normal, across, gap, mask, tree, min(n, 4 * k), thr, np.tan(np.radians(elev)), oriented, resolve)
+            veto = _unresolved_gaps(pts, nrm, normal, across, gap, mask, tree, min(n, 4 * k), thr, np.tan(np.radians(elev)),
+                                    oriented, resolve)
             kept = mask & ~veto
             mask = kept | _bridges(pts, idx, _pieces(kept, rows, cols, n), kept, veto & mask)
             lab = _pieces(mask, rows, cols, n)

@@ -82,7 +82,8 @@ def _inputs(points, normals):
 
 def _group_mean(labels, n_groups, values):
     counts = np.bincount(labels, minlength=n_groups).astype(np.float64)
-    return np.stack([np.bincount(labels, weights=values[:, a], minlength=n_groups) for a in range(values.shape[1])], axis=1) / counts[:, None]
+    sums = [np.bincount(labels, weights=values[:, a], minlength=n_groups) for a in range(values.shape[1])]
+    return np.stack(sums, axis=1) / counts[:, None]
 
 
 def _average_normals(labels, n_groups, nrm, rep):

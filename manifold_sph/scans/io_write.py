@@ -171,10 +171,10 @@ def check_field_names(fmt: str, fields: dict, has_normals: bool) -> None:
     Examples
     --------
     >>> check_field_names("ply", {"u": None}, has_normals=True)
-    >>> check_field_names("ply", {"nx": None}, has_normals=True)
+    >>> check_field_names("ply", {"nx": None}, has_normals=True)  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    ValueError: field name 'nx' would collide with the normals' column 'nx' in a PLY file (its reader takes x, y, z and nx, ny, nz, normal_x, normal_y, normal_z, normalx, normaly, normalz by name, in any case); rename the field, e.g. 'nx_field'
+    ValueError: field name 'nx' would collide with the normals' column 'nx' in a PLY file ...; rename the field, e.g. 'nx_field'
     """
     if fmt not in ("ply", "pcd", "xyz", "csv", "pts", "las", "laz"):
         return

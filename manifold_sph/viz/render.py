@@ -295,7 +295,8 @@ def _set_camera(plotter, points: np.ndarray, camera, zoom: float = 1.0, up: Any 
         try:
             direction, view_up = (np.asarray(camera[0], float), np.asarray(camera[1], float))
         except (TypeError, ValueError, IndexError):
-            raise TypeError(f"camera must be one of {sorted(CAMERAS)} or a pair (direction, view_up) of 3-vectors, got {camera!r}") from None
+            raise TypeError(f"camera must be one of {sorted(CAMERAS)} or a pair (direction, view_up) of 3-vectors, "
+                            f"got {camera!r}") from None
         if direction.shape != (3,) or view_up.shape != (3,) or not np.linalg.norm(direction) > 0:
             raise ValueError(f"camera must be a pair (direction, view_up) of non-zero 3-vectors, got {camera!r}")
     centre = 0.5 * (points.min(axis=0) + points.max(axis=0))

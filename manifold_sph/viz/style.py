@@ -212,8 +212,8 @@ def detect_up_axis(points: ArrayLike) -> str | tuple[float, float, float]:
     teapot; a head, a nose, a bumper are narrow). Among the coordinate axes y and z
     (x is never up: no file convention has it); a near tie (within 25 %) goes to z for
     clouds flat in z or as wide in every direction (the package's shapes, tori), else to
-    the longer of y and z (y when they are within 5 %: the graphics convention). A planar cloud is seen from its normal; a flat one (smallest
-    principal axis below 2 % of the largest: terrain, a wall) turned more than 10 degrees
+    the longer of y and z (y when they are within 5 %: the graphics convention). A planar cloud
+    is seen from its normal; a flat one (smallest principal axis below 2 % of the largest: terrain, a wall) turned more than 10 degrees
     off the coordinate axes from its principal normal, returned as a unit vector.
 
     Measured on the test models (``tests/test_render.py``): cow, homer, cheburashka,
