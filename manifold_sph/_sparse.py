@@ -7,6 +7,8 @@ operators' ``op(f)``, the area-element solve and explicit time stepping.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -172,7 +174,7 @@ def bicgstab_csr(A: sp.csr_matrix, b: np.ndarray, dinv: np.ndarray, x0: np.ndarr
     edges = np.concatenate([[0], np.cumsum(cuts)])  # thread k takes blocks edges[k]:edges[k + 1]
     workers = pool(n_threads - 1) if n_threads > 1 else None
 
-    def run(kernel, *args):  # kernel(g0, g1, bounds, *args, partial) on every block; the sums in block order
+    def run(kernel: Callable[..., object], *args):  # kernel(g0, g1, bounds, *args, partial) on every block; the sums in block order
         futures = [workers.submit(kernel, edges[k], edges[k + 1], bounds, *args, partial) for k in range(1, n_threads)] if workers else []
         kernel(edges[0], edges[1], bounds, *args, partial)
         for f in futures:

@@ -29,9 +29,10 @@ __all__ = [
 ]
 
 
-def describe(a: object) -> str:
-    a = np.asarray(a)
-    return f"array of shape {a.shape} and dtype {a.dtype}"
+def describe(a: ArrayLike) -> str:
+    """``a``'s shape and dtype, for error messages."""
+    arr = np.asarray(a)
+    return f"array of shape {arr.shape} and dtype {arr.dtype}"
 
 
 def check_finite(name: str, a: np.ndarray) -> np.ndarray:

@@ -11,6 +11,7 @@ their owner's column, see :class:`manifold_sph.Domain2D`.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -51,7 +52,7 @@ def _kernel_values(nb, xy, kernel, near_columns=None):
     compiled = _jit.ENABLED and type(kernel) is QuinticSpline
     near = near_columns is not False
     cols = (nb.indices if near_columns is None else np.asarray(near_columns)) if near else None
-    found = [None] * len(starts)
+    found: list = [None] * len(starts)  # each chunk's near-duplicate pair positions
 
     def chunk(c):  # rows lo:hi, disjoint slices of ``vals``
         lo = starts[c]
@@ -206,9 +207,11 @@ def area_elements(
     """
     n = nb.n_rows
     check_area_method(method, total_area)
-    near = [] if method == "numerical" else None  # the near-duplicate pairs found in the kernel values' pass
-    A = kernel_matrix(nb, xy, kernel, columns=columns, n_cols=n, _share=True, _near=near)  # A never leaves this function
+    near: list[np.ndarray] = []  # the near-duplicate pairs found in the kernel values' pass ("numerical" only)
+    A = kernel_matrix(nb, xy, kernel, columns=columns, n_cols=n, _share=True,  # A never leaves this function
+                      _near=near if method == "numerical" else None)
     if method == "geometric":
+        assert total_area is not None  # check_area_method refuses "geometric" without it
         dV = np.full(n, float(total_area) / n)
     elif method == "shepard":
         dV = 1.0 / _csr_row_sums(A)
@@ -325,8 +328,8 @@ def _numerical(A: sp.csr_matrix, nb: Neighborhood, xy: np.ndarray | PairOffsets,
         dV, residual, budget = _solve_partition_of_unity(A, order=order, shepard=shepard)  # the residual of A itself
         if A.data.size < A.nnz:
             A = None
-    fell_back = dV is None or not np.all(np.isfinite(dV))
-    if fell_back:
+    if dV is None or not np.all(np.isfinite(dV)):
+        fell_back = True
         note(
             "area", "the area elements are the simpler Shepard ones (the numerical area solve did not converge)",
             detail=f"The kernel system sum_j W_ij dV_j = 1 was not solved within {budget} BiCGSTAB iterations ({n} "
@@ -334,6 +337,8 @@ def _numerical(A: sp.csr_matrix, nb: Neighborhood, xy: np.ndarray | PairOffsets,
             "singular. Pass area='shepard' to choose them directly.",
         )
         dV = 1.0 / _csr_row_sums(A) if A is not None else shepard["dV"]
+    else:
+        fell_back = False
     if A is None:  # released: the solver measured the Shepard elements' residual (a converged one is in hand)
         residual = shepard["residual"] if fell_back else residual
     elif fell_back or close.size:  # merged groups: the residual of the full system
@@ -367,7 +372,7 @@ LU_MAX_ROWS = 10_000
 
 
 def _solve_partition_of_unity(A: sp.csr_matrix | _Merged, rtol: float = 1e-15, order: np.ndarray | None = None,
-                              shepard: dict | None = None):
+                              shepard: dict | None = None) -> tuple[np.ndarray | None, float, int]:
     """Solve ``A dV = 1``: BiCGSTAB started from the Shepard elements, to a relative residual of
     ``rtol``, preconditioned by block SSOR (:func:`bicgstab_ssor`; the Shepard (row-sum) one when
     the compiled kernels are off or a diagonal entry is not positive); sparse LU if the iteration
@@ -397,7 +402,7 @@ def _solve_partition_of_unity(A: sp.csr_matrix | _Merged, rtol: float = 1e-15, o
             found: dict = {}
             dV, info = bicgstab_ssor(A, ones, dinv, rtol=rtol, maxiter=SSOR_MAXITER, stall_window=SSOR_STALL_WINDOW,
                                      order=order, _found=found, _release=release)
-            if "x0_residual" in found:  # A's entries released: the Shepard residual measured by the solver
+            if shepard is not None and "x0_residual" in found:  # A's entries released: the Shepard residual measured by the solver
                 shepard["residual"] = found["x0_residual"]
         if info == -12:
             budget = NUMERICAL_MAXITER
@@ -505,7 +510,7 @@ def bicgstab_ssor(A: sp.csr_matrix, b: np.ndarray, x0: np.ndarray, rtol: float, 
     edges = np.concatenate([[0], np.cumsum(cuts)])
     workers = pool(n_threads - 1) if n_threads > 1 else None
 
-    def run(kernel, *args):  # kernel(g0, g1, bounds, *args, partial) on every block; the sums in block order
+    def run(kernel: Callable[..., object], *args):  # kernel(g0, g1, bounds, *args, partial) on every block; the sums in block order
         partial[:] = 0.0
         futures = [workers.submit(kernel, edges[k], edges[k + 1], bounds, *args, partial) for k in range(1, n_threads)] if workers else []
         kernel(edges[0], edges[1], bounds, *args, partial)

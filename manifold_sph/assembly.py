@@ -94,8 +94,8 @@ class Assembled:
 
     def __init__(
         self,
-        pair_dx: np.ndarray,
-        pair_dy: np.ndarray,
+        pair_dx: np.ndarray | None,
+        pair_dy: np.ndarray | None,
         pair_lap: np.ndarray,
         make_csr: Callable[[np.ndarray], sp.csr_matrix],
         condition: np.ndarray,
@@ -114,23 +114,24 @@ class Assembled:
         self.fallback = fallback
         self._matrices: dict[str, sp.csr_matrix] = {}
 
-    def _gradient_weights(self) -> None:
-        if self._pair_dx is None:  # assembled for the Laplacian only: the gradient's pass now, once
+    def _gradient_weights(self) -> tuple[np.ndarray, np.ndarray]:
+        if self._pair_dx is None or self._pair_dy is None:  # assembled for the Laplacian only: the gradient's pass now, once
+            assert self._gradient_pass is not None  # set by assemble(gradient=False)
             gx, gy = self._gradient_pass()
             for name, w in (("dx", gx), ("dy", gy)):
                 if not np.all(np.isfinite(w)):  # pragma: no cover - guarded by the fallbacks
                     raise FloatingPointError(f"operator {name} has non-finite weights; please report this cloud")
             self._pair_dx, self._pair_dy, self._gradient_pass = gx, gy, None
+            return gx, gy
+        return self._pair_dx, self._pair_dy
 
     @property
     def pair_dx(self) -> np.ndarray:
-        self._gradient_weights()
-        return self._pair_dx
+        return self._gradient_weights()[0]
 
     @property
     def pair_dy(self) -> np.ndarray:
-        self._gradient_weights()
-        return self._pair_dy
+        return self._gradient_weights()[1]
 
     def _matrix(self, name: str) -> sp.csr_matrix:
         if name not in self._matrices:
@@ -362,7 +363,7 @@ def assemble(
         valid = pairs.valid
         h = nb.h[rows][:, None]
         at = pos[valid]  # row-major: CSR pair order
-        if gradient:
+        if gx is not None and gy is not None:  # gradient=True
             gx[at] = (grad[:, 0] / h)[valid]
             gy[at] = (grad[:, 1] / h)[valid]
         lp[at] = (lap / (h * h))[valid]
@@ -389,7 +390,7 @@ def assemble(
             lo, hi = starts[c], min(starts[c] + rows_per_chunk, n)
             p0, p1 = nb.indptr[lo], nb.indptr[hi]
             # Laplacian only: the derivative weights of the chunk into scratch, dropped
-            cx, cy = (gx[p0:p1], gy[p0:p1]) if gradient else (np.empty(p1 - p0), np.empty(p1 - p0))
+            cx, cy = (gx[p0:p1], gy[p0:p1]) if gx is not None and gy is not None else (np.empty(p1 - p0), np.empty(p1 - p0))
             xc = offsets_of_rows(xy, nb.indptr, lo, hi)
             compiled(0, hi - lo, nb.indptr[lo : hi + 1] - p0, xc, _dv_range(dV_pairs, p0, p1), nb.h[lo:hi], alpha,
                      max_condition, cx, cy, lp[p0:p1], condition[lo:hi], failed[lo:hi])
@@ -437,4 +438,4 @@ class _GradientPass:
 
     def __call__(self) -> tuple[np.ndarray, np.ndarray]:
         again = assemble(*self.args, gradient=True, **self.kwargs)
-        return again._pair_dx, again._pair_dy
+        return again.pair_dx, again.pair_dy

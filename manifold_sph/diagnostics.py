@@ -41,6 +41,7 @@ import os
 import sys
 import warnings
 from collections.abc import Iterator
+from types import FrameType
 
 import numpy as np
 
@@ -222,7 +223,7 @@ _PACKAGE_DIR = os.path.dirname(os.path.abspath(__file__))
 def _user_stacklevel() -> int:
     """The ``stacklevel`` of :func:`warnings.warn`, called by our caller, that names the first frame
     outside the package (and outside :mod:`contextlib`, whose frames a ``with`` block adds)."""
-    frame = sys._getframe(1)  # the function that calls warnings.warn: stacklevel 1
+    frame: FrameType | None = sys._getframe(1)  # the function that calls warnings.warn: stacklevel 1
     level = 1
     skip = (_PACKAGE_DIR + os.sep, os.path.dirname(contextlib.__file__) + os.sep + "contextlib")
     while frame is not None and frame.f_code.co_filename.startswith(skip):

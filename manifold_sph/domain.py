@@ -27,7 +27,7 @@ def _check_bounds(bounds) -> tuple[float, float, float, float]:
     check_finite("bounds", b)
     if not (b[0] < b[1] and b[2] < b[3]):
         raise ValueError(f"bounds must satisfy xmin < xmax and ymin < ymax, got {tuple(b.tolist())}")
-    return tuple(float(t) for t in b)
+    return float(b[0]), float(b[1]), float(b[2]), float(b[3])
 
 
 def mirror_ghosts(points: np.ndarray, bounds: Sequence[float], width: float) -> tuple[np.ndarray, np.ndarray]:
@@ -157,6 +157,7 @@ class Domain2D(OperatorSet):
         columns = None
         cand = pts
         if self.mirror:
+            assert self.bounds is not None  # refused above
             ghosts, owner = mirror_ghosts(pts, self.bounds, self.kernel.support * float(np.max(hv)))
             cand = np.concatenate([pts, ghosts])
             owner = np.concatenate([np.arange(n), owner])

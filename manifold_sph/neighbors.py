@@ -10,7 +10,7 @@ first. ``j`` belongs to particle ``i``'s neighbourhood iff
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal, overload
+from typing import Any, Literal, SupportsFloat, cast, overload
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -359,7 +359,7 @@ def find_neighbors(
     cand = pts if candidates is None else np.asarray(candidates, dtype=np.float64)
     cnorm = normals if candidate_normals is None else candidate_normals
     if np.ndim(h) == 0:
-        hv = np.full(n, check_positive("h", float(h)))
+        hv = np.full(n, check_positive("h", float(cast(SupportsFloat, h))))  # a number or a 0-d array
     else:
         hv = np.asarray(h, dtype=np.float64)
         if hv.shape != (n,):
@@ -456,7 +456,7 @@ def release_freed_memory(n_points: int | None = None) -> None:
         _TRIM(0)
 
 
-_TRIM = None
+_TRIM: Any = None  # libc's malloc_trim once looked up; False where there is none
 
 
 def _grid_search(pts, nr, radii, normal_threshold, workers, index_dtype):
@@ -561,7 +561,7 @@ def _filter_block(dist, idx, radii, nr, cn, normal_threshold, counts, n_filtered
             workers,
         )
         return out
-    parts = [None] * len(starts)
+    parts: list = [None] * len(starts)  # each chunk's columns
 
     def chunk(c):  # radius mask and normal filter of rows lo:hi; disjoint outputs
         lo = starts[c]

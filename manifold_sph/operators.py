@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Hashable, Iterator
 from contextlib import contextmanager
-from typing import TypeVar
+from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
 import scipy.sparse as sp
@@ -54,6 +54,11 @@ class OperatorSet:
     """
 
     _dim: int = 3
+
+    if TYPE_CHECKING:  # the subclasses' read-only property, declared for type checkers only
+
+        @property
+        def points(self) -> np.ndarray: ...
 
     # ------------------------------------------------------------------ setup
     def _resolve(self, kernel, scheme, neighbors, max_condition):
@@ -550,7 +555,7 @@ class OperatorSet:
                 n_widened = int(redo.size)
         n_refitted = 0
         open_ = np.flatnonzero(flags & BOUNDARY)
-        if open_.size and z is not None:
+        if open_.size and tol is not None:  # tol: the heights' roughness, None exactly when z is
             refit = self._refit_open(open_, tol[open_])
             if refit is not None and refit[0].any():
                 closed, indptr3, cols3, more = refit

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import importlib
 import os
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -31,8 +31,13 @@ class PointViews:
     shows as a picture (:meth:`_repr_png_`); :meth:`show` draws a field.
     """
 
-    points: np.ndarray
-    normals: np.ndarray | None
+    if TYPE_CHECKING:  # the subclasses' read-only properties, declared for type checkers only
+
+        @property
+        def points(self) -> np.ndarray: ...
+
+        @property
+        def normals(self) -> np.ndarray | None: ...
 
     def to_pyvista(self, fields: Any = None) -> Any:
         """A ``pyvista.PolyData`` of the points (one vertex cell each), normals as point data ``Normals``.
@@ -300,8 +305,6 @@ def as_cloud(obj: Any, *, normals: ArrayLike | None = None, duplicates: str | No
         src = sources.Source(as_points("points", obj), None if normals is None else as_points("normals", normals))
         normals = None
     src, note = sources.settle(src, normals="auto", duplicates=duplicates or "merge")
-    if normals is not None:
-        src.normals = normals
-    cloud = PointCloud(src.points, src.normals)
+    cloud = PointCloud(src.points, src.normals if normals is None else normals)
     sources.announce(note)
     return cloud

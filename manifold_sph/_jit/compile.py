@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import importlib
 import os
+from types import ModuleType
 
 import numpy as np
 
+numba: ModuleType | None
 try:
-    import numba
+    numba = importlib.import_module("numba")
 except ImportError:  # pragma: no cover - numba is a dependency; a platform without its wheels still works
     numba = None
 

@@ -17,6 +17,8 @@ from .._validation import as_points
 from ..operators import OperatorSet
 
 if TYPE_CHECKING:
+    from typing_extensions import TypeIs  # typing.TypeIs from Python 3.13; type checkers only
+
     from ..surface import Surface
 
 __all__ = ["SCALE_RANGE", "WAVEFRONT_SCALE_RANGE", "as_cloud_points", "check_scale", "check_surface", "is_surface", "length_scale"]
@@ -29,7 +31,7 @@ SCALE_RANGE = (1e-140, 1e140)
 WAVEFRONT_SCALE_RANGE = (1e-290, 1e290)
 
 
-def is_surface(obj: Any) -> bool:
+def is_surface(obj: Any) -> TypeIs[Surface]:
     """Whether ``obj`` is a :class:`~manifold_sph.Surface` (an operator set on a surface in 3-D)."""
     return isinstance(obj, OperatorSet) and obj.dim == 3 and hasattr(obj, "normals")
 

@@ -95,37 +95,37 @@ def _jet_fits(surface, radii, points=None, normals=None):
 def _scaled_shape_operator(surface, scale):
     if isinstance(scale, str):
         check_in("scale", scale, ("auto",))
-
-        def compute():
-            from .smoothing import smooth
-
-            h = _spacing(surface)
-            den = smooth(surface)  # noise normal to the surface removed first: the fits' scatter falls with it
-            Ws, unit_sd, _ = _jet_fits(surface, [f * h for f in AUTO_RADII], den.points, den.normals)
-            # the noise of the raw points sets the intervals: what smoothing leaves is correlated over its
-            # own scale, which the residuals of a small fit cannot see
-            noise = _jet_fits(surface, [AUTO_RADII[0] * h])[2]
-            H = 0.5 * (Ws[:, :, 0, 0] + Ws[:, :, 1, 1])
-            sd = AUTO_WIDTH * unit_sd * noise[None, :]
-            lo, hi = H[0] - sd[0], H[0] + sd[0]
-            pick = np.zeros(H.shape[1], dtype=np.int64)
-            alive = np.ones(H.shape[1], dtype=bool)
-            for k in range(1, H.shape[0]):
-                lo, hi = np.maximum(lo, H[k] - sd[k]), np.minimum(hi, H[k] + sd[k])
-                alive &= lo <= hi
-                pick[alive] = k
-            return Ws[pick, np.arange(H.shape[1])], np.asarray(AUTO_RADII)[pick] * h
-
-        return surface.cached(("shape_operator", "auto"), compute)[0]
+        return surface.cached(("shape_operator", "auto"), lambda: _auto_fits(surface))[0]
     r = check_positive("scale", scale)
     return surface.cached(("shape_operator", r), lambda: _jet_fits(surface, [r])[0][0])
+
+
+def _auto_fits(surface) -> tuple[np.ndarray, np.ndarray]:
+    """``scale="auto"``: the shape operators (N, 2, 2) at the radius each particle picks, and those radii (N,)."""
+    from .smoothing import smooth
+
+    h = _spacing(surface)
+    den = smooth(surface)  # noise normal to the surface removed first: the fits' scatter falls with it
+    Ws, unit_sd, _ = _jet_fits(surface, [f * h for f in AUTO_RADII], den.points, den.normals)
+    # the noise of the raw points sets the intervals: what smoothing leaves is correlated over its
+    # own scale, which the residuals of a small fit cannot see
+    noise = _jet_fits(surface, [AUTO_RADII[0] * h])[2]
+    H = 0.5 * (Ws[:, :, 0, 0] + Ws[:, :, 1, 1])
+    sd = AUTO_WIDTH * unit_sd * noise[None, :]
+    lo, hi = H[0] - sd[0], H[0] + sd[0]
+    pick = np.zeros(H.shape[1], dtype=np.int64)
+    alive = np.ones(H.shape[1], dtype=bool)
+    for k in range(1, H.shape[0]):
+        lo, hi = np.maximum(lo, H[k] - sd[k]), np.minimum(hi, H[k] + sd[k])
+        alive &= lo <= hi
+        pick[alive] = k
+    return Ws[pick, np.arange(H.shape[1])], np.asarray(AUTO_RADII)[pick] * h
 
 
 def curvature_scale(surface: Surface) -> np.ndarray:
     """Radius each particle's curvature was fitted over by ``scale="auto"``, shape (N,)."""
     check_surface(surface)
-    _scaled_shape_operator(surface, "auto")
-    return surface.cached(("shape_operator", "auto"), lambda: None)[1]
+    return surface.cached(("shape_operator", "auto"), lambda: _auto_fits(surface))[1]
 
 
 def shape_operator(surface: Surface, *, scale: float | str | None = None) -> np.ndarray:

@@ -114,7 +114,7 @@ class _Heat:
         off = W.row != W.col
         self._pairs = (W.row[off], W.col[off], -W.data[off])
         self._poisson_key: bytes | None = None
-        self._poisson = None
+        self._poisson: Any = None  # spd_solver of the free particles' block, for the sources in _poisson_key
 
     def distance(self, src, offsets, targets):
         from ..solvers import spd_solver
@@ -149,7 +149,7 @@ class _Heat:
             self._poisson_key = key
         phi = np.full(N, np.inf)
         phi[near] = r[near]
-        if free.any():
+        if self._poisson is not None:  # built above exactly when some particles are free
             phi[free] = self._poisson.solve(b[free] - self.K[free][:, near] @ r[near])
         return np.maximum(phi, r)
 

@@ -44,6 +44,7 @@ from .jets import field_gradient
 
 if TYPE_CHECKING:
     from ..surface import Surface
+    from .geodesics import GeodesicSolver
 
 __all__ = ["VectorHeatSolver", "connection_laplacian", "karcher_mean", "log_map", "transport"]
 
@@ -135,7 +136,7 @@ class VectorHeatSolver:
         Ar, Ai = A.real.tocsr(), A.imag.tocsr()
         self._m = m / self._h2
         self._solve = spd_solver(sp.bmat([[Ar, -Ai], [Ai, Ar]], format="csr")).solve
-        self._distance = None
+        self._distance: GeodesicSolver | None = None
 
     def _source(self, source) -> int:
         n = self.surface.n_points

@@ -238,5 +238,5 @@ def screened_poisson(surface: OperatorSet, rhs: ArrayLike, alpha: float, *,
     check_in("solver", solver, SOLVERS)
     op = operator_for(surface, laplacian)
     if op.kind == "stable":
-        return spd_solver(sp.diags(op.m) + alpha * op.K, method=_SPD_METHOD[solver]).solve(op.m * f)
+        return spd_solver(sp.diags(op.m) + alpha * op.stiffness(), method=_SPD_METHOD[solver]).solve(op.m * f)
     return spla.spsolve((sp.identity(n, format="csc") - alpha * op.L).tocsc(), f)

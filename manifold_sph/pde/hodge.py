@@ -64,12 +64,12 @@ def helmholtz_hodge(surface: Surface, F: ArrayLike) -> HodgeDecomposition:
     if not isinstance(surface, Surface):
         raise TypeError(f"surface must be a Surface (a closed point-cloud surface), got {type(surface).__name__}")
     n = surface.normals
-    F = as_field("F", F, surface.n_points, 3)
-    F = F - np.einsum("ij,ij->i", F, n)[:, None] * n
+    Fv = as_field("F", F, surface.n_points, 3)
+    Ft = Fv - np.einsum("ij,ij->i", Fv, n)[:, None] * n  # the tangent part
     op = operator_for(surface, "auto")
-    rhs = np.stack([surface.divergence(F), -surface.divergence(np.cross(n, F))], axis=1)
+    rhs = np.stack([surface.divergence(Ft), -surface.divergence(np.cross(n, Ft))], axis=1)
     rhs -= (op.m @ rhs) / op.m.sum()  # zero mean: the compatibility condition on a closed surface
     phi, psi = poisson_solve(surface, op, rhs).T
     grad = surface.gradient(phi)
     cograd = np.cross(n, surface.gradient(psi))
-    return HodgeDecomposition(gradient=grad, cogradient=cograd, harmonic=F - grad - cograd, phi=phi, psi=psi)
+    return HodgeDecomposition(gradient=grad, cogradient=cograd, harmonic=Ft - grad - cograd, phi=phi, psi=psi)

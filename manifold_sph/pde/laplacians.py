@@ -193,7 +193,7 @@ def operator_for(surface: OperatorSet, laplacian: str | sp.spmatrix | sp.sparray
         return Operator("stable", surface.stable_laplacian_matrix(), m, K)
     if kind == "strong":
         return Operator("strong", surface.laplacian_matrix(form="strong"), surface.dV)
-    if not (sp.issparse(laplacian) or isinstance(laplacian, np.ndarray)):
+    if laplacian is None or isinstance(laplacian, str) or not (sp.issparse(laplacian) or isinstance(laplacian, np.ndarray)):
         raise TypeError(f"laplacian must be one of {list(LAPLACIANS)} or a sparse matrix, got {type(laplacian).__name__}")
     if np.iscomplexobj(laplacian):
         raise TypeError(

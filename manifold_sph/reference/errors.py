@@ -608,7 +608,7 @@ def convergence_study(
             names = list(out)
         elif set(out) != set(names):
             raise ValueError(f"run({size!r}) returned errors {sorted(out)!r}, but the first size returned {sorted(names)!r}")
-        row = {}
+        row: dict[str, float] = {}
         for k in names:
             v = out[k]
             if isinstance(v, np.ndarray) and v.ndim == 0:
@@ -619,6 +619,7 @@ def convergence_study(
                 raise ValueError(f"run({size!r})[{k!r}] must be finite, got {float(v)!r}")
             row[k] = float(v)
         results.append(row)
+    assert names is not None  # sizes is not empty (checked above)
     errors = {k: np.array([r[k] for r in results]) for k in names}
     factor = _order_factor(kind, dim)
     logs = np.log(s)

@@ -288,17 +288,17 @@ class ImplicitShape:
         -------
         ndarray, shape (N, 3)
         """
-        x = as_points("x", x).copy()
+        p = as_points("x", x).copy()
         tol = check_positive("tol", tol)
         maxiter = check_int("maxiter", maxiter, minimum=1)
-        active = np.arange(len(x))
+        active = np.arange(len(p))
         for _ in range(maxiter):
-            x[active], dist = self._newton_step(x[active])
+            p[active], dist = self._newton_step(p[active])
             active = active[dist > tol]
             if active.size == 0:
                 break
         else:
-            f, g = self._phi_grad(x[active])
+            f, g = self._phi_grad(p[active])
             still = np.abs(f) / np.linalg.norm(g, axis=1) > tol
             if still.any():
                 warnings.warn(
@@ -307,7 +307,7 @@ class ImplicitShape:
                     ManifoldSPHWarning,
                     stacklevel=2,
                 )
-        return x
+        return p
 
     # -- exact surface operators ---------------------------------------------------
     def surface_gradient(self, x: ArrayLike, grad_f: ArrayLike) -> np.ndarray:

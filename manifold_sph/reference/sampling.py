@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Protocol
+from typing import Protocol, cast
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -43,7 +43,8 @@ from ..threads import get_num_threads
 class ImplicitShape(Protocol):
     """What the surface samplers need of a shape (:class:`manifold_sph.reference.shapes.ImplicitShape`)."""
 
-    area: float
+    @property
+    def area(self) -> float: ...
 
     def normal(self, x: ArrayLike) -> np.ndarray: ...
 
@@ -55,7 +56,12 @@ class ImplicitShape(Protocol):
 
     def uniform_random_points(self, n: int, rng: np.random.Generator) -> np.ndarray: ...
 
+
+class FibonacciShape(ImplicitShape, Protocol):
+    """A shape with the ``"fibonacci"`` sampling among its ``samplings`` (the sphere)."""
+
     def fibonacci_points(self, n: int) -> np.ndarray: ...
+
 
 __all__ = [
     "as_rng",
@@ -268,8 +274,8 @@ def sample_surface(
     check_in("sampling", sampling, allowed)
     density_ratio = check_positive("density_ratio", density_ratio)
     iterations = POISSON_ITERATIONS if iterations is None else check_int("iterations", iterations, minimum=0)
-    if sampling == "fibonacci":
-        return shape.fibonacci_points(n)
+    if sampling == "fibonacci":  # in the allowed samplings of a FibonacciShape only
+        return cast(FibonacciShape, shape).fibonacci_points(n)
     rng = as_rng(seed)
     if sampling == "random":
         return shape.uniform_random_points(n, rng)

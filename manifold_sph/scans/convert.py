@@ -69,6 +69,9 @@ def to_pyvista(cloud: PointCloud | ArrayLike, fields: Mapping[str, ArrayLike] | 
 class _Arrays(PointViews):
     """Bare arrays (any number of points, repeats allowed) with the conversions of a PointCloud."""
 
+    points: np.ndarray
+    normals: np.ndarray | None
+
     def __init__(self, points, normals):
         self.points, self.normals = points, normals
 

@@ -170,7 +170,8 @@ def read_las(path: str | os.PathLike[str]) -> Reading:
         raise ReadError(path, f"laspy could not read it ({type(exc).__name__}: {exc})") from None
     if n == 0:
         raise ReadError(path, "the file holds no points (its header's point count is 0)")
-    pts, cols = [], {}
+    pts: list[np.ndarray] = []
+    cols: dict[str, list[np.ndarray]] = {}  # each field's chunks
     for xyz, f in read_las_chunks(path, chunk_size=max(1, min(n, 2_000_000))):
         pts.append(xyz)
         for k, v in f.items():

@@ -29,7 +29,7 @@ import os
 import re
 from collections.abc import Iterable
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -206,7 +206,8 @@ def _ply_header(path, raw: bytes):
     nl = raw.find(b"\n", end)
     body_start = len(raw) if nl < 0 else nl + 1
     lines = raw[:end].decode("ascii", errors="replace").splitlines()
-    fmt, elements = None, []
+    fmt: str | None = None
+    elements: list[dict[str, Any]] = []  # name, count, props: (name, "scalar" or "list", dtype, list dtype)
     for line in lines[1:]:
         tok = line.split()
         if not tok or tok[0] in ("comment", "obj_info"):
@@ -326,7 +327,8 @@ def _polys_to_faces(path, name: str, polys, n: int) -> np.ndarray:
 def read_ply(path: str | os.PathLike[str], want_faces: bool) -> Reading:
     raw = Path(path).read_bytes()
     fmt, elements, start = _ply_header(path, raw)
-    vertex, faces = None, None
+    vertex: tuple[np.ndarray, list[str]] | None = None  # the vertex columns and their names
+    faces = None
     nvert = next(e["count"] for e in elements if e["name"] == "vertex")
     if fmt == "ascii":
         body = raw[start:]
@@ -401,6 +403,7 @@ def read_ply(path: str | os.PathLike[str], want_faces: bool) -> Reading:
             raise ReadError(path, f"the body holds {extra} bytes more than the header's elements "
                                   f"({', '.join(str(e['count']) + ' ' + e['name'] for e in elements)}) take: "
                                   "the header count is too small")
+    assert vertex is not None  # the header has a vertex element (_ply_header checked)
     arr, names = vertex
     points, normals, fields = split_columns(path, names, arr)
     return points, normals, fields, faces
@@ -431,7 +434,7 @@ def _pcd_header(path, raw: bytes):
         names = head["FIELDS"]
         width = int(head["WIDTH"][0]) if "WIDTH" in head else None
         height = int(head.get("HEIGHT", ["1"])[0])
-        n = int(head["POINTS"][0]) if "POINTS" in head else width * height
+        n = int(head["POINTS"][0]) if "POINTS" in head else int(head["WIDTH"][0]) * height
         sizes = [int(s) for s in head.get("SIZE", ["4"] * len(names))]
         types = [t.upper() for t in head.get("TYPE", ["F"] * len(names))]
         counts = [int(c) for c in head.get("COUNT", ["1"] * len(names))]
@@ -541,7 +544,7 @@ def _read_open3d_pcd(path):
     import open3d as o3d
 
     with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
-        pc = o3d.t.io.read_point_cloud(str(path), format="pcd")
+        pc = o3d.t.io.read_point_cloud(str(path), format="pcd")  # type: ignore[arg-type]  # a str path works; the stub says PathLike
     if pc.is_empty() or "positions" not in pc.point:
         raise ReadError(path, "open3d read no points from this compressed PCD")
     pts = pc.point.positions.numpy().astype(np.float64)
@@ -745,8 +748,8 @@ def _check_npy_sizes(path, fmt: str) -> None:
         with zipfile.ZipFile(path) as zf:
             for info in zf.infolist():
                 if info.filename.endswith(".npy"):
-                    with zf.open(info) as fh:
-                        check(fh, info.file_size, f"array {info.filename[:-4]!r}")
+                    with zf.open(info) as member:
+                        check(member, info.file_size, f"array {info.filename[:-4]!r}")
     except zipfile.BadZipFile:
         return  # np.load reports it
 

@@ -14,7 +14,7 @@ import secrets
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -144,7 +144,7 @@ def _write_obj(fh, points, normals, fields):
 
 
 #: LAS standard dimensions a field of the same name goes to (with its LAS type).
-_LAS_STANDARD = {"intensity": np.uint16, "classification": np.uint8, "red": np.uint16, "green": np.uint16,
+_LAS_STANDARD: dict[str, type[np.number]] = {"intensity": np.uint16, "classification": np.uint8, "red": np.uint16, "green": np.uint16,
                  "blue": np.uint16, "gps_time": np.float64, "return_number": np.uint8,
                  "number_of_returns": np.uint8, "user_data": np.uint8, "point_source_id": np.uint16}
 
@@ -274,7 +274,7 @@ def _write_las(tmp, points, normals, fields, compress: bool):
     for name, typ in _LAS_STANDARD.items():
         if name in fields:
             v = np.asarray(fields[name])
-            info = np.iinfo(typ) if np.issubdtype(typ, np.integer) else None
+            info = np.iinfo(typ) if issubclass(typ, np.integer) else None
             if info is not None and (np.any(v != np.round(v)) or v.min() < info.min or v.max() > info.max):
                 raise ValueError(f"field {name!r} goes to the LAS dimension of type {np.dtype(typ).name}: its values must "
                                  f"be integers in [{info.min}, {info.max}], got range [{v.min()}, {v.max()}]")
@@ -311,6 +311,7 @@ def write_format(tmp: Path, fmt: str, points: np.ndarray, normals: np.ndarray | 
                 raise ValueError("NPY files cannot hold per-point fields; use npz")
             np.save(fh, points if normals is None else np.hstack([points, normals]))  # a file object: no suffix added
         elif fmt == "npz":
-            np.savez(fh, points=points, **({"normals": normals} if normals is not None else {}), **raw_fields)
+            arrays: dict[str, Any] = {"points": points, **({"normals": normals} if normals is not None else {}), **raw_fields}
+            np.savez(fh, **arrays)
         else:  # pragma: no cover - FORMATS and this list agree
             raise ValueError(f"no writer for format {fmt!r}")

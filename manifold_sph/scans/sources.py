@@ -132,8 +132,7 @@ def file_source(path: str | os.PathLike[str], *, format: str | None = None, face
         raise ReadError(path, "it is not a regular file")
     fmt = format_of(path, format)
     seen = _sniff(path)
-    same = {"las": {"las", "laz"}, "npz": {"npz"}, "npy": {"npy"}}.get(seen, {seen})
-    if seen is not None and fmt not in same:
+    if seen is not None and fmt not in {"las": {"las", "laz"}, "npz": {"npz"}, "npy": {"npy"}}.get(seen, {seen}):
         raise ReadError(path, f"its first bytes are those of a {seen.upper()} file, not {fmt.upper()}; "
                               f"rename it or pass format={seen!r}")
     want_faces = faces and fmt in ("ply", "obj", "vtk")
@@ -424,17 +423,18 @@ def settle(src: Source, *, normals: str = "auto", duplicates: str = "merge") -> 
         notes.append(f"merged {extra} exact duplicate point(s) ({len(src.points)} kept; fields['index'] holds "
                      "the original indices)")
     if src.faces is not None:
-        nf = len(src.faces)
+        faces = src.faces
+        nf = len(faces)
         if normals == "mesh":
-            vn = mesh_vertex_normals(src.points, src.faces)
+            vn = mesh_vertex_normals(src.points, faces)
             keep = np.abs(vn).sum(axis=1) > 0
             index = index[keep]
             src = Source(src.points[keep], vn[keep], None,
                          {k: (v[keep] if v.shape[:1] == keep.shape else v) for k, v in src.fields.items()}, src.label)
         elif normals == "auto" and src.normals is None:
-            vn, why = _trusted_face_normals(src.points, src.faces)
-            if vn is not None:
-                src.normals = vn
+            fn, why = _trusted_face_normals(src.points, faces)
+            if fn is not None:
+                src.normals = fn
                 notes.append(f"normals from its {nf} faces, which are not kept (the operators work on the points)")
             else:
                 notes.append(f"its {nf} faces are not kept and give no normals: {why}")
