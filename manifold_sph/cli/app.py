@@ -41,7 +41,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def value_options(parser: argparse.ArgumentParser) -> set[str]:
     """Every ``--option`` of every subcommand that takes a value."""
-    out = set()
+    out: set[str] = set()
     todo = [parser]
     while todo:
         q = todo.pop()

@@ -264,7 +264,7 @@ def _cmd_curvature(args) -> int:
         **_stats(values), "seconds": round(seconds, 3),
     }
     normals = "normals estimated" if s.normals_estimated else "normals from the file"
-    how = {"normals": ", from the normals' gradient", "laplacian": ", from the Laplacian of x"}.get(method, "")
+    how = {"normals": ", from the normals' gradient", "laplacian": ", from the Laplacian of x"}.get(method or "", "")
     if args.scale is not None:
         how = f", at scale {args.scale}" if args.scale != "auto" else ", at an automatic scale"
     text = (f"{args.quantity} curvature of {args.file} (N = {summary['n']}, {args.scheme}, {normals}{how}): "

@@ -209,7 +209,7 @@ def draw(args: argparse.Namespace, points: Any, values: np.ndarray | None, *, ti
     from ..viz.render import render_field
 
     robust = getattr(args, "robust", None)
-    kw = dict(
+    kw: dict[str, Any] = dict(
         title=title, camera=getattr(args, "camera", "iso"), up=getattr(args, "up", "auto"),
         window_size=getattr(args, "size", None) or (800, 600), clim=getattr(args, "clim", None),
         robust=True if robust is None else (robust if robust > 0 else False),

@@ -8,6 +8,8 @@ layout (``chunks``, ``bounds``, ``order``, ``_tile_path``, ``_contrib``), its sc
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -19,6 +21,30 @@ __all__ = ["TiledOperators"]
 
 class TiledOperators:
     """Results of a tiled build (mixin of :class:`~manifold_sph.distributed.TiledSurface`)."""
+
+    if TYPE_CHECKING:  # the state and helpers of TiledSurface that these methods use, for type checkers
+        n_points: int
+        chunks: tuple[int, ...]
+        bounds: np.ndarray
+        order: np.ndarray
+        tile_sign: np.ndarray
+        keep: tuple[str, ...]
+        scheduler: str
+        report: list[dict[str, Any]]
+        _contrib: list[Any]
+        _points_file: str
+        _order_file: str
+
+        @property
+        def client(self) -> Any: ...
+
+        def compute(self, x: Any) -> np.ndarray: ...
+
+        def _compute(self, *objs: Any) -> list[Any]: ...
+
+        def _check_open(self) -> None: ...
+
+        def _tile_path(self, t: int) -> str: ...
 
     # ------------------------------------------------------------------ results
     def _field(self, name: str, width=None):

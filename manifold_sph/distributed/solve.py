@@ -217,6 +217,8 @@ def _run_mpi(ts, problem, ranks, args):
         with open(path, "w") as f:
             json.dump(job, f)
         launcher = shutil.which("mpirun") or shutil.which("mpiexec")
+        if launcher is None:
+            raise RuntimeError("the MPI engine needs mpirun or mpiexec on the PATH")
         cmd = [launcher, "-n", str(ranks)]
         if _is_openmpi(launcher):  # Open MPI refuses root and more ranks than cores unless told
             cmd += ["--allow-run-as-root", "--oversubscribe"]

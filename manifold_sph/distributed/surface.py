@@ -38,6 +38,7 @@ import os
 import shutil
 import tempfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -186,7 +187,8 @@ class TiledSurface(TiledOperators):
         for k in keep:
             check_in("keep", k, KEEP)
         self.keep = keep
-        self._client, self._own_cluster = client, None
+        self._client = client
+        self._own_cluster: Any = None  # the LocalCluster this surface started, if any
         self.scheduler = "distributed" if client is not None else scheduler
         self.memory_limit = memory_limit
         opts = self._check_surface_options(surface_options)
@@ -250,7 +252,7 @@ class TiledSurface(TiledOperators):
         # support radii chained: the row, the neighbours' area elements, and with estimated normals the jet
         # fit's k-nearest ball and its two refits (k-th neighbour distance ~ sqrt(k / neighbors) support radii,
         # times 1.5 for the spread of irregular clouds); h="adaptive" varies the radius per particle (x 1.2)
-        chain = 1 + (1 if opts["area"] == "shepard" else 0)
+        chain: float = 1 + (1 if opts["area"] == "shepard" else 0)
         if nrm is None:
             chain += 3 * 1.5 * np.sqrt(self._normal_k() / opts["neighbors"])
         if isinstance(h, str):
@@ -387,7 +389,7 @@ class TiledSurface(TiledOperators):
                 names = next((trio for trio in NORMAL_NAMES if all(k in fields for k in trio)), None)
                 if names is not None:
                     nout = np.lib.format.open_memmap(ntarget, mode="w+", dtype=np.float64, shape=(n, 3))
-            if nout is not None:
+            if nout is not None and names is not None:  # set together, from the first chunk
                 nout[pos : pos + m] = np.stack([np.asarray(fields[k], dtype=np.float64) for k in names], axis=1)
             pos += m
         if pos != n:
@@ -553,7 +555,7 @@ class TiledSurface(TiledOperators):
                 [(t, b, msg) for t, b, msg in failures],
             )
         self._contrib = [r["contrib"] for r in results]
-        self.fallback = {}
+        self.fallback: dict[str, int] = {}  # particles per fallback scheme, over the tiles
         for r in results:
             for k, v in r.get("fallback", {}).items():
                 self.fallback[k] = self.fallback.get(k, 0) + v

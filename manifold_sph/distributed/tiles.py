@@ -254,7 +254,7 @@ def _build_tile_arrays(spec: dict):
                 offset += uhi - ulo
         cols = np.concatenate(parts)
         spts = np.asarray(pts_all[cols])
-        snrm = None if estimate else np.asarray(nrm_all[cols])
+        snrm = None if nrm_all is None else np.asarray(nrm_all[cols])  # None: estimate
         if h_all is not None:
             opts["h"] = np.asarray(h_all[cols])
         with warnings.catch_warnings(record=True) as caught:

@@ -20,7 +20,7 @@ Measured in ``benchmarks/geometry.py`` and ``docs/geometry.md``.
 from __future__ import annotations
 
 import warnings
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, overload
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -276,6 +276,12 @@ class GeodesicSolver:
         return arr.astype(np.int64)
 
     # ------------------------------------------------------------------ queries
+    @overload
+    def distance(self, sources: ArrayLike, *, to: None = None, offsets: ArrayLike | None = None) -> np.ndarray: ...
+
+    @overload
+    def distance(self, sources: ArrayLike, *, to: ArrayLike | None = None, offsets: ArrayLike | None = None) -> np.ndarray | float: ...
+
     def distance(
         self, sources: ArrayLike, *, to: ArrayLike | None = None, offsets: ArrayLike | None = None
     ) -> np.ndarray | float:
@@ -353,6 +359,16 @@ class GeodesicSolver:
             for r, i in enumerate(idx):
                 D[r] = self.distance(int(i), to=idx)
         return 0.5 * (D + D.T)
+
+
+@overload
+def geodesic_distance(cloud: Surface | ArrayLike, sources: ArrayLike, *, to: None = None, method: str = "wavefront") -> np.ndarray: ...
+
+
+@overload
+def geodesic_distance(
+    cloud: Surface | ArrayLike, sources: ArrayLike, *, to: ArrayLike | None = None, method: str = "wavefront"
+) -> np.ndarray | float: ...
 
 
 def geodesic_distance(

@@ -53,24 +53,27 @@ class _Rows:
         self.lo, self.hi = int(job["bounds"][t0]), int(job["bounds"][t1])
         self.n = int(job["n_points"])
         nloc = self.hi - self.lo
-        indptr, indices, data, m = [np.zeros(1, dtype=np.int64)], [], [], []
+        indptr_parts: list[np.ndarray] = [np.zeros(1, dtype=np.int64)]
+        index_parts: list[np.ndarray] = []
+        data_parts: list[np.ndarray] = []
+        m_parts: list[np.ndarray] = []
         off = 0
         for d in self.tiles:
             K = d["K"]
             cols = np.asarray(d["cols"])
-            indptr.append(np.asarray(K.indptr[1:], dtype=np.int64) + off)
+            indptr_parts.append(np.asarray(K.indptr[1:], dtype=np.int64) + off)
             off += int(K.indptr[-1])
-            indices.append(cols[np.asarray(K.indices)])
-            data.append(np.asarray(K.data))
-            m.append(np.asarray(d["M"]))
-        indptr = np.concatenate(indptr).astype(PETSc.IntType)
-        indices = np.concatenate(indices).astype(PETSc.IntType) if indices else np.zeros(0, PETSc.IntType)
-        data = np.concatenate(data) if data else np.zeros(0)
+            index_parts.append(cols[np.asarray(K.indices)])
+            data_parts.append(np.asarray(K.data))
+            m_parts.append(np.asarray(d["M"]))
+        indptr = np.concatenate(indptr_parts).astype(PETSc.IntType)
+        indices = np.concatenate(index_parts).astype(PETSc.IntType) if index_parts else np.zeros(0, PETSc.IntType)
+        data = np.concatenate(data_parts) if data_parts else np.zeros(0)
         for i in range(nloc):  # PETSc wants each row's columns ascending
             a, b = indptr[i], indptr[i + 1]
             o = np.argsort(indices[a:b], kind="stable")
             indices[a:b], data[a:b] = indices[a:b][o], data[a:b][o]
-        self.m = np.concatenate(m) if m else np.zeros(0)
+        self.m = np.concatenate(m_parts) if m_parts else np.zeros(0)
         self.K = PETSc.Mat().createAIJ(size=((nloc, self.n), (nloc, self.n)), csr=(indptr, indices, data), comm=comm)
         self.K.assemble()
         self.M = self.vec(self.m)
@@ -175,15 +178,15 @@ def _geodesic(job, R, its, secs):
         nrm = np.linalg.norm(g, axis=1)
         X.append(-g / np.where(nrm > 0, nrm, 1.0)[:, None])
     X = R.allgather(np.concatenate(X) if X else np.zeros((0, 3)))
-    b = []
+    b_parts = []
     for d in R.tiles:  # sum_j w_ij (X_i + X_j) / 2 . (x_i - x_j), the own rows of K
         K, cols = d["K"].tocoo(), np.asarray(d["cols"])
         off = K.row != K.col
         gi, gj, w = cols[K.row[off]], cols[K.col[off]], -K.data[off]
         Pi, Pj = np.asarray(pts[gi]), np.asarray(pts[gj])
-        b.append(np.bincount(K.row[off], weights=w * np.einsum("pd,pd->p", 0.5 * (X[gi] + X[gj]), Pi - Pj),
-                             minlength=d.n))
-    b = np.concatenate(b) if b else np.zeros(0)
+        b_parts.append(np.bincount(K.row[off], weights=w * np.einsum("pd,pd->p", 0.5 * (X[gi] + X[gj]), Pi - Pj),
+                                   minlength=d.n))
+    b = np.concatenate(b_parts) if b_parts else np.zeros(0)
     own = np.asarray(pts[R.lo : R.hi])
     r = cKDTree(np.asarray(pts[np.sort(src)])).query(own)[0]
     held = r <= SOURCE_RADIUS * np.sqrt(R.mean_m)
@@ -259,7 +262,8 @@ def main(argv=None) -> int:
     t0 = time.perf_counter()
     R = _Rows(job, comm)
     t_read = time.perf_counter() - t0
-    its, secs = [], []
+    its: list[int] = []  # each solve's iterations and seconds
+    secs: list[float] = []
     problem = job["problem"]
     if problem == "eigs":
         lam, V = _eigs(job, R, its, secs)

@@ -51,6 +51,7 @@ import os
 import re
 from collections.abc import Mapping
 from pathlib import Path
+from typing import Literal, overload
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -101,6 +102,21 @@ def read_mesh(path: str | os.PathLike[str], *, format: str | None = None) -> tup
     src = file_source(path, format=fmt, faces=True)
     faces = np.zeros((0, 3), dtype=np.int64) if src.faces is None else src.faces
     return src.points, faces
+
+
+@overload
+def read(path: str | os.PathLike[str], *, format: str | None = None, normals: str = "auto",
+         duplicates: str = "merge", return_fields: Literal[False] = False) -> PointCloud: ...
+
+
+@overload
+def read(path: str | os.PathLike[str], *, format: str | None = None, normals: str = "auto",
+         duplicates: str = "merge", return_fields: Literal[True]) -> tuple[PointCloud, dict[str, np.ndarray]]: ...
+
+
+@overload
+def read(path: str | os.PathLike[str], *, format: str | None = None, normals: str = "auto",
+         duplicates: str = "merge", return_fields: bool = False) -> PointCloud | tuple[PointCloud, dict[str, np.ndarray]]: ...
 
 
 def read(path: str | os.PathLike[str], *, format: str | None = None, normals: str = "auto",

@@ -174,7 +174,7 @@ def convergence_plot(
             f"tables must be a ConvergenceTable or a non-empty mapping of name -> ConvergenceTable, got {type(tables).__name__}"
         )
     fig, ax = _axes(ax, figsize)
-    first = None
+    first: tuple[np.ndarray, np.ndarray, int] | None = None  # the first curve: (x, errors, dim)
     for s, (label, t) in enumerate(studies.items()):
         names = list(t.names) if errors is None else list(errors)
         for name in names:
@@ -193,7 +193,7 @@ def convergence_plot(
             ax.loglog(xs, t.errors[name], style, marker=_MARKERS[(s * len(names) + j) % len(_MARKERS)], label=lab)
             if first is None:
                 first = (xs, np.asarray(t.errors[name]), t.dim)
-    if reference_order is not None:
+    if reference_order is not None and first is not None:  # first: None when errors=[] (no curve)
         p = float(reference_order)
         xs, es, dim = first
         hs = xs if x == "h" else xs ** (-1.0 / dim)
@@ -335,7 +335,7 @@ def area_histogram(
         ax.axvline(float(reference), color="k", ls=":", label=f"reference {float(reference):.3g}")
     for k, v in samples.items():
         neg = int((v < 0).sum())
-        ax.hist(v, bins=edges, alpha=0.6, label=f"{k + ' ' if k else ''}({neg} negative)")
+        ax.hist(v, bins=edges.tolist(), alpha=0.6, label=f"{k + ' ' if k else ''}({neg} negative)")
     ax.set_xlabel("area element dV")
     ax.set_ylabel("number of particles")
     if title:

@@ -200,7 +200,8 @@ def _quiet_vtk():
 
     old = vtkObject.GetGlobalWarningDisplay()
     vtkObject.GlobalWarningDisplayOff()
-    renderer = old_backend = None
+    renderer = None
+    old_backend: int | None = None
     try:
         from vtkmodules.vtkRenderingCore import vtkTextRenderer
 
@@ -213,7 +214,7 @@ def _quiet_vtk():
     try:
         yield
     finally:
-        if renderer is not None:
+        if renderer is not None and old_backend is not None:
             renderer.SetDefaultBackend(old_backend)
         vtkObject.SetGlobalWarningDisplay(old)
 
@@ -375,6 +376,7 @@ class _Scene:
         if self.style != "splats":
             return pv.PolyData(self.points)
         nrm, r = self.normals, self.radii
+        assert nrm is not None  # splats need normals (checked in __init__)
         helper = np.where(np.abs(nrm[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
         t1 = np.cross(nrm, helper)
         t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
@@ -899,7 +901,7 @@ def animate(
                     data = actor.mapper.dataset
                     data.point_data["field"][:] = scene.values(np.clip(snaps[k], *lim))
                     data.Modified()
-                    if clock is not None:
+                    if clock is not None and times is not None:  # a clock is shown with times only
                         _set_text(clock, f"t = {times[k]:.4g}")
                     if mp4:
                         p.write_frame()

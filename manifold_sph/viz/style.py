@@ -258,7 +258,7 @@ def detect_up_axis(points: ArrayLike) -> str | tuple[float, float, float]:
     _, sv, vt = np.linalg.svd(centred[:: max(1, len(p) // 5000)], full_matrices=False)
     if sv[-1] <= 0.02 * sv[0] and np.abs(vt[-1]).max() < np.cos(np.radians(10.0)):
         n = vt[-1] * (1.0 if vt[-1][2] >= 0 else -1.0)  # a flat cloud turned off the axes: its normal, towards +z
-        return tuple(float(c) for c in n)
+        return float(n[0]), float(n[1]), float(n[2])
     eye = np.eye(3)
     fy = _footprint(p, eye[1], eye[[0, 2]])
     fz = _footprint(p, eye[2], eye[[0, 1]])
