@@ -212,7 +212,8 @@ def _add_scattering_arguments(p: argparse.ArgumentParser) -> None:
                    help="scatter-*: remove the leap-frog's time dispersion at the drive frequency (pays with "
                         "--coupling mimetic)")
     g.add_argument("--wall-closure", action="store_true",
-                   help="tez-cavity: the walls as closure columns with fitted volumes (converges on jittered layouts)")
+                   help="tez-cavity: the walls as closure columns with fitted volumes (the default on jittered layouts; "
+                        "converges on irregular layouts)")
     g.add_argument("--mimetic-fast", action="store_true",
                    help="cavity and scatter-*, with --coupling mimetic: the faster correction (G exact for quadratics)")
     g.add_argument("--interface", choices=("auto", "average", "jump"), default=None,

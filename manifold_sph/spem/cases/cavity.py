@@ -160,7 +160,7 @@ def run_tez_cavity(*, a: float = 0.1, b: float = 0.06, n: int = 12, modes: Seque
                    eps_r: float = 1.0, layout: str = "yee", amplitude: float = 0.2, seed: int | None = 0,
                    coupling: str = DEFAULT_COUPLING, h_ratio: float | None = None,
                    courant: float = 0.9, periods: float = 1.0, spectrum_periods: float = 5.0,
-                   sbp_layers: int | None = SBP_LAYERS, wall_closure: bool = False) -> TEzCavityResult:
+                   sbp_layers: int | None = SBP_LAYERS, wall_closure: bool | None = None) -> TEzCavityResult:
     """TEz modes of a PEC rectangle ``a x b``: ``Hz = sum cos(m pi x/a) cos(n pi y/b) cos(w_mn t)``.
 
     ``n`` spacings along ``b`` (``dr = b / n``; ``a`` must be a multiple of
@@ -171,7 +171,10 @@ def run_tez_cavity(*, a: float = 0.1, b: float = 0.06, n: int = 12, modes: Seque
     periods and the first mode's resonance is fitted to the projection of Hz
     onto it (``frequency_error``). ``wall_closure=True``: the walls as closure
     columns with fitted volumes (:func:`wall_closure_layout`; couplings "sbp"
-    and "adjoint"), which converges on jittered layouts too. ``h_ratio``
+    and "adjoint"), which converges on jittered layouts too; None (default):
+    on the jittered and Poisson layouts, not on the lattice (on irregular
+    layouts the plain walls' corrected rows collapse the step and lose the
+    mode; docs/spem.md has the numbers). ``h_ratio``
     defaults to 0.7, with ``wall_closure`` to :data:`DISK_H_RATIO` (at 0.7 an Hz
     volume of the lattice rectangle's correction turns negative and the layout is refused).
 
@@ -188,8 +191,10 @@ def run_tez_cavity(*, a: float = 0.1, b: float = 0.06, n: int = 12, modes: Seque
     modes = _check_modes(modes)
     dr = check_positive("b", b) / n
     check_in("layout", layout, ("yee", "jittered", "poisson", "poisson-shared"))
+    if wall_closure is None:
+        wall_closure = layout != "yee"
     if not isinstance(wall_closure, bool):
-        raise TypeError(f"wall_closure must be True or False, got {wall_closure!r}")
+        raise TypeError(f"wall_closure must be True, False or None, got {wall_closure!r}")
     lay = tez_layout((0.0, check_positive("a", a), 0.0, b), dr, amplitude=amplitude if layout == "jittered" else 0.0,
                      seed=seed, kind=layout if layout.startswith("poisson") else "lattice")
     if wall_closure:
