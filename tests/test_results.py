@@ -57,9 +57,7 @@ def test_spem_run_returns_a_run_result():
 
 @pytest.fixture(scope="module")
 def cavity():
-    # frames=1: one snapshot, at the last step (with frames=2 the last snapshot falls on the last step only
-    # when the step count is even)
-    return run_case("cavity", n_radial=4, periods=0.2, frames=1)
+    return run_case("cavity", n_radial=4, periods=0.2, every=3)  # every third step, and the final state
 
 
 def test_spem_cases_return_named_fields_and_json(cavity):
@@ -69,9 +67,13 @@ def test_spem_cases_return_named_fields_and_json(cavity):
     assert r.f1_measured is None and r.f1_exact == pytest.approx(362.85e6, rel=1e-3)
     d = r.to_dict()
     assert "fields" not in d and json.loads(json.dumps(d))["error"] == r.error
-    f = r.fields  # the picture data: every frames-th state
+    f = r.fields  # the picture data: every third state and the final one
     assert f.snapshots.shape == (len(f.times), len(f.points)) and f.exact.shape == (len(f.points),)
     np.testing.assert_allclose(f.times[-1], r.steps * r.dt)
+    assert len(f.times) == r.steps // 3 + (r.steps % 3 != 0)
+    np.testing.assert_allclose(np.diff(f.times)[:-1], 3 * r.dt)
+    with pytest.raises(ValueError, match="every must be"):
+        run_case("cavity", n_radial=4, periods=0.2, every=0)
 
 
 def _imports(path):

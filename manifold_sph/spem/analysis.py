@@ -64,12 +64,12 @@ def _centre(points, dr):
     return int(np.argmin(((points - c) ** 2).sum(axis=1)))
 
 
-def lattice_symbols(k: ArrayLike, layout: str = "yee", *, h_ratio: float = DEFAULT_H_RATIO,
+def lattice_symbols(wavevectors: ArrayLike, layout: str = "yee", *, h_ratio: float = DEFAULT_H_RATIO,
                     kernel: str | Kernel | type[Kernel] = "cubic", form: str = "fpm",
                     dr: float = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Symbols ``(s_x^EH, s_y^EH, s_y^HxE, s_x^HyE)`` at wave vectors ``k`` (K, 2), from interior rows."""
+    """Symbols ``(s_x^EH, s_y^EH, s_y^HxE, s_x^HyE)`` at ``wavevectors`` (K, 2), from interior rows."""
     lay, ops = _operators(layout, h_ratio, kernel, form, dr)
-    k = np.atleast_2d(np.asarray(k, dtype=np.float64))
+    k = np.atleast_2d(np.asarray(wavevectors, dtype=np.float64))
     rows = {"Dx_e": (ops["e_rows"], lay.hy), "Dy_e": (ops["e_rows"], lay.hx), "Dy_hx": (lay.hx, lay.e), "Dx_hy": (lay.hy, lay.e)}
     out = []
     for name in ("Dx_e", "Dy_e", "Dy_hx", "Dx_hy"):

@@ -18,6 +18,8 @@ import json
 import sys
 from collections.abc import Sequence
 
+import numpy as np
+
 from .._validation import check_output_path
 
 __all__ = ["add_parser", "run", "main"]
@@ -95,7 +97,7 @@ def _kwargs(args) -> dict:
     if args.png or args.gif:
         if args.case == "pml":
             raise ValueError("pictures are not available for the pml case (it compares probe series)")
-        kw["frames"] = args.frames if args.gif else 1
+        kw["every"] = 1 if args.gif else None  # every step for a GIF (--frames of them drawn), else the final state
     return kw
 
 
@@ -127,6 +129,9 @@ def _pictures(result, args):
     import matplotlib.pyplot as plt
 
     pts, times, snaps = result.fields.points, result.fields.times, result.fields.snapshots
+    if args.gif:  # --frames states, evenly spaced in time, the first and the last among them
+        pick = np.unique(np.linspace(0, len(times) - 1, min(args.frames, len(times))).round().astype(int))
+        times, snaps = times[pick], snaps[pick]
     vmax = float(abs(snaps).max()) or 1.0
     if args.png:
         fig, ax = plt.subplots(figsize=(5, 4.5))

@@ -7,7 +7,7 @@ what every solver's ``run`` returns; every TMz case result derives from
 :class:`CaseResult` (``case``, ``particles``, ``steps``, ``seconds`` (wall time of
 the whole call), ``step_seconds`` (the stepping alone), ``error``, ``dt``, ``dr``
 and ``fields``, the E field for pictures as a :class:`FieldHistory` when asked for
-with ``frames=``); the scattering and TEz cases have their own.
+with ``every=``; the final state always); the scattering and TEz cases have their own.
 
 Examples
 --------

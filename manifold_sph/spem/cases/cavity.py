@@ -33,7 +33,7 @@ from ..tmz import TMzSolver
 if TYPE_CHECKING:
     from ...kernels import Kernel
 
-from .common import field_history, fit_solver_dt, relative_error, snapshot_interval, timed
+from .common import check_every, field_history, fit_solver_dt, relative_error, timed
 
 __all__ = ["cavity_exact", "cavity_frequency", "peak_frequency", "run_cavity", "tez_cavity_frequency", "run_tez_cavity",
            "tez_disk_frequency", "tez_disk_mode", "run_tez_circular_cavity"]
@@ -81,7 +81,7 @@ def peak_frequency(signal: ArrayLike, dt: float, fmin: float = 0.0) -> float:
 def run_cavity(*, r0: float = 0.1, eps_r: float = 10.0, n_radial: int = 40, periods: float = 1.0,
                layout: str = "yee", form: str = "fpm", kernel: str | Kernel | type[Kernel] = "cubic",
                h_ratio: float | None = None,
-               courant: float = 0.9, coupling: str = DEFAULT_COUPLING, spectrum_periods: float = 0.0, frames: int = 0,
+               courant: float = 0.9, coupling: str = DEFAULT_COUPLING, spectrum_periods: float = 0.0, every: int | None = None,
                sbp_layers: int | None = None, seed: int | np.random.Generator | None = 0,
                progress: bool = False, mimetic_fast: bool = False) -> CavityResult:
     """Circular PEC cavity ([2] sec. 4.3), ``Ez(0) = 1 - r^2/r0^2``, compared with the Bessel series.
@@ -98,6 +98,7 @@ def run_cavity(*, r0: float = 0.1, eps_r: float = 10.0, n_radial: int = 40, peri
     where E outnumbers H, no spurious localised modes measured); ``h_ratio`` defaults to the coupling's.
     ``mimetic_fast``: as :class:`.TMzSolver` (``coupling="mimetic"`` only).
     """
+    every = check_every(every)
     r0 = check_positive("r0", r0)
     eps_r = check_positive("eps_r", eps_r)
     n_radial = check_int("n_radial", n_radial, minimum=4)
@@ -114,13 +115,13 @@ def run_cavity(*, r0: float = 0.1, eps_r: float = 10.0, n_radial: int = 40, peri
     s.set_initial(np.clip(1.0 - r**2 / r0**2, 0.0, None))
     centre = int(np.argmin(r))
     energy0 = s.energy()
-    res = s.run(steps, probes=[centre], every=snapshot_interval(steps, frames), progress=progress)
+    res = s.run(steps, probes=[centre], every=every, progress=progress)
     energy_drift = abs(s.energy() / energy0 - 1.0)
     exact = cavity_exact(r, s.t, r0, eps_r)
     out = CavityResult(case="cavity", particles=lay.n_particles, steps=steps, seconds=res.seconds,
                        step_seconds=res.seconds, error=relative_error(s.e_field, exact), dt=dt, dr=dr, layout=layout,
                        form=form, r0=r0, eps_r=eps_r, f1_exact=f1,
-                       fields=field_history(lay.e, s.e_field, s.t, res, frames, exact),
+                       fields=field_history(lay.e, s.e_field, s.t, res, exact),
                        consistency=s.consistency_residual(), energy_drift=energy_drift)
     if spectrum_periods > 0:
         more = int(round(spectrum_periods * T1 / dt))

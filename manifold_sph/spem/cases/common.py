@@ -25,7 +25,7 @@ from ..results import FieldHistory, RunResult
 if TYPE_CHECKING:
     pass
 
-__all__ = ["relative_error", "l2_error", "dft_phasor", "timed", "snapshot_interval", "field_history", "fit_dt",
+__all__ = ["relative_error", "l2_error", "dft_phasor", "timed", "check_every", "field_history", "fit_dt",
            "fit_solver_dt"]
 
 
@@ -78,19 +78,20 @@ def timed(fn: Callable[..., Any]) -> Callable[..., Any]:
     return wrapper
 
 
-def snapshot_interval(steps: int, frames: int) -> int | None:
-    frames = check_int("frames", frames, minimum=0)
-    return max(1, steps // frames) if frames else None
+def check_every(every: int | None) -> int | None:
+    """A case's ``every=``: save the E field every this many steps (None: the final state only)."""
+    return None if every is None else check_int("every", every, minimum=1)
 
 
-def field_history(points: np.ndarray, field: np.ndarray, t: float, res: RunResult, frames: int,
-                  exact: np.ndarray | None = None) -> FieldHistory | None:
-    """The picture data of a case (:class:`.results.FieldHistory`), or None without ``frames``."""
-    if not frames:
-        return None
-    if len(res.snapshots):
-        return FieldHistory(points, res.snapshot_times, res.snapshots, exact)
-    return FieldHistory(points, np.array([t]), field.copy()[None], exact)
+def field_history(points: np.ndarray, field: np.ndarray, t: float, res: RunResult,
+                  exact: np.ndarray | None = None) -> FieldHistory:
+    """The picture data of a case (:class:`.results.FieldHistory`): the snapshots the run saved
+    (``every=``) and always the final state."""
+    times, snaps = np.asarray(res.snapshot_times, dtype=np.float64), np.asarray(res.snapshots)
+    if not len(times) or not np.isclose(times[-1], t, rtol=1e-12, atol=0.0):
+        times = np.append(times, t)
+        snaps = np.vstack([snaps.reshape(-1, field.size), field.copy()[None]])
+    return FieldHistory(points, times, snaps, exact)
 
 
 def fit_solver_dt(solver: Any, t_end: float) -> tuple[float, int]:

@@ -25,7 +25,7 @@ from ..line import Line1DSolver
 if TYPE_CHECKING:
     from ...kernels import Kernel
 
-from .common import field_history, fit_dt, relative_error, snapshot_interval, timed
+from .common import check_every, field_history, fit_dt, relative_error, timed
 
 __all__ = ["run_line1d"]
 
@@ -34,7 +34,7 @@ __all__ = ["run_line1d"]
 @timed
 def run_line1d(*, freq: float = 1.8e9, length: float = math.pi, dr: float = 1.66e-3, h: float | None = None,
                t_end: float = 4.75e-9, kernel: str | Kernel | type[Kernel] = "cubic", form: str = "fpm", courant: float = 0.9,
-               frames: int = 0,
+               every: int | None = None,
                source_width: float = 0.0, progress: bool = False) -> LineResult:
     """1D line ([2] sec. 4.2): hard source ``sin(2 pi f t)`` at the centre of [0, L].
 
@@ -48,6 +48,7 @@ def run_line1d(*, freq: float = 1.8e9, length: float = math.pi, dr: float = 1.66
     kernel support ``2 h``) imposes the exact outgoing wave on every E
     particle within that distance of the centre instead.
     """
+    every = check_every(every)
     freq = check_positive("freq", freq)
     dr = check_positive("dr", dr)
     h = DEFAULT_H_RATIO * dr if h is None else check_positive("h", h)
@@ -71,7 +72,7 @@ def run_line1d(*, freq: float = 1.8e9, length: float = math.pi, dr: float = 1.66
     else:
         src = point_source(e, [zc], wave)
     s = Line1DSolver(e, hp, h=h, kernel=kernel, form=form, dt=dt, sources=[src])
-    res = s.run(steps, every=snapshot_interval(steps, frames), progress=progress)
+    res = s.run(steps, every=every, progress=progress)
     z = e[:, 0]
     tau = s.t - np.abs(z - zc) / C0
     exact = np.where(tau > 0, np.sin(2 * np.pi * freq * tau), 0.0)
@@ -79,4 +80,4 @@ def run_line1d(*, freq: float = 1.8e9, length: float = math.pi, dr: float = 1.66
     return LineResult(case="line1d", particles=int(len(e) + len(hp)), steps=steps, seconds=res.seconds,
                       step_seconds=res.seconds, error=relative_error(s.ex[reached], exact[reached]), dt=dt, dr=dr,
                       h=h, particles_per_wavelength=C0 / freq / dr, courant=s.courant,
-                      fields=field_history(e, s.e_field, s.t, res, frames, exact))
+                      fields=field_history(e, s.e_field, s.t, res, exact))

@@ -39,7 +39,7 @@ from ..tmz import TMzSolver
 if TYPE_CHECKING:
     from ...kernels import Kernel
 
-from .common import field_history, fit_dt, fit_solver_dt, relative_error, snapshot_interval, timed
+from .common import check_every, field_history, fit_dt, fit_solver_dt, relative_error, timed
 
 __all__ = ["guided_exact", "adjacent_line_difference", "alternating_amplitude", "run_planewave", "run_waveguide",
            "run_pml", "run_tez_pml"]
@@ -159,7 +159,7 @@ def run_planewave(*, size: float = 0.5, freq: float = 3.6e9, ppw: float = 40.0, 
                   layout: str = "yee", form: str = "fpm", kernel: str | Kernel | type[Kernel] = "cubic", h_ratio: float | None = None,
                   courant: float = 0.9, coupling: str = DEFAULT_COUPLING, travel: float = 0.8, ramp: float = 2.0,
                   seed: int | np.random.Generator | None = 0,
-                  source_span: str = "full", frames: int = 0, certify: bool | None = None,
+                  source_span: str = "full", every: int | None = None, certify: bool | None = None,
                   progress: bool = False) -> PlanewaveResult:
     """Free-space plane wave in a ``size`` square with PML on all sides ([2] sec. 4.5).
 
@@ -179,6 +179,7 @@ def run_planewave(*, size: float = 0.5, freq: float = 3.6e9, ppw: float = 40.0, 
     (:func:`.certify.pml_certificate`, reported as ``pml_reflection_db``; by
     default for the couplings of :data:`.certify.CERTIFIED_COUPLINGS`).
     """
+    every = check_every(every)
     size = check_positive("size", size)
     check_in("source_span", source_span, ("full", "interior"))
     freq = check_positive("freq", freq)
@@ -208,7 +209,7 @@ def run_planewave(*, size: float = 0.5, freq: float = 3.6e9, ppw: float = 40.0, 
     s = TMzSolver(lay, h_ratio=h_ratio, kernel=kernel, form=form, coupling=coupling, pml=pml, courant=courant,
                   sources=[src])
     dt, steps = fit_solver_dt(s, t_end)
-    res = s.run(steps, every=snapshot_interval(steps, frames), progress=progress)
+    res = s.run(steps, every=every, progress=progress)
     inside = (e[:, 0] > 0) & (e[:, 0] < size) & (e[:, 1] > ys + 0.5 * dr) & (e[:, 1] < size) & ~lay.e_fixed
     exact = wave(s.t - (e[inside, 1] - ys) / C0)
     # the PEC walls behind the side layers perturb the grazing wave (a layer cannot absorb
@@ -221,7 +222,7 @@ def run_planewave(*, size: float = 0.5, freq: float = 3.6e9, ppw: float = 40.0, 
         ppw=C0 / freq / dr, pml_cells=pml_cells, error_centre=relative_error(s.e_field[inside][centre], exact[centre]),
         adjacent_line_difference=adjacent_line_difference(e, s.e_field, dr, axis=0, mask=inside) if lattice else None,
         alternating_amplitude=alternating_amplitude(e, s.e_field, dr, mask=inside) if lattice else None,
-        fields=field_history(e, s.e_field, s.t, res, frames), consistency=s.consistency_residual(),
+        fields=field_history(e, s.e_field, s.t, res), consistency=s.consistency_residual(),
         pml_reflection_db=_certificate(certify, s, layout, pml_cells, kernel=kernel, form=form, seed=seed))
 
 
@@ -230,7 +231,7 @@ def run_waveguide(*, width: float = 0.5, length: float = 0.4, pml_thickness: flo
                   f_ratio: float = 1.2, t_end: float = 4.1e-9, line_x: float = 0.244, amplitude: float = 0.2,
                   layout: str = "yee", form: str = "fpm", kernel: str | Kernel | type[Kernel] = "cubic",
                   h_ratio: float | None = None,
-                  courant: float = 0.9, coupling: str = DEFAULT_COUPLING, ramp: float = 0.0, frames: int = 0,
+                  courant: float = 0.9, coupling: str = DEFAULT_COUPLING, ramp: float = 0.0, every: int | None = None,
                   certify: bool | None = None, progress: bool = False) -> WaveguideResult:
     """Parallel-plate waveguide ([2] sec. 4.4): PEC plates x = 0 and x = ``width``, TM1 source at y = 0.
 
@@ -242,6 +243,7 @@ def run_waveguide(*, width: float = 0.5, length: float = 0.4, pml_thickness: flo
     line of E particles nearest ``x = line_x``, excluding the PML, at ``t_end``.
     ``certify``: the layer's reflection, as in :func:`run_planewave`.
     """
+    every = check_every(every)
     width = check_positive("width", width)
     ppw = check_positive("ppw", ppw)
     fc = C0 / (2 * width)
@@ -272,7 +274,7 @@ def run_waveguide(*, width: float = 0.5, length: float = 0.4, pml_thickness: flo
     s = TMzSolver(lay, h_ratio=h_ratio, kernel=kernel, form=form, coupling=coupling, pml=pml, courant=courant,
                   sources=[src])
     dt, steps = fit_solver_dt(s, t_end)
-    res = s.run(steps, every=snapshot_interval(steps, frames), progress=progress)
+    res = s.run(steps, every=every, progress=progress)
     xs = e[np.argmin(np.abs(e[:, 0] - line_x)), 0]
     column = np.abs(e[:, 0] - xs) < tol
     if column.sum() < 3:  # irregular layouts: the band of E particles within dr/2 of the line
@@ -283,7 +285,7 @@ def run_waveguide(*, width: float = 0.5, length: float = 0.4, pml_thickness: flo
     return WaveguideResult(case="waveguide", particles=lay.n_particles, steps=steps, seconds=res.seconds,
                            step_seconds=res.seconds, error=relative_error(s.e_field[on_line], exact), dt=dt, dr=dr,
                            layout=layout, form=form, freq=freq, f_cutoff=fc, line_x=float(xs), ppw=C0 / freq / dr,
-                           pml_cells=npml, fields=field_history(e, s.e_field, s.t, res, frames),
+                           pml_cells=npml, fields=field_history(e, s.e_field, s.t, res),
                            consistency=s.consistency_residual(),
                            pml_reflection_db=_certificate(certify, s, layout, npml, kernel=kernel, form=form, seed=0))
 

@@ -266,15 +266,15 @@ def tez_scattering_layout(kind: str, radius: float, dr: float, half_width: float
 class SwitchedWave:
     """``w(tau) cos(w t - k x)`` with ``tau = t - (x - x0)/c`` and ``w`` a sin^2 ramp over ``ramp`` periods."""
 
-    def __init__(self, x: ArrayLike, freq: float, x0: float, ramp: float, k: float | None = None) -> None:
+    def __init__(self, x: ArrayLike, freq: float, x0: float, ramp: float, wavenumber: float | None = None) -> None:
         self.x, self.freq, self.x0, self.ramp = np.asarray(x, dtype=np.float64), freq, x0, ramp
-        self.k = 2 * np.pi * freq / C0 if k is None else k  # the spatial wavenumber (the drive's own by default)
+        self.wavenumber = 2 * np.pi * freq / C0 if wavenumber is None else wavenumber  # the drive's own by default
 
     def __call__(self, t: float | np.ndarray) -> np.ndarray:
         tau = t - (self.x - self.x0) / C0
         tr = self.ramp / self.freq
         w = np.where(tau <= 0, 0.0, np.where(tau < tr, np.sin(0.5 * np.pi * np.clip(tau, 0, None) / tr) ** 2, 1.0))
-        return w * np.cos(2 * np.pi * self.freq * t - self.k * self.x)
+        return w * np.cos(2 * np.pi * self.freq * t - self.wavenumber * self.x)
 
 
 class PECDrive:

@@ -1,0 +1,229 @@
+"""The package's conventions (docs/conventions.md), checked on the code itself.
+
+Each test reads the package (its source with ``ast``, or its public callables with
+``inspect``) and fails naming every place that breaks a convention, so a new module
+is held to the same rules as the old ones.
+"""
+
+from __future__ import annotations
+
+import ast
+import importlib
+import inspect
+import pathlib
+import pkgutil
+import re
+import types
+
+import pytest
+
+import manifold_sph
+from manifold_sph.results import Result
+
+ROOT = pathlib.Path(manifold_sph.__file__).resolve().parent
+REPO = ROOT.parent
+SOURCES = sorted(p for p in ROOT.rglob("*.py") if "__pycache__" not in p.parts)
+
+#: The core follows the pipeline and never imports the periphery at module level.
+PERIPHERY = ("manifold_sph.viz", "manifold_sph.cli", "manifold_sph.spem", "manifold_sph.distributed",
+             "manifold_sph.mpi")
+CORE = ("manifold_sph.pointcloud", "manifold_sph.neighbors", "manifold_sph.frames", "manifold_sph.kernels",
+        "manifold_sph.schemes", "manifold_sph.assembly", "manifold_sph.area", "manifold_sph.voronoi",
+        "manifold_sph.operators", "manifold_sph.surface", "manifold_sph.domain", "manifold_sph.normals",
+        "manifold_sph.solvers", "manifold_sph.pde", "manifold_sph.geometry")
+
+#: Words that tell the history of the code instead of what it does (that belongs in CHANGELOG.md,
+#: docs/ or a commit message).
+HISTORY = re.compile(r"\bformerly\b|\bwas \d|\(was\b|\bissues? #?\d+\b|\bsince 0\.\d|\buntil 0\.\d|\bdeprecated\b",
+                     re.IGNORECASE)
+
+#: Longest module, in lines (one concept a module; a table or one class may run longer, never this long).
+MAX_LINES = 1000
+
+
+def _module_name(path: pathlib.Path) -> str:
+    parts = list(path.relative_to(REPO).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def _resolve(module: str, is_package: bool, node: ast.ImportFrom) -> str:
+    if not node.level:
+        return node.module or ""
+    base = module.split(".")
+    base = base if is_package else base[:-1]
+    base = base[: len(base) - (node.level - 1)]
+    return ".".join(base + ([node.module] if node.module else []))
+
+
+def _module_level_imports(path: pathlib.Path) -> set[str]:
+    """Modules imported at module level (not inside functions, not under ``if TYPE_CHECKING``)."""
+    module = _module_name(path)
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    out: set[str] = set()
+
+    def visit(body):
+        for node in body:
+            if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
+                continue
+            if isinstance(node, (ast.If, ast.Try)):
+                visit(node.body)
+                visit(getattr(node, "orelse", []))
+                for h in getattr(node, "handlers", []):
+                    visit(h.body)
+                continue
+            if isinstance(node, ast.Import):
+                out.update(a.name for a in node.names)
+            elif isinstance(node, ast.ImportFrom):
+                target = _resolve(module, path.name == "__init__.py", node)
+                out.add(target)
+                # "from . import x" names submodules
+                out.update(f"{target}.{a.name}" for a in node.names)
+
+    visit(tree.body)
+    return {m for m in out if m.startswith("manifold_sph")}
+
+
+def _graph() -> dict[str, set[str]]:
+    modules = {_module_name(p): p for p in SOURCES}
+    graph = {}
+    for name, path in modules.items():
+        graph[name] = {m for m in _module_level_imports(path) if m in modules and m != name}
+    return graph
+
+
+def test_the_import_graph_has_no_cycles():
+    graph = _graph()
+    # a package's __init__ importing its own modules is not a cycle with them
+    edges = {a: {b for b in bs if not a == b.rsplit(".", 1)[0] and not b.startswith(a + ".")} for a, bs in graph.items()}
+    index, low, stack, on, cycles, counter = {}, {}, [], set(), [], [0]
+
+    def strong(v):
+        index[v] = low[v] = counter[0]
+        counter[0] += 1
+        stack.append(v)
+        on.add(v)
+        for w in edges[v]:
+            if w not in index:
+                strong(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                cycles.append(sorted(comp))
+
+    for v in edges:
+        if v not in index:
+            strong(v)
+    assert cycles == [], f"import cycles at module level: {cycles}"
+
+
+def test_the_core_does_not_import_the_periphery():
+    bad = []
+    for name, deps in _graph().items():
+        if name.startswith(CORE):
+            bad += [f"{name} -> {d}" for d in deps if d.startswith(PERIPHERY)]
+    assert bad == [], bad
+
+
+def test_no_private_name_is_imported_from_another_module():
+    """A name two modules use is public in one of them (benchmarks and examples included)."""
+    files = SOURCES + sorted((REPO / "benchmarks").glob("*.py")) + sorted((REPO / "examples").glob("*.py"))
+    bad = []
+    for path in files:
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        module = _module_name(path) if path.is_relative_to(ROOT) else ""
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom):
+                target = _resolve(module, path.name == "__init__.py", node) if module else (node.module or "")
+                if not target.startswith("manifold_sph") and not node.level:
+                    continue
+                for a in node.names:
+                    submodule = REPO.joinpath(*f"{target}.{a.name}".split("."))
+                    if submodule.with_suffix(".py").exists() or submodule.is_dir():
+                        continue  # a private module imported whole (an implementation module of the package)
+                    if a.name.startswith("_") and not a.name.startswith("__"):
+                        bad.append(f"{path.relative_to(REPO)}:{node.lineno} imports {a.name} from {target}")
+    assert bad == [], "\n".join(bad)
+
+
+def test_modules_are_short_and_tell_no_history():
+    long_ = [f"{p.relative_to(REPO)}: {n} lines" for p in SOURCES
+             if (n := len(p.read_text(encoding="utf-8").splitlines())) > MAX_LINES]
+    history = [f"{p.relative_to(REPO)}:{i}: {line.strip()[:100]}" for p in SOURCES
+               for i, line in enumerate(p.read_text(encoding="utf-8").splitlines(), 1) if HISTORY.search(line)]
+    assert long_ == [], long_
+    assert history == [], "\n".join(history)
+
+
+def _public_callables():
+    """(qualified name, callable) of every public function and method of every public module."""
+    seen = set()
+    for info in pkgutil.walk_packages(manifold_sph.__path__, "manifold_sph."):
+        if any(part.startswith("_") for part in info.name.split(".")) or ".cli" in info.name:
+            continue
+        mod = importlib.import_module(info.name)
+        for name, obj in vars(mod).items():
+            if name.startswith("_") or getattr(obj, "__module__", None) != mod.__name__:
+                continue
+            if isinstance(obj, types.FunctionType):
+                if obj not in seen:
+                    seen.add(obj)
+                    yield f"{mod.__name__}.{name}", obj
+            elif isinstance(obj, type):
+                for mname, m in vars(obj).items():
+                    if mname.startswith("_") and mname != "__init__":
+                        continue
+                    if isinstance(m, (staticmethod, classmethod)):
+                        m = m.__func__
+                    if isinstance(m, types.FunctionType) and m not in seen:
+                        seen.add(m)
+                        yield f"{mod.__name__}.{name}.{mname}", m
+
+
+@pytest.fixture(scope="module")
+def public_callables():
+    return list(_public_callables())
+
+
+def test_k_is_only_ever_a_count(public_callables):
+    """``k`` counts neighbours or eigenpairs; a diffusivity is ``diffusivity=``, a speed ``c=``."""
+    bad = []
+    for qual, fn in public_callables:
+        p = inspect.signature(fn).parameters.get("k")
+        if p is None:
+            continue
+        ann = str(p.annotation)
+        if "int" not in ann or "float" in ann:
+            bad.append(f"{qual}: k: {ann}")
+    assert bad == [], bad
+
+
+def test_one_keyword_for_snapshots_and_one_for_probes(public_callables):
+    bad = []
+    for qual, fn in public_callables:
+        names = set(inspect.signature(fn).parameters)
+        bad += [f"{qual}({n}=)" for n in names & {"snapshot_every", "frames", "save_every", "probe"}]
+    assert bad == [], f"use every= for snapshots and probes= for probes: {bad}"
+
+
+def test_every_to_dict_comes_from_the_result_base(public_callables):
+    bad = [qual for qual, fn in public_callables
+           if qual.endswith(".to_dict") and not qual.startswith("manifold_sph.results.")]
+    assert bad == [], f"results derive from manifold_sph.results.Result instead of writing to_dict: {bad}"
+    for info in pkgutil.walk_packages(manifold_sph.__path__, "manifold_sph."):
+        if ".cli" in info.name or info.name.endswith("__main__"):
+            continue
+        mod = importlib.import_module(info.name)
+        for name, obj in vars(mod).items():
+            if isinstance(obj, type) and name.endswith("Result") and getattr(obj, "__module__", "") == mod.__name__:
+                assert issubclass(obj, Result), f"{mod.__name__}.{name} does not derive from results.Result"
