@@ -45,10 +45,10 @@ import time
 from pathlib import Path
 
 import numpy as np
+from normals_studies import MODELS, SCANS, mesh_reference
 
 from manifold_sph.normals import estimate_normals
 from manifold_sph.reference.sampling import sample_triangles
-from normals_studies import MODELS, SCANS, mesh_reference
 
 __all__ = ["MODELS", "SCANS", "mesh_reference", "published_clouds", "multi_part", "metrics"]
 

@@ -27,13 +27,14 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
+from manifold_sph.normals import estimate, estimate_normals, tuning
 from manifold_sph.reference import shapes
 from manifold_sph.reference.sampling import sample_triangles
 from manifold_sph.scans.io import read_mesh
-from manifold_sph.normals import estimate, estimate_normals, tuning
 
 DATA = Path(os.environ.get("MANIFOLD_SPH_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
-MODELS = [DATA / "models" / f for f in ("cow.obj", "homer.obj", "rocker-arm.obj", "cheburashka.obj", "teapot.obj", "beetle.obj", "alligator.obj")]
+MODELS = [DATA / "models" / f for f in ("cow.obj", "homer.obj", "rocker-arm.obj", "cheburashka.obj", "teapot.obj", "beetle.obj",
+                                        "alligator.obj")]
 SCANS = [DATA / "scans" / "stanford-bunny.obj", DATA / "scans" / "igea.ply"]
 
 
@@ -220,7 +221,8 @@ def _across_mask(k):
             S[row, row - 1] = S[row, row + 1] = 0.125
     w, vl = np.linalg.eig(S.T)
     w, vl = w.real, vl.real
-    along = np.zeros(m); along[1], along[k + 1] = 1.0, -1.0
+    along = np.zeros(m)
+    along[1], along[k + 1] = 1.0, -1.0
     along /= np.linalg.norm(along)
     other = np.abs(w - 1.0) > 1e-9
     vl = vl / np.linalg.norm(vl, axis=0)
@@ -419,7 +421,8 @@ def synthetic():
             finally:
                 estimate.consensus_normals, tuning.ROW_STEEP = original, steep
             ang = np.degrees(np.arccos(np.clip(np.abs(d), 0.0, 1.0)))
-            print(f"{name:20s} {len(p):7d} {label:>10s} {np.median(ang):6.2f}d {int((ang > 30).sum()):7d} {int((d < 0).sum()):7d}", flush=True)
+            print(f"{name:20s} {len(p):7d} {label:>10s} {np.median(ang):6.2f}d {int((ang > 30).sum()):7d} {int((d < 0).sum()):7d}",
+                  flush=True)
 
 
 def _crossing_cloud(name, sampling, seed, noise):
@@ -434,7 +437,8 @@ def _crossing_cloud(name, sampling, seed, noise):
              # a head (12,000 points) with two eyes half out of it and six teeth across its surface
              "head, eyes, teeth": [(shapes.sphere, 12000, dict(radius=1.0))]
              + [(shapes.sphere, 400, dict(radius=0.18, center=(x, 0.3, np.sqrt(1 - x * x - 0.09) - 0.08))) for x in (-0.35, 0.35)]
-             + [(shapes.sphere, 150, dict(radius=0.06, center=(x, -0.5, np.sqrt(1 - x * x - 0.25)))) for x in np.linspace(-0.25, 0.25, 6)]}[name]
+             + [(shapes.sphere, 150, dict(radius=0.06, center=(x, -0.5, np.sqrt(1 - x * x - 0.25))))
+                for x in np.linspace(-0.25, 0.25, 6)]}[name]
     clouds = [f(n, sampling=sampling, seed=seed + 10 * i, **kw) for i, (f, n, kw) in enumerate(parts)]
     P = np.vstack([c.points for c in clouds])
     spacing = np.sqrt(4 * np.pi / 4000)
@@ -447,7 +451,8 @@ def crossing(seeds=(0, 1, 2)):
     normals disagreeing with each surface's own outward normal, without and with the closed
     sheets of step 4 (``tuning.SHEETS``). Nested spheres: the inner one wholly inside keeps the
     whole field's answer (inward, the inner wall of a hollow ball)."""
-    print(f"\n{'crossing surfaces':22s} {'sampling':>8s} {'noise':>5s} {'points':>6s} {'wrong, sheets off':>22s} {'wrong, on (default)':>22s}")
+    print(f"\n{'crossing surfaces':22s} {'sampling':>8s} {'noise':>5s} {'points':>6s} "
+          f"{'wrong, sheets off':>22s} {'wrong, on (default)':>22s}")
     for name in ("2 spheres", "3 spheres", "torus through sphere", "2 unequal spheres", "head, eyes, teeth", "nested spheres"):
         for sampling in ("random", "poisson"):
             for noise in (0.0, 0.1):

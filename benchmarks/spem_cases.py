@@ -8,10 +8,8 @@ from __future__ import annotations
 import json
 import math
 
-from manifold_sph.spem.analysis import (measured_phase_velocity, null_mode_response, phase_velocity,
-                                        ppw_for_phase_error)
-from manifold_sph.spem.cases import run_cavity, run_line1d
-from manifold_sph.spem.cases import run_planewave, run_pml, run_waveguide
+from manifold_sph.spem.analysis import measured_phase_velocity, null_mode_response, phase_velocity, ppw_for_phase_error
+from manifold_sph.spem.cases import run_cavity, run_line1d, run_planewave, run_pml, run_waveguide
 
 
 def show(tag, r):

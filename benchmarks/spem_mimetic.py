@@ -49,12 +49,10 @@ import numpy as np
 
 import manifold_sph.spem.mimetic as mimetic
 from manifold_sph.spem import EPS0, MU0, TMzSolver, make_layout
+from manifold_sph.spem.cases import cavity_exact, cavity_frequency, run_planewave, run_scattering
 from manifold_sph.spem.cases.common import fit_solver_dt, relative_error
-from manifold_sph.spem.cases import cavity_exact, cavity_frequency
-from manifold_sph.spem.cases import run_planewave
 from manifold_sph.spem.layouts import balanced_disk_layout, balanced_poisson_layout, disk_layout, joint_poisson_layout
 from manifold_sph.spem.mimetic import localised_modes
-from manifold_sph.spem.cases import run_scattering
 from manifold_sph.spem.operators import MIMETIC_H_RATIO
 
 _DEFAULT = (mimetic.CORRECTION_DEGREE, mimetic.CORRECTION_RADIUS)

@@ -21,12 +21,12 @@ import time
 
 import numpy as np
 
-from manifold_sph import spem as tez
 import manifold_sph.spem as ts
-from manifold_sph.spem.cases.scattering import JITTER_CLEARANCE, scattering_domain
+from manifold_sph import spem as tez
+from manifold_sph.spem.cases import l2_error
+from manifold_sph.spem.cases.scattering import scattering_domain
 from manifold_sph.spem.constants import C0, EPS0, MU0
 from manifold_sph.spem.pml import PML
-from manifold_sph.spem.cases import l2_error
 
 
 def order(ns, values):

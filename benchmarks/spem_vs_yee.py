@@ -173,7 +173,8 @@ def main():
     e1, e2 = yee_square_check()
     print(f"Yee check, square PEC cavity TM11 at 40 cells: frequency error {e1:.2e} against the exact mode, "
           f"{e2:.1e} against the Yee dispersion relation")
-    head = f"{'method':<24s} {'n_r':>4s} {'unknowns':>8s} {'error':>10s} {'f1_error':>10s} {'setup s':>8s} {'run s':>8s} {'steps':>6s} {'ns/u/st':>8s}"
+    head = (f"{'method':<24s} {'n_r':>4s} {'unknowns':>8s} {'error':>10s} {'f1_error':>10s} {'setup s':>8s} {'run s':>8s} "
+            f"{'steps':>6s} {'ns/u/st':>8s}")
     print(head)
     yee = [run_yee_cavity(n) for n in (10, 20, 40, 80, 160)]
     for r in yee:
@@ -379,14 +380,13 @@ def run_offcentre_dielectric(n_radial, centre, interface, *, radius=0.1, ka=2.0,
     origin): cell-averaged eps or :func:`~manifold_sph.spem.cases.jump_permittivity` with the circle's
     curvature, mimetic fast band, h/dr 1.2, time correction, the same PML and DFT. Returns (error, set-up s,
     run s); the exact field is the centred series shifted (the incident phase ``exp(i k cx)``)."""
-    from manifold_sph.spem.pml import PML
     from manifold_sph.spem.cases import l2_error
-    from manifold_sph.spem.cases.scattering import (SwitchedWave, VolumeDrive, interior_particles, run_phasor,
-                                                    scattering_layout)
+    from manifold_sph.spem.cases.scattering import SwitchedWave, VolumeDrive, interior_particles, run_phasor, scattering_layout
     from manifold_sph.spem.interfaces import cell_fraction, jump_permittivity
     from manifold_sph.spem.mie import scattered_field
-    from manifold_sph.spem.tmz import TMzSolver
+    from manifold_sph.spem.pml import PML
     from manifold_sph.spem.sources import Source
+    from manifold_sph.spem.tmz import TMzSolver
 
     t0 = time.perf_counter()
     cx, cy = centre
@@ -448,11 +448,11 @@ def run_yee_scattering(kind, n_radial, *, radius=0.1, ka=2.0, eps_r=4.0, core_ra
     :func:`~manifold_sph.spem.cases.run_scattering` (the leap-frog's time dispersion removed at the
     drive frequency; not the issue's baseline, which is without it).
     """
-    from manifold_sph.spem.pml import PML
     from manifold_sph.spem.cases import l2_error
     from manifold_sph.spem.cases.scattering import SwitchedWave
     from manifold_sph.spem.interfaces import cell_fraction
     from manifold_sph.spem.mie import scattered_field
+    from manifold_sph.spem.pml import PML
 
     t_start = time.perf_counter()
     if kind == "coated" and core_radius is None:
@@ -700,12 +700,12 @@ def cost_main(sizes=(1e4, 9e4, 1e6), repeat=7, pml_cells=10):
         r = np.hypot(lay.e[:, 0] - r0, lay.e[:, 1] - r0)
         s.set_initial(np.clip(1 - r**2 / r0**2, 0, None))
 
-        def spem_run(k, mode, s=s):
+        def disk_run(k, mode, s=s):
             s.stencil = mode
             s.run(k)
 
         steps = max(10, int(3e7 / lay.n_particles))
-        t_csr, t_st = _interleaved_ns([lambda k: spem_run(k, False), lambda k: spem_run(k, True)], steps,
+        t_csr, t_st = _interleaved_ns([lambda k: disk_run(k, False), lambda k: disk_run(k, True)], steps,
                                       [lay.n_particles] * 2, repeat)
         covered = 100 * (pl.e.covered + pl.h.covered) / (pl.e.n_rows + pl.h.n_rows)
         print(f"{'disk n_r=' + str(n_radial):<10s} {'-':>6s} {lay.n_particles:>9d} {steps:>6d} {'-':>7s} {t_csr:>7.2f} "

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import importlib
 import os
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeGuard
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -217,7 +217,7 @@ def _check_duplicates(pts: np.ndarray) -> None:
         )
 
 
-def is_point_array(obj: Any) -> bool:
+def is_point_array(obj: object) -> TypeGuard[ArrayLike]:
     """Whether ``obj`` is plain array data (an ndarray, a list or tuple, or has ``__array__``),
     not a path, a PointCloud or another library's object."""
     from .scans.sources import is_foreign

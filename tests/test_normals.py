@@ -5,8 +5,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from manifold_sph.reference import shapes
 from manifold_sph.normals import estimate_normals, orient_normals, pca_normals, tuning
+from manifold_sph.reference import shapes
 
 
 def dots(a, b):

@@ -7,14 +7,39 @@ import math
 import numpy as np
 import pytest
 
-from manifold_sph.spem import (C0, EPS0, PML, Layout, Sinusoid, Source, TMzSolver,
-                               cross_gradient, jitter, make_layout, point_source, sigma_max,
-                               yee_layout)
-from manifold_sph.spem.analysis import (measured_phase_velocity, null_mode_response, phase_velocity,
-                                        ppw_for_phase_error, yee_fdtd_phase_velocity)
-from manifold_sph.spem.cases import (cavity_exact, cavity_frequency, peak_frequency, run_cavity,
-                                     run_line1d)
-from manifold_sph.spem.cases import guided_exact, run_planewave, run_pml, run_waveguide
+from manifold_sph.spem import (
+    C0,
+    EPS0,
+    PML,
+    Layout,
+    Sinusoid,
+    Source,
+    TMzSolver,
+    cross_gradient,
+    jitter,
+    make_layout,
+    point_source,
+    sigma_max,
+    yee_layout,
+)
+from manifold_sph.spem.analysis import (
+    measured_phase_velocity,
+    null_mode_response,
+    phase_velocity,
+    ppw_for_phase_error,
+    yee_fdtd_phase_velocity,
+)
+from manifold_sph.spem.cases import (
+    cavity_exact,
+    cavity_frequency,
+    guided_exact,
+    peak_frequency,
+    run_cavity,
+    run_line1d,
+    run_planewave,
+    run_pml,
+    run_waveguide,
+)
 
 
 # --------------------------------------------------------------------------- operators
@@ -74,7 +99,8 @@ def test_bad_materials_layouts_and_sources():
     with pytest.raises(ValueError, match="Hx particles is empty"):
         Layout(lay.e, np.zeros((0, 2)), lay.hy, 0.01)
     far = Layout(np.vstack([lay.e, [[5.0, 5.0]]]), lay.hx, lay.hy, 0.01, e_fixed=np.r_[lay.e_fixed, False])
-    with pytest.raises(ValueError, match=r"1 of 82 E particles have fewer than 3 neighbours among the Hy particles.*index 81 at \[5\.0, 5\.0\]"):
+    with pytest.raises(ValueError, match=r"1 of 82 E particles have fewer than 3 neighbours among the Hy particles"
+                                         r".*index 81 at \[5\.0, 5\.0\]"):
         TMzSolver(far)
     with pytest.raises(ValueError, match="kind must be one of"):
         Source([0], Sinusoid(1e9), kind="magic")

@@ -262,7 +262,8 @@ def test_balanced_layout_removes_the_spurious_modes():
     """H particles added where the E set is locally denser (layouts.balance_h): on the Poisson square of
     the defect above (seed=2, 24 spacings) no localised mode among the 16 lowest (measured: none among the
     40 lowest, up to 55 (pi c)^2), the ten lowest eigenvalues within 1.5 % (measured 1.48 %, fundamental
-    +0.01 %; the 16 lowest within 2.9 %), and the local excess of E over H particles within 1.5 dr above 1 nowhere (before: at 76 particles)."""
+    +0.01 %; the 16 lowest within 2.9 %), and the local excess of E over H particles within 1.5 dr above 1
+    nowhere (before: at 76 particles)."""
     from manifold_sph.spem.layouts import BALANCE_EXCESS, BALANCE_RADIUS, balanced_poisson_layout
     from manifold_sph.spem.mimetic import localised_modes
 

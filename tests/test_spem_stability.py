@@ -9,8 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from manifold_sph.spem import (C0, EPS0, MU0, Sinusoid, TMzSolver, cfl_number, disk_layout, make_layout,
-                               point_source, yee_layout)
+from manifold_sph.spem import C0, EPS0, MU0, Sinusoid, TMzSolver, cfl_number, disk_layout, make_layout, point_source, yee_layout
 from manifold_sph.spem.stability import leapfrog_growth
 
 A = 0.1  # square side (m); dr = A / 19: 20 x 20 E particles on the lattices

@@ -1,4 +1,5 @@
-"""TEz scattering by circular cylinders: the exact series, the PML and the SPEM cases (:mod:`manifold_sph.spem.mie`, :mod:`manifold_sph.spem.tez`, :mod:`manifold_sph.spem.cases.scattering`)."""
+"""TEz scattering by circular cylinders: the exact series, the PML and the SPEM cases (:mod:`manifold_sph.spem.mie`,
+:mod:`manifold_sph.spem.tez`, :mod:`manifold_sph.spem.cases.scattering`)."""
 
 import math
 
@@ -7,9 +8,9 @@ import pytest
 from scipy.special import h1vp, hankel1, jv, jvp
 
 import manifold_sph.spem as ts
-from manifold_sph.spem.cases.scattering import JITTER_CLEARANCE, scattering_domain
-from manifold_sph.spem.pml import PML
+from manifold_sph.spem.cases.scattering import JITTER_CLEARANCE
 from manifold_sph.spem.mie import mie_coefficients, wavenumber
+from manifold_sph.spem.pml import PML
 
 A = 0.1  # cylinder radius (m)
 F = 1e9 * 2.0 / (wavenumber(1e9) * A)  # ka = 2

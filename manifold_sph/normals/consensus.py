@@ -22,7 +22,8 @@ def _reflected(pts, rows, nbrs, m):
     return m - 2.0 * np.einsum("rkj,rkj->rk", m, e)[..., None] * e
 
 
-def consensus_normals(pts: np.ndarray, neighbors: np.ndarray, normals: np.ndarray, fixed: np.ndarray | None = None, pole: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+def consensus_normals(pts: np.ndarray, neighbors: np.ndarray, normals: np.ndarray, fixed: np.ndarray | None = None,
+                      pole: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
     """Undetermined directions chosen among candidates by agreement with the neighbours (step 7).
 
     Where the normal disagrees with the plane of the 8 nearest or the quadric of the

@@ -12,6 +12,8 @@ normals averaged over neighbours with a similar normal line, and the global orie
 
 from __future__ import annotations
 
+from typing import Literal, overload
+
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -41,6 +43,25 @@ from .rows import rows_step, steep_counts
 from .scale import auto_k, noise_level
 from .shells import separate_parts
 from .visibility import visible_signs
+
+
+@overload
+def estimate_normals(points: ArrayLike, k: int | str | None = "auto", *, orient: str | ArrayLike = "outward",
+                     nested: str = "separate", return_confidence: Literal[False] = False, method: str = "jet",
+                     degree: int | None = None, refine: bool = True, poles: bool = False) -> np.ndarray: ...
+
+
+@overload
+def estimate_normals(points: ArrayLike, k: int | str | None = "auto", *, orient: str | ArrayLike = "outward",
+                     nested: str = "separate", return_confidence: Literal[True], method: str = "jet",
+                     degree: int | None = None, refine: bool = True, poles: bool = False) -> tuple[np.ndarray, np.ndarray]: ...
+
+
+@overload
+def estimate_normals(points: ArrayLike, k: int | str | None = "auto", *, orient: str | ArrayLike = "outward",
+                     nested: str = "separate", return_confidence: bool = False, method: str = "jet",
+                     degree: int | None = None, refine: bool = True,
+                     poles: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]: ...
 
 
 def estimate_normals(points: ArrayLike, k: int | str | None = "auto", *, orient: str | ArrayLike = "outward",
@@ -130,18 +151,18 @@ def estimate_normals(points: ArrayLike, k: int | str | None = "auto", *, orient:
     for name, flag in (("return_confidence", return_confidence), ("refine", refine), ("poles", poles)):
         if not isinstance(flag, (bool, np.bool_)):
             raise TypeError(f"{name} must be a bool, got {type(flag).__name__} {flag!r}")
-    auto = k is None or (isinstance(k, str) and k == "auto")
-    if isinstance(k, str) and not auto:
+    if isinstance(k, str) and k != "auto":
         raise ValueError(f"k must be a positive integer or 'auto', got {k!r}")
+    given = None if k is None or isinstance(k, str) else k  # an explicit k (check_k checks it); None: "auto"
     orient = check_orient(orient)
     if method == "pca":
         if degree is not None:
             raise ValueError(f"degree applies only to method='jet', got degree={degree!r} with method='pca'")
-        k = check_k(min(tuning.DEFAULT_K, N) if auto else k, N)
+        k = check_k(min(tuning.DEFAULT_K, N) if given is None else given, N)
         return _clean(pts, k, orient, nested, return_confidence, method, None, refine, poles, True)
     degree = check_degree(2 if degree is None else degree)
-    if not auto:  # an explicit k (e.g. a larger one for noise) is fitted with uniform weights
-        return _clean(pts, check_k(k, N, degree), orient, nested, return_confidence, method, degree, refine, poles, False)
+    if given is not None:  # an explicit k (e.g. a larger one for noise) is fitted with uniform weights
+        return _clean(pts, check_k(given, N, degree), orient, nested, return_confidence, method, degree, refine, poles, False)
     k = tuning.DEFAULT_JET_K[degree]
     if k > N:
         raise ValueError(f"points must hold at least {k} points for a degree-{degree} jet fit with the default k, got {N}")

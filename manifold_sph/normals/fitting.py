@@ -13,14 +13,16 @@
 
 from __future__ import annotations
 
+from typing import overload
+
 import numpy as np
 from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 
-from .._validation import as_points, check_int
-from ..pointcloud import as_cloud, is_point_array
 from .. import _jit
 from .._jit.compile import njit
+from .._validation import as_points, check_int
+from ..pointcloud import as_cloud, is_point_array
 from ..threads import get_num_threads, run_chunks
 from . import tuning
 
@@ -76,12 +78,21 @@ def _monomials(degree: int) -> list:
     return [(a, d - a) for d in range(degree + 1) for a in range(d, -1, -1)]
 
 
-def n_coefficients(degree: int) -> int:
+@overload
+def n_coefficients(degree: int) -> int: ...
+
+
+@overload
+def n_coefficients(degree: np.ndarray) -> np.ndarray: ...
+
+
+def n_coefficients(degree: int | np.ndarray) -> int | np.ndarray:
+    """Coefficients of a bivariate polynomial of degree ``degree`` (per row for an array of degrees)."""
     return (degree + 1) * (degree + 2) // 2
 
 
-def jet_fit(pts: np.ndarray, neighbors: np.ndarray, frame: np.ndarray, degree: int | np.ndarray, weights: np.ndarray | None = None, residual: np.ndarray | None = None,
-            centers: np.ndarray | None = None, kurtosis: np.ndarray | None = None) -> np.ndarray:
+def jet_fit(pts: np.ndarray, neighbors: np.ndarray, frame: np.ndarray, degree: int | np.ndarray, weights: np.ndarray | None = None,
+            residual: np.ndarray | None = None, centers: np.ndarray | None = None, kurtosis: np.ndarray | None = None) -> np.ndarray:
     """Normals of degree-``degree`` height-function fits in the tangent frames of ``frame``.
 
     ``degree`` is an int or a per-particle int array (0 keeps the frame normal);
@@ -338,7 +349,8 @@ def sharpened_weights(pts: np.ndarray, neighbors: np.ndarray, frame: np.ndarray,
     return np.where(line[:, None], weights, sharp)
 
 
-def refit(pts: np.ndarray, neighbors: np.ndarray, normals: np.ndarray, degree: int | np.ndarray, iterations: int | None = None, threshold: float | None = None, residual: np.ndarray | None = None, weights: np.ndarray | None = None) -> np.ndarray:
+def refit(pts: np.ndarray, neighbors: np.ndarray, normals: np.ndarray, degree: int | np.ndarray, iterations: int | None = None,
+          threshold: float | None = None, residual: np.ndarray | None = None, weights: np.ndarray | None = None) -> np.ndarray:
     """Refit with only the neighbours whose oriented normal agrees (``n_i . n_j > threshold``)."""
     iterations = tuning.REFIT_ITERATIONS if iterations is None else iterations
     threshold = tuning.REFIT_DOT if threshold is None else threshold
@@ -354,7 +366,8 @@ def refit(pts: np.ndarray, neighbors: np.ndarray, normals: np.ndarray, degree: i
     return n
 
 
-def high_order(pts: np.ndarray, neighbors: np.ndarray, base: np.ndarray, base_residual: np.ndarray, degree: int | np.ndarray, refine: bool) -> tuple[np.ndarray, np.ndarray]:
+def high_order(pts: np.ndarray, neighbors: np.ndarray, base: np.ndarray, base_residual: np.ndarray, degree: int | np.ndarray,
+               refine: bool) -> tuple[np.ndarray, np.ndarray]:
     """Degree-``degree`` fits started from the oriented ``base`` (degree-2) normals, guarded.
 
     The high-degree normal replaces the base one where the two agree within
@@ -425,6 +438,7 @@ def pca_normals(points: ArrayLike, k: int = tuning.DEFAULT_K, *, neighbors: Arra
         if k > pts.shape[0]:
             raise ValueError(f"k must be at most the number of points {pts.shape[0]}, got {k}")
         _, neighbors = knn(pts, k)
+    neighbors = np.asarray(neighbors)
     w, v = covariance(pts, neighbors)
     return v[:, :, 0], shape_confidence(w)
 
@@ -463,6 +477,7 @@ def jet_normals(points: ArrayLike, k: int | None = None, *, degree: int = 2, nei
         k = tuning.DEFAULT_JET_K[degree] if k is None else k
         k = check_k(k, pts.shape[0], degree)
         _, neighbors = knn(pts, k)
+    neighbors = np.asarray(neighbors)
     _, v = covariance(pts, neighbors[:, : min(tuning.PCA_K, neighbors.shape[1])])
     return jet_fit(pts, neighbors, v[:, :, 0], degree)
 

@@ -23,7 +23,8 @@ from .arrays import unique_sorted
 from .fitting import knn
 
 
-def tree_signs(n_nodes: int, mst: sp.csr_matrix, roots: np.ndarray, edge_sign_fn: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> np.ndarray:
+def tree_signs(n_nodes: int, mst: sp.csr_matrix, roots: np.ndarray, edge_sign_fn: Callable[[np.ndarray, np.ndarray],
+               np.ndarray]) -> np.ndarray:
     """Sign of every node relative to its component root along the spanning forest.
 
     One breadth-first search from a virtual node joined to every root gives all
@@ -69,7 +70,8 @@ def graph_edges(pts: np.ndarray, nrm: np.ndarray, neighbors: np.ndarray) -> tupl
     return _pair_edges(pts, nrm, np.repeat(np.arange(N, dtype=np.int64), k), neighbors.ravel().astype(np.int64))
 
 
-def orientation_graph(pts: np.ndarray, nrm: np.ndarray, neighbors: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def orientation_graph(pts: np.ndarray, nrm: np.ndarray, neighbors: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                      np.ndarray]:
     """Edges of the orientation graph and the components of the k-NN graph alone.
 
     The k-NN graph of a cloud sampled much more densely along lines than across them
@@ -115,7 +117,8 @@ def orientation_graph(pts: np.ndarray, nrm: np.ndarray, neighbors: np.ndarray) -
     return a, b, s, length, comps
 
 
-def spanning_forest(N: int, a: np.ndarray, b: np.ndarray, s: np.ndarray, length: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def spanning_forest(N: int, a: np.ndarray, b: np.ndarray, s: np.ndarray, length: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray,
+                    np.ndarray, np.ndarray]:
     """Maximum-confidence spanning forest: its signs relative to each root, edges, components."""
     conf = np.abs(s)
     scale = float(np.median(length)) if length.size else 1.0

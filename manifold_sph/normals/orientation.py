@@ -196,7 +196,7 @@ def _consistent(pts, nrm, neighbors):
     return nrm * sign[:, None], comps
 
 
-def check_orient(orient: str | np.ndarray) -> str | np.ndarray:
+def check_orient(orient: str | ArrayLike) -> str | np.ndarray:
     if not isinstance(orient, str):
         view = np.asarray(orient, dtype=np.float64) if np.ndim(orient) == 1 else np.zeros(0)
         if view.shape != (3,) or not np.all(np.isfinite(view)):
@@ -214,7 +214,8 @@ def orient_to_view(pts: np.ndarray, nrm: np.ndarray, view: np.ndarray) -> np.nda
     return nrm * s[:, None]
 
 
-def apply_orientation(pts: np.ndarray, nrm: np.ndarray, neighbors: np.ndarray, distances: np.ndarray, orient: str | np.ndarray, noise: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def apply_orientation(pts: np.ndarray, nrm: np.ndarray, neighbors: np.ndarray, distances: np.ndarray, orient: str | np.ndarray,
+                      noise: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Orient unit normals; returns (normals, component labels, orientation confidence)."""
     N = pts.shape[0]
     if not isinstance(orient, str):

@@ -119,7 +119,8 @@ def voronoi_poles(points: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray
 
 
 
-def pole_signs(pts: np.ndarray, nrm: np.ndarray, distances: np.ndarray, poles: tuple[np.ndarray, np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+def pole_signs(pts: np.ndarray, nrm: np.ndarray, distances: np.ndarray, poles: tuple[np.ndarray, np.ndarray,
+               np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     """Signs from the winding number at the two Voronoi poles of every particle (``poles=True``, step 9).
 
     ``poles``: ``(pole, radius, second)`` of :func:`voronoi_poles`. The

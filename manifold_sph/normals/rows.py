@@ -19,7 +19,8 @@ from . import tuning
 from .fitting import unit
 
 
-def steep_counts(pts: np.ndarray, neighbors: np.ndarray, normals: np.ndarray, rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def steep_counts(pts: np.ndarray, neighbors: np.ndarray, normals: np.ndarray, rows: np.ndarray | None = None) -> tuple[np.ndarray,
+                 np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Counts of the neighbours more than 45 degrees above and below the tangent plane of ``normals``.
 
     ``neighbors``: (R, K) neighbour lists of ``rows`` (all particles when None)."""
@@ -72,7 +73,8 @@ def _rows_across(pts, neighbors, normals, rows=None):
     return out, changed
 
 
-def rows_step(pts: np.ndarray, idx: np.ndarray, normals: np.ndarray, w: np.ndarray, tree: cKDTree | None = None) -> tuple[np.ndarray, np.ndarray]:
+def rows_step(pts: np.ndarray, idx: np.ndarray, normals: np.ndarray, w: np.ndarray, tree: cKDTree | None = None) -> tuple[np.ndarray,
+              np.ndarray]:
     """Step 2b on every particle with its ``tuning.ROW_K`` nearest, and on the particles whose 10 nearest
     lie on a line (rows denser than that) with their ``tuning.ROW_K_LINE`` nearest."""
     N = pts.shape[0]

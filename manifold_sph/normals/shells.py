@@ -38,9 +38,9 @@ def sheet_segments(pts: np.ndarray, nrm: np.ndarray, neighbors: np.ndarray) -> t
     l2 = np.einsum("ij,ij->i", L, L)
     zi = np.abs(np.einsum("ij,ij->i", L, nrm[rows]))
     zj = np.abs(np.einsum("ij,ij->i", L, nrm[cols]))
-    t2 = tuning.SHEET_TAN**2
+    tan2 = tuning.SHEET_TAN**2
     par = np.abs(np.einsum("ij,ij->i", nrm[rows], nrm[cols])) > tuning.SHEET_DOT
-    edge = (par & (zi * zi <= t2 * np.maximum(l2 - zi * zi, 0.0)) & (zj * zj <= t2 * np.maximum(l2 - zj * zj, 0.0))).reshape(N, ko - 1)
+    edge = (par & (zi * zi <= tan2 * np.maximum(l2 - zi * zi, 0.0)) & (zj * zj <= tan2 * np.maximum(l2 - zj * zj, 0.0))).reshape(N, ko - 1)
     # a junction: its sheet neighbours are not parallel among themselves (a normal averaged over two
     # crossing sheets) and their normals do not follow one shape operator (on one strongly curved
     # surface the normal turns linearly with the position; across a crossing it jumps)
@@ -107,7 +107,8 @@ def sheet_segments(pts: np.ndarray, nrm: np.ndarray, neighbors: np.ndarray) -> t
     return lab, int(big.size), sn
 
 
-def closed_sheets(pts: np.ndarray, nrm: np.ndarray, neighbors: np.ndarray, probes: np.ndarray, delta: np.ndarray, area: np.ndarray, h: np.ndarray) -> np.ndarray | None:
+def closed_sheets(pts: np.ndarray, nrm: np.ndarray, neighbors: np.ndarray, probes: np.ndarray, delta: np.ndarray, area: np.ndarray,
+                  h: np.ndarray) -> np.ndarray | None:
     """Label of the closed sheet of every particle (-1: none), or None: nothing to judge apart.
 
     The sheets of :func:`sheet_segments`. A sheet is closed where its own winding number, with

@@ -147,5 +147,10 @@ NOISY_FRAME_K = 24  #: noisy path: the PCA frame of the fits on this many neares
 #: Readings of a closed part inside another: its own part (normals out of it) or a cavity wall.
 NESTED = ("separate", "cavity")
 PART_CLOSED = 0.5  #: a part is closed where |mean(w_in + w_out)| of its own field is at least this
-CORRECT_PARTS = False  #: clean path: whole safe patches flipped where the field then counts whole parts (off: the eyes through a head 1 -> 508 wrong of 800, measured)
-PART_SHEETS = True  #: clean path: parts are also the sheets of shells.sheet_segments (closed parts that touch or cross others; benchmarks/normals.py --only parts: character 0 95.34 -> 97.94 %, scene 0 94.87 -> 97.94 %, scene 1 92.68 -> 93.35 % right signs)
+#: clean path: whole safe patches flipped where the field then counts whole parts (off: the eyes
+#: through a head 1 -> 508 wrong of 800, measured)
+CORRECT_PARTS = False
+#: clean path: parts are also the sheets of shells.sheet_segments (closed parts that touch or cross
+#: others; benchmarks/normals.py --only parts: character 0 95.34 -> 97.94 %, scene 0 94.87 -> 97.94 %,
+#: scene 1 92.68 -> 93.35 % right signs)
+PART_SHEETS = True

@@ -12,18 +12,15 @@ import numpy as np
 import scipy.sparse as sp
 
 from .. import _jit
+from .._jit.compile import numba  # None where numba is not installed
 from ..threads import run_chunks
 from .arrays import unique_sorted
-
-try:
-    import numba
-except ImportError:  # pragma: no cover - numba is a dependency
-    numba = None
 
 __all__ = ["best_signs", "integer_signs", "objective", "winding_numbers", "winding_rows"]
 
 
-def winding_numbers(queries: np.ndarray, points: np.ndarray, normals: np.ndarray, area: np.ndarray, eps: np.ndarray, label: np.ndarray, n_labels: int, theta: float = 0.5, per_cell: int = 32) -> np.ndarray:
+def winding_numbers(queries: np.ndarray, points: np.ndarray, normals: np.ndarray, area: np.ndarray, eps: np.ndarray, label: np.ndarray,
+                    n_labels: int, theta: float = 0.5, per_cell: int = 32) -> np.ndarray:
     """``out[q, l]``: generalised winding number at ``queries[q]`` of the particles labelled ``l``.
 
     ``sum_j a_j n_j . (p_j - q) / (4 pi (|p_j - q|^2 + eps_j^2)^(3/2))``, summed exactly over
@@ -196,7 +193,9 @@ def integer_signs(W: np.ndarray, label: np.ndarray, s0: np.ndarray, weight: np.n
 
 
 @(numba.njit(nogil=True, cache=True, fastmath=True, error_model="numpy") if numba is not None else (lambda f: f))
-def winding_rows(lo: int, hi: int, Q: np.ndarray, P: np.ndarray, An: np.ndarray, eps2: np.ndarray, label: np.ndarray, order: np.ndarray, cstart: np.ndarray, ccen: np.ndarray, crad2: np.ndarray, aptr: np.ndarray, alab: np.ndarray, apos: np.ndarray, adip: np.ndarray, theta2: float, out: np.ndarray) -> None:
+def winding_rows(lo: int, hi: int, Q: np.ndarray, P: np.ndarray, An: np.ndarray, eps2: np.ndarray, label: np.ndarray, order: np.ndarray,
+                 cstart: np.ndarray, ccen: np.ndarray, crad2: np.ndarray, aptr: np.ndarray, alab: np.ndarray, apos: np.ndarray,
+                 adip: np.ndarray, theta2: float, out: np.ndarray) -> None:
     """Winding number per label at queries ``lo:hi``: exact over near cells, one dipole per (cell, label) far."""
     c4 = 1.0 / (4.0 * np.pi)
     for i in range(lo, hi):

@@ -28,27 +28,86 @@ Examples
 ((100, 2), True)
 """
 
-from .cases import (CASES, run_case, run_cavity, run_line1d, run_planewave, run_pml, run_scattering,
-                    run_tez_cavity, run_tez_circular_cavity, run_tez_pml, run_tez_scattering, run_waveguide,
-                    scattering_layout, tez_cavity_frequency, tez_disk_frequency, tez_disk_mode, tez_scattering_layout)
+from .cases import (
+    CASES,
+    run_case,
+    run_cavity,
+    run_line1d,
+    run_planewave,
+    run_pml,
+    run_scattering,
+    run_tez_cavity,
+    run_tez_circular_cavity,
+    run_tez_pml,
+    run_tez_scattering,
+    run_waveguide,
+    scattering_layout,
+    tez_cavity_frequency,
+    tez_disk_frequency,
+    tez_disk_mode,
+    tez_scattering_layout,
+)
 from .certify import pml_certificate, restricted
 from .constants import C0, EPS0, ETA0, MU0
 from .dirichlet import KroneckerSystem
-from .interfaces import (EPS_AVERAGES, INTERFACES, TEZ_INTERFACES, cell_fraction, jump_permittivity,
-                         particle_permittivity, tez_jump_permittivity)
-from .layouts import (LAYOUTS, POISSON_H_RATIO, TEZ_LAYOUT_KINDS, Layout, TEzLayout, disk_layout, jitter, line_layout,
-                      make_layout, poisson_layout, staggered_layout, tez_disk_layout, tez_layout, wall_closure_layout,
-                      yee_layout)
-from .mie import (SCATTERERS, TEZ_SCATTERERS, mie_coefficients, scattered_field, tez_mie_coefficients,
-                  tez_scattered_field, tez_total_field, total_field, wavenumber)
-from .operators import (COUPLINGS, DEFAULT_COUPLING, DEFAULT_H_RATIO, FORMS, cross_gradient, cross_pairs, sbp_pair)
+from .interfaces import (
+    EPS_AVERAGES,
+    INTERFACES,
+    TEZ_INTERFACES,
+    cell_fraction,
+    jump_permittivity,
+    particle_permittivity,
+    tez_jump_permittivity,
+)
+from .layouts import (
+    LAYOUTS,
+    POISSON_H_RATIO,
+    TEZ_LAYOUT_KINDS,
+    Layout,
+    TEzLayout,
+    disk_layout,
+    jitter,
+    line_layout,
+    make_layout,
+    poisson_layout,
+    staggered_layout,
+    tez_disk_layout,
+    tez_layout,
+    wall_closure_layout,
+    yee_layout,
+)
+from .line import Line1DSolver
+from .mie import (
+    SCATTERERS,
+    TEZ_SCATTERERS,
+    mie_coefficients,
+    scattered_field,
+    tez_mie_coefficients,
+    tez_scattered_field,
+    tez_total_field,
+    total_field,
+    wavenumber,
+)
+from .operators import COUPLINGS, DEFAULT_COUPLING, DEFAULT_H_RATIO, FORMS, cross_gradient, cross_pairs, sbp_pair
 from .pml import PML, sigma_max
-from .results import (CaseResult, CavityResult, FieldHistory, LineResult, PlanewaveResult, PMLCertificate, PMLResult,
-                      RunResult, ScatteringResult, TEzCavityResult, TEzPMLResult, TEzScatteringResult, WaveguideResult)
+from .results import (
+    CaseResult,
+    CavityResult,
+    FieldHistory,
+    LineResult,
+    PlanewaveResult,
+    PMLCertificate,
+    PMLResult,
+    RunResult,
+    ScatteringResult,
+    TEzCavityResult,
+    TEzPMLResult,
+    TEzScatteringResult,
+    WaveguideResult,
+)
 from .sources import GaussianPulse, Sinusoid, Source, line_source, point_source
 from .stability import cfl_number, leapfrog_growth, spectral_radius_bound
 from .tez import DISK_H_RATIO, TEzPMLSolver, TEzSolver
-from .line import Line1DSolver
 from .tmz import TMzSolver
 
 __all__ = [

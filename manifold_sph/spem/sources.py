@@ -105,10 +105,10 @@ def point_source(e_points: ArrayLike, position: ArrayLike, waveform: Callable[[f
     >>> e = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
     >>> point_source(e, (0.9, 0.2), Sinusoid(1e9)).indices.tolist()
     [1]
-    >>> point_source(e, (5.0, 5.0), Sinusoid(1e9))
+    >>> point_source(e, (5.0, 5.0), Sinusoid(1e9))  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    ValueError: position (5.0, 5.0) is 5.657 from the nearest E particle, farther than max_distance = 1 (one spacing): it lies outside the domain
+    ValueError: position (5.0, 5.0) is 5.657 from the nearest E particle, farther than max_distance = 1 ...: it lies outside the domain
     """
     from scipy.spatial import cKDTree
 

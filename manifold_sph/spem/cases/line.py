@@ -17,10 +17,10 @@ import numpy as np
 from ..._validation import check_positive
 from ..constants import C0
 from ..layouts import line_layout
+from ..line import Line1DSolver
 from ..operators import DEFAULT_H_RATIO
 from ..results import LineResult
 from ..sources import Sinusoid, Source, point_source
-from ..line import Line1DSolver
 
 if TYPE_CHECKING:
     from ...kernels import Kernel

@@ -8,10 +8,34 @@ Examples
 """
 
 from .tez import POISSON_H_RATIO, TEZ_LAYOUT_KINDS, TEzLayout, tez_disk_layout, tez_layout, wall_closure_layout
-from .tmz import (BALANCE_EXCESS, BALANCE_RADIUS, BALANCE_RELAX, BALANCE_ROUNDS, JITTER_H_RATIO, JOINT_COVER, JOINT_EH,
-                  JOINT_HH, JOINT_ITERATIONS, JOINT_WALL_MARGIN, LAYOUTS, POISSON_SBP_H_RATIO, Layout, balance_h,
-                  balanced_disk_layout, balanced_poisson_layout, disk_layout, jitter, joint_poisson_layout, line_layout,
-                  make_layout, poisson_layout, relax_h, staggered_layout, supported, yee_layout)
+from .tmz import (
+    BALANCE_EXCESS,
+    BALANCE_RADIUS,
+    BALANCE_RELAX,
+    BALANCE_ROUNDS,
+    JITTER_H_RATIO,
+    JOINT_COVER,
+    JOINT_EH,
+    JOINT_HH,
+    JOINT_ITERATIONS,
+    JOINT_WALL_MARGIN,
+    LAYOUTS,
+    POISSON_SBP_H_RATIO,
+    Layout,
+    balance_h,
+    balanced_disk_layout,
+    balanced_poisson_layout,
+    disk_layout,
+    jitter,
+    joint_poisson_layout,
+    line_layout,
+    make_layout,
+    poisson_layout,
+    relax_h,
+    staggered_layout,
+    supported,
+    yee_layout,
+)
 
 __all__ = ["LAYOUTS", "Layout", "staggered_layout", "yee_layout", "poisson_layout", "jitter", "make_layout",
            "disk_layout", "line_layout", "joint_poisson_layout", "relax_h", "balance_h", "balanced_poisson_layout",

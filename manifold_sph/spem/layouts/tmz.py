@@ -41,7 +41,8 @@ from numpy.typing import ArrayLike
 
 from ..._validation import as_points, check_in, check_positive
 
-__all__ = ["Layout", "LAYOUTS", "JITTER_H_RATIO", "POISSON_SBP_H_RATIO", "staggered_layout", "yee_layout", "poisson_layout", "jitter", "make_layout",
+__all__ = ["Layout", "LAYOUTS", "JITTER_H_RATIO", "POISSON_SBP_H_RATIO", "staggered_layout", "yee_layout", "poisson_layout", "jitter",
+           "make_layout",
            "disk_layout", "line_layout", "joint_poisson_layout", "relax_h", "balance_h", "balanced_poisson_layout",
            "balanced_disk_layout"]
 
