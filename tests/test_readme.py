@@ -31,6 +31,7 @@ def test_readme_is_short_and_its_first_block_holds_the_two_commands():
     first = re.search(r"```bash\n(.*?)```", TEXT, flags=re.S).group(1).strip().splitlines()
     assert len(first) == 2 and "manifold-sph demo" in first[0] and "pytest" in first[1]
     assert "libusb-1.0-0" in first[0] and "libusb-1.0-0" in first[1]
+    assert "ruff check ." in first[1] and "mypy" in first[1]  # the checks run with the tests
 
 
 @pytest.mark.gl
