@@ -227,3 +227,36 @@ def test_every_to_dict_comes_from_the_result_base(public_callables):
         for name, obj in vars(mod).items():
             if isinstance(obj, type) and name.endswith("Result") and getattr(obj, "__module__", "") == mod.__name__:
                 assert issubclass(obj, Result), f"{mod.__name__}.{name} does not derive from results.Result"
+
+
+def _entry_points():
+    """The everyday entry points (README's tasks): data first, options keyword-only."""
+    from manifold_sph import geometry, pde
+    from manifold_sph.normals import estimate_normals
+    from manifold_sph.viz import render
+
+    S = manifold_sph.Surface
+    out = {"Surface": S, "Domain2D": manifold_sph.Domain2D, "as_cloud": manifold_sph.as_cloud, "read": manifold_sph.read,
+           "write": manifold_sph.write, "estimate_normals": estimate_normals, "render_field": render.render_field,
+           "animate": render.animate, "show": render.show}
+    for name in ("laplacian", "laplacian_matrix", "gradient", "divergence", "eigs", "mean_curvature",
+                 "principal_curvatures", "geodesic_distance", "smooth", "transport", "log_map", "report"):
+        out[f"Surface.{name}"] = getattr(S, name)
+    for mod in (pde, geometry):
+        for name in getattr(mod, "__all__", []):
+            obj = getattr(mod, name)
+            if inspect.isfunction(obj) or (inspect.isclass(obj) and not issubclass(obj, Result)):  # results: built by us
+                out[f"{mod.__name__}.{name}"] = obj
+    return out
+
+
+def test_entry_points_take_options_by_keyword():
+    """At most one optional argument by position (``normals``, ``k``, ``field``, ``form``): the rest keyword-only,
+    so that options can be added and reordered without breaking a call."""
+    bad = []
+    for name, fn in _entry_points().items():
+        params = [p for p in inspect.signature(fn).parameters.values() if p.name not in ("self", "cls")]
+        pos = [p.name for p in params if p.kind == p.POSITIONAL_OR_KEYWORD and p.default is not p.empty]
+        if len(pos) > 1:
+            bad.append(f"{name}({', '.join(pos)})")
+    assert len(_entry_points()) > 30 and bad == [], bad
