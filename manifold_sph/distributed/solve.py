@@ -8,7 +8,9 @@ and, for geodesics, of the tangent-plane derivatives. Two engines solve with the
     manifold_sph.mpi JOB`` is started on this machine (or the same command is run by the
     user under ``srun``/``mpirun`` on a cluster); each rank reads its own tiles' rows from
     the cache directory and solves with CG preconditioned by PETSc's algebraic multigrid
-    (GAMG), eigenpairs with SLEPc (Krylov-Schur, shift-invert through the same CG).
+    (GAMG), the geodesic's heat step with a distributed Cholesky factorisation (MUMPS: its
+    solution decays exponentially away from the sources, below what CG resolves), eigenpairs
+    with SLEPc (Krylov-Schur, shift-invert through the same CG).
 ``"local"``
     One process: ``K`` and ``M`` assembled from the tiles and solved with
     :mod:`manifold_sph.solvers` (sparse Cholesky or AMG-CG) and :mod:`manifold_sph.spectrum`.
@@ -53,10 +55,11 @@ SOURCE_RADIUS = 3.0
 
 def engine_available() -> str | None:
     """None when the MPI engine can run here, else the reason it cannot."""
-    try:
-        import petsc4py  # noqa: F401
-    except ImportError:
-        return "petsc4py is not installed (pip install 'manifold-sph[mpi]', docs/distributed.md)"
+    import importlib.util
+
+    missing = [m for m in ("mpi4py", "petsc4py", "slepc4py") if importlib.util.find_spec(m) is None]
+    if missing:
+        return f"{', '.join(missing)} not installed (pip install 'manifold-sph[mpi]', docs/distributed.md)"
     if shutil.which("mpirun") is None and shutil.which("mpiexec") is None:
         return "no mpirun or mpiexec on the PATH"
     return None
