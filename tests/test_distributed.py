@@ -348,8 +348,8 @@ def test_mpi_engine_eigenpairs_two_ranks(stable):
 
 @mpi_engine
 def test_mpi_engine_geodesic_far_from_the_sources():
-    # at 20,000 points the heat step's solution spans ~1e-27 across the sphere: a CG solve to a relative
-    # residual loses the far field (its phi differed from the local engine's by 0.70 at 100,000 points)
+    # at 20,000 points the heat step's solution spans ~1e-27 across the sphere: a CG heat step to a relative
+    # residual of 1e-12 loses the far field (PETSC_OPTIONS="-ksp_type cg -pc_type gamg" gives 0.40 here)
     c = shapes.sphere(20000)
     with TiledSurface(c.points, c.normals, tile_points=5000, scheduler="synchronous",
                       keep=("stable", "derivatives")) as ts:

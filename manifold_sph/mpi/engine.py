@@ -191,9 +191,9 @@ def _geodesic(job, R, its, secs):
     mine = src[(src >= R.lo) & (src < R.hi)]
     rhs[mine - R.lo] = 1.0
     x = R.vec()
-    # a direct solve: u decays like exp(-d / sqrt(t)) away from the sources (1e-60 across a 100k-point sphere);
-    # CG to a relative residual resolves none of that far field and X, hence phi, came out wrong there
-    # (0.70 relative at 100k points), while a Cholesky factor of this M-matrix keeps every entry's digits
+    # a direct solve: u decays like exp(-d / sqrt(t)) away from the sources, far below any residual tolerance
+    # of CG, which leaves the far field's gradient directions X (hence phi) wrong; a Cholesky factor of this
+    # M-matrix keeps every entry's digits, as the local engine's does (docs/distributed.md, "Global solves")
     R.solve(R.cholesky(A), R.vec(rhs), x, its, secs)
     u = R.allgather(x.getArray())
     X = []
