@@ -144,12 +144,13 @@ def geodesic_from_matrices(K, m, dx, dy, U, V, pts, src):
     ``K``, ``m``: the stable Laplacian; ``dx``, ``dy`` the tangent-plane derivative matrices in
     the frames ``U``, ``V`` (N, 3); ``pts`` (N, 3); ``src`` source indices.
     """
-    from ..solvers import spd_solver
+    from ..solvers import cholesky_available, spd_solver
 
     n = m.size
     rhs = np.zeros(n)
     rhs[src] = 1.0
-    heat = spd_solver(sp.diags(m) + GEODESIC_T * m.mean() * K)
+    # direct, whatever the size: u decays exponentially away from the sources, below what AMG-CG resolves
+    heat = spd_solver(sp.diags(m) + GEODESIC_T * m.mean() * K, method="cholesky" if cholesky_available() else "auto")
     u = heat.solve(rhs)
     g = (dx @ u)[:, None] * U + (dy @ u)[:, None] * V
     norm = np.linalg.norm(g, axis=1)
