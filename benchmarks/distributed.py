@@ -6,6 +6,7 @@
     python benchmarks/distributed.py --big 20000000 --out /tmp/big   # out of core: terrain-like cloud, 2 workers x 4 GB
     python benchmarks/distributed.py --throughput 1000000 --sampling random --keep stable   # random points, K and M rows
     python benchmarks/distributed.py --solves 262144      # global solves: single process, local engine, MPI at 1 and 2 ranks
+    python benchmarks/distributed.py --solves 1048576 --problems heat,poisson,geodesic --tiled-only   # engines only, no eigs
     python benchmarks/distributed.py --scale 10000000 --memory-limit 5GB   # 10M points: build K, M rows, implicit step
 
 Equality table. Each case is built once in a fresh process (``Surface`` with the same
@@ -259,14 +260,18 @@ def _solve_job(n, what):
     return out
 
 
-def solves(n, single_only=False):
+SOLVES = ("heat", "poisson", "geodesic", "eigs")
+
+
+def solves(n, single_only=False, problems=SOLVES, tiled_only=False):
     from manifold_sph.distributed import TiledSurface
     from manifold_sph.distributed.solve import engine_available
     from manifold_sph.reference import shapes
 
     print(f"global solves, {n}-point Fibonacci sphere")
-    print("single process (each in a fresh process):")
-    for what in ("heat", "geodesic", "eigs"):
+    if not tiled_only:
+        print("single process (each in a fresh process):")
+    for what in [p for p in ("heat", "geodesic", "eigs") if p in problems and not tiled_only]:
         with cf.ProcessPoolExecutor(1, mp_context=mp.get_context("spawn")) as ex:
             out = ex.submit(_solve_job, n, what).result()
         print("  " + what + ": " + ", ".join(f"{k} {v:.3g}" if isinstance(v, float) else f"{k} {v}" for k, v in out.items()),
@@ -284,6 +289,7 @@ def solves(n, single_only=False):
             "geodesic": lambda e, r: ts.gather(ts.geodesic_distance(0, engine=e, ranks=r)),
             "eigs(50)": lambda e, r: ts.eigs(50, engine=e, ranks=r)[0],
         }
+        calls = {name: call for (name, call), p in zip(calls.items(), SOLVES) if p in problems}
         why = engine_available()
         engines = [("local", 1)] + ([("mpi", 1), ("mpi", 2)] if why is None else [])
         if why:
@@ -432,12 +438,17 @@ def main():
     ap.add_argument("--scale", type=int, default=None, metavar="N", help="build K, M rows of N points on 2 workers, "
                     "then an implicit heat step on one process")
     ap.add_argument("--single-only", action="store_true", help="--solves: the single-process rows only")
+    ap.add_argument("--tiled-only", action="store_true", help="--solves: the TiledSurface engines' rows only")
+    ap.add_argument("--problems", default=",".join(SOLVES), help="--solves: comma-separated, of " + ", ".join(SOLVES))
     args = ap.parse_args()
     if args.scale:
         scale(args.scale, args.tile_points, args.memory_limit)
         return
     if args.solves:
-        solves(args.solves, args.single_only)
+        problems = [p for p in args.problems.split(",") if p]
+        if not set(problems) <= set(SOLVES):
+            ap.error(f"--problems takes {', '.join(SOLVES)}, got {args.problems!r}")
+        solves(args.solves, args.single_only, problems, args.tiled_only)
         return
     if args.big:
         big(args.big, args.out or Path(tempfile.mkdtemp(prefix="msph-big-")), args.memory_limit, args.tile_points)
