@@ -115,10 +115,15 @@ def poisson_solve(surface: OperatorSet, op: Operator, F: np.ndarray, *,
         _check_mean(m, F[:, j], labels, ncomp, tol, stable)
     if stable:
         return _pinned(S, BF, m, labels, ncomp, solver)
-    # bordered system [[S, C], [C^T m, 0]] [u, lam] = [-B rhs, 0], one constraint per piece
+    # bordered system [[S / s, C], [C^T m / area, 0]] [u, lam] = [-B rhs / s, 0], one constraint per piece;
+    # S / s and the areas' weights are of order 1 whatever the cloud's units (S carries 1 / length^2,
+    # m length^2: unscaled, LU left a residual above 1e-6 on a unit sphere scaled by 1e3 or 1e-100)
+    s = float(np.max(np.abs(S.data))) if S.nnz else 1.0
+    area = np.bincount(labels, weights=m, minlength=ncomp)
     C = sp.csr_matrix((np.ones(n), (np.arange(n), labels)), shape=(n, ncomp))
-    Cm = sp.csr_matrix((m, (labels, np.arange(n))), shape=(ncomp, n))
-    A = sp.bmat([[S, C], [Cm, None]], format="csc")
+    Cm = sp.csr_matrix((m / area[labels], (labels, np.arange(n))), shape=(ncomp, n))
+    A = sp.bmat([[S / s, C], [Cm, None]], format="csc")
+    BF = BF / s
     rhs_full = np.vstack([-BF, np.zeros((ncomp, F.shape[1]))])
     with np.errstate(all="ignore"):
         try:
@@ -180,7 +185,10 @@ def _dirichlet(op: Operator, S, BF, dirichlet, n: int, solver: str) -> np.ndarra
         idx, vals = dirichlet
     except (TypeError, ValueError):
         raise TypeError("dirichlet must be a pair (indices, values)") from None
-    mask, values = fixed_particles(np.asarray(idx), vals, n, np.zeros(n))
+    try:
+        mask, values = fixed_particles(np.asarray(idx), vals, n, np.zeros(n))
+    except (TypeError, ValueError) as exc:  # its messages name heat's fixed= / fixed_values=
+        raise type(exc)(f"dirichlet=(indices, values): {exc}") from None
     if not mask.any():
         raise ValueError("dirichlet needs at least one particle")
     free = ~mask
