@@ -25,6 +25,7 @@ __all__ = [
     "check_int",
     "check_real_array",
     "check_output_path",
+    "check_spread",
     "as_positive_field",
 ]
 
@@ -136,6 +137,35 @@ def as_points(name: str, a: ArrayLike, dim: int | tuple[int, ...] = 3) -> np.nda
         raise ValueError(f"{name} must have shape {want}, got shape {arr.shape}")
     check_finite(name, arr)
     return arr
+
+
+def check_spread(name: str, points: np.ndarray) -> None:
+    """Raise ValueError when finite ``points`` (N, D) lie on one line: a surface (or a planar domain)
+    needs points spread in two directions, and the local fits of a line are singular.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.linspace(0, 1, 20)
+    >>> check_spread("points", np.column_stack([t, 2 * t, 1 - t]))  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ValueError: points lie on one line ...
+    """
+    mean = points.mean(axis=0)
+    c = points - mean
+    size = float(np.max(np.abs(c))) if c.size else 0.0
+    if size > 0:
+        c /= size  # scale-free: the coordinates' units do not matter
+        d = np.linalg.eigh(c.T @ c)[1][:, -1]  # the principal direction
+        off = np.max(np.abs(c - np.outer(c @ d, d)), axis=1)
+        # each point on the line to the round-off of its own coordinates and of the centring
+        tol = 64 * np.finfo(np.float64).eps * (np.max(np.abs(points), axis=1) + float(np.max(np.abs(mean)))) / size
+    if size == 0 or bool(np.all(off <= tol)):
+        raise ValueError(
+            f"{name} lie on one line (or at one point): a surface needs points spread in two directions, "
+            f"got {len(points)} collinear points"
+        )
 
 
 def as_field(name: str, a: ArrayLike, n: int, width: int | None = None) -> np.ndarray:

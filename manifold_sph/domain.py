@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ._validation import as_points, check_finite
+from ._validation import as_points, check_finite, check_spread
 from .neighbors import build_tree, find_neighbors
 from .operators import OperatorSet
 from .pointcloud import as_cloud, is_point_array
@@ -21,7 +21,10 @@ __all__ = ["Domain2D", "mirror_ghosts", "planar_points"]
 
 
 def _check_bounds(bounds) -> tuple[float, float, float, float]:
-    b = np.asarray(bounds, dtype=np.float64)
+    try:
+        b = np.asarray(bounds, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise TypeError(f"bounds must be four numbers (xmin, xmax, ymin, ymax), got {bounds!r}") from None
     if b.shape != (4,):
         raise ValueError(f"bounds must be (xmin, xmax, ymin, ymax), got shape {b.shape}")
     check_finite("bounds", b)
@@ -77,6 +80,8 @@ def planar_points(points: Any) -> np.ndarray:
         pts = as_points("points", points, dim=(2, 3))
     else:
         pts = as_cloud(points).points
+    if pts.shape[0] == 0:
+        raise ValueError(f"points must hold at least 10 points, got an empty array of shape {pts.shape}")
     ext = np.ptp(pts, axis=0)
     flat = np.flatnonzero(ext <= 1e-9 * max(float(ext.max()), 1e-300))
     if flat.size == 0:
@@ -141,6 +146,7 @@ class Domain2D(OperatorSet):
             raise ValueError(
                 f"points must be distinct, but {pts.shape[0] - np.unique(pts, axis=0).shape[0]} point(s) duplicate others"
             )
+        check_spread("points", pts)
         self._points = pts
         self._resolve(kernel, scheme, neighbors, max_condition)
         self.bounds = None if bounds is None else _check_bounds(bounds)

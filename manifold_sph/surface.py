@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ._validation import check_spread
 from .diagnostics import BuildReport, note
 from .frames import FramePair, PairOffsets, check_frames, project_pairs, tangent_frames
 from .neighbors import GRID_MIN_POINTS, build_tree, check_scale, find_neighbors, widen_lonely
@@ -131,6 +132,7 @@ class Surface(OperatorSet, PointViews):
             self._build(cloud, kernel, scheme, neighbors, h, area, normal_threshold, total_area, max_condition)
 
     def _build(self, cloud, kernel, scheme, neighbors, h, area, normal_threshold, total_area, max_condition) -> None:
+        check_spread("points", cloud.points)
         #: Whether the normals were estimated here from the points (none were given).
         self.normals_estimated = cloud.normals is None
         self._resolve(kernel, scheme, neighbors, max_condition)

@@ -17,6 +17,7 @@ from typing import Literal, overload
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .._validation import check_spread
 from . import tuning
 from .confidence import scale_confidence, thin_confidence
 from .consensus import consensus_normals
@@ -144,6 +145,7 @@ def estimate_normals(points: ArrayLike, k: int | str | None = "auto", *, orient:
     N = pts.shape[0]
     if N < 3:
         raise ValueError(f"points must hold at least 3 points to estimate normals, got {N}")
+    check_spread("points", pts)
     if not isinstance(method, str) or method not in tuning.METHODS:
         raise ValueError(f"method must be one of {list(tuning.METHODS)}, got {method!r}")
     if not isinstance(nested, str) or nested not in tuning.NESTED:
