@@ -129,9 +129,12 @@ def as_points(name: str, a: ArrayLike, dim: int | tuple[int, ...] = 3) -> np.nda
     dims = (dim,) if isinstance(dim, int) else tuple(dim)
     a = check_real_array(name, a)
     try:
-        arr = np.asarray(a, dtype=np.float64)
+        raw = np.asarray(a)
+        arr = np.asarray(raw, dtype=np.float64)  # no copy of float64 input
     except (TypeError, ValueError) as exc:
         raise TypeError(f"{name} must be a numeric array of shape (N, {dims[0]}), got {type(a).__name__}") from exc
+    if raw.dtype == np.bool_:  # a mask passed for the coordinates
+        raise TypeError(f"{name} must be numeric coordinates, got a bool array (a mask?)")
     if arr.ndim != 2 or arr.shape[1] not in dims:
         want = " or ".join(f"(N, {d})" for d in dims)
         raise ValueError(f"{name} must have shape {want}, got shape {arr.shape}")

@@ -1132,3 +1132,15 @@ def test_sweep_collinear_points_are_refused():
     check_spread("points", np.vstack([c.points, [[1e15, 0.0, 0.0]]]))
     check_spread("points", np.column_stack([t, 1e-9 * t**2, 0 * t]))  # a thin parabola spreads in two directions
 
+
+def test_sweep_bool_arrays_are_not_coordinates(tmp_path):
+    # estimate_normals and write took a bool (N, 3) array (a mask) as 0/1 coordinates without a word
+    from manifold_sph import Surface, estimate_normals
+
+    b = np.random.default_rng(0).random((400, 3)) > 0.5
+    for call in (lambda: Surface(b), lambda: estimate_normals(b)):
+        with pytest.raises(TypeError, match=r"points must be numeric coordinates, got a bool array"):
+            call()
+    with pytest.raises(TypeError, match=r"cloud must be numeric coordinates, got a bool array"):
+        write(tmp_path / "never_written.ply", b)
+    assert not (tmp_path / "never_written.ply").exists()

@@ -40,6 +40,8 @@ def cloud_arrays(cloud):
         c = as_cloud(cloud)
         return c.points, c.normals
     check_real_array("cloud", cloud)
+    if np.asarray(cloud).dtype == np.bool_:  # a mask passed for the coordinates
+        raise TypeError("cloud must be numeric coordinates, got a bool array (a mask?)")
     try:
         pts = np.asarray(cloud, dtype=np.float64)
     except (TypeError, ValueError):
