@@ -316,6 +316,7 @@ METHODS: dict[str, tuple[Callable, float, Callable]] = {
     "pde.poisson": (_poisson, 0, lambda v: v),
     "pde.poisson(dirichlet)": (_dirichlet, 0, lambda v: v),
     "laplacian(form='stable')": (lambda s, sc, r: s.laplacian(r.f, form="stable"), 2, lambda v: v),
+    "eigs(5, sigma=3 / s^2)": (lambda s, sc, r: s.eigs(5, sigma=3.0 / sc**2), 2, lambda v: v.values),
     "gaussian_curvature": (lambda s, sc, r: s.gaussian_curvature(), 2, lambda v: v),
     "geodesic_distance(0, method='heat')": (lambda s, sc, r: s.geodesic_distance(0, method="heat"), -1, lambda v: v),
     "pde.heat(crank-nicolson)": (lambda s, sc, r: _pde("heat", s, r, method="crank-nicolson"), 0, lambda v: v.u),
@@ -353,6 +354,8 @@ def _exact_checks(r: Refs) -> dict[str, Callable[[Any], tuple[bool, str]]]:
         "pde.poisson": lambda v: close(v, x, 0.05, "Lap u = -2x vs u = x"),
         "pde.poisson(dirichlet)": lambda v: close(v, x, 0.05, "Lap u = -2x, u = x at every 7th vs u = x"),
         "laplacian(form='stable')": lambda v: close(v, -12 * f, 0.25, "stable Lap(xyz) vs -12 xyz"),
+        "eigs(5, sigma=3 / s^2)": lambda v: (bool(np.abs(np.sort(v.values) - [2, 2, 2, 6, 6]).max() < 0.6),
+                                             f"5 nearest 3 vs 2,2,2,6,6: {np.round(np.sort(v.values), 3).tolist()} (tol 0.6)"),
         "gaussian_curvature": lambda v: (bool(np.abs(v - 1).max() < 0.05), f"K vs 1: max |K-1| {np.abs(v - 1).max():.2e} (tol 0.05)"),
         "geodesic_distance(0, method='heat')": lambda v: (bool(np.abs(v - geo).max() < 0.15),
                                                           f"vs arccos(p0.p): max {np.abs(v - geo).max():.3f} (tol 0.15)"),
@@ -389,6 +392,7 @@ def _wrap_method(r: Refs, key, build: Callable, what: str, scale: float, ref_nor
 
 def surface_cases(r: Refs) -> list[Case]:
     from manifold_sph import Surface, as_cloud, estimate_normals
+    from manifold_sph.reference import shapes
 
     cases: list[Case] = []
     P, N, f = r.P, r.N, r.f
@@ -413,8 +417,6 @@ def surface_cases(r: Refs) -> list[Case]:
                                                                  SCALE_RTOL, "Lap f * s^2 vs unscaled")))
             for what in METHODS:
                 cases.append(_wrap_method(r, key, lambda p=pts, q=nrm: Surface(p, q), what, s, normals, SCALE_RTOL))
-    from manifold_sph.reference import shapes
-
     rnd = shapes.sphere(N_SPHERE, sampling="random", seed=1)
     fr = rnd.points.prod(axis=1)
     for scheme in ("cspm", "standard", "ncsph", "msph4"):
@@ -435,6 +437,36 @@ def surface_cases(r: Refs) -> list[Case]:
         cases.append(Case(f"sphere x {s:g} bare", "estimate_normals", lambda s_=s: estimate_normals(P * s_),
                           ("points",), lambda v: close(v, r.memo("normals", lambda: estimate_normals(P)), SCALE_RTOL,
                                                        "normals vs the unscaled cloud's")))
+
+    # noisy bare clouds (issue 38 item 0): they build; rotated, the same spectrum
+    lam = np.array([2, 2, 2, 6, 6, 6, 6, 6, 12.0])
+    for sigma in (0.5, 1.0):
+        for seed in range(3):
+            c = shapes.sphere(2000)
+            q = c.points + sigma * math.sqrt(4 * math.pi / 2000) * np.random.default_rng(seed).normal(size=c.points.shape)
+            key = (f"noisy sphere (2000, {sigma} spacing, seed {seed})",)
+            cases.append(Case(key[0], "Surface", lambda q_=q, k=key: _build_kept(r, k, lambda: Surface(q_)), ("points",),
+                              lambda v: (bool(np.abs(v.eigs(10).values[1:] / lam - 1).max() < 0.25),
+                                         f"eigenvalues 1-9 vs l(l+1): max relative {np.abs(v.eigs(10).values[1:] / lam - 1).max():.3f} "
+                                         "(tol 0.25, noisy)")))
+            Qr, _ = np.linalg.qr(np.random.default_rng(100 + seed).normal(size=(3, 3)))
+            outward = q / np.linalg.norm(q, axis=1)[:, None]
+            for rot, tag in ((np.eye(3), ""), (Qr, " rotated")):
+                cases.append(Case(key[0] + tag, "estimate_normals", lambda q_=q, Q_=rot: estimate_normals(q_ @ Q_.T) @ Q_,
+                                  ("points",), lambda v, o=outward: (bool(np.all(np.einsum("ij,ij->i", v, o) > 0)),
+                                                                     f"{int(np.sum(np.einsum('ij,ij->i', v, o) <= 0))} of "
+                                                                     f"{len(v)} normals point inward")))
+            cases.append(Case(key[0] + " rotated", "Surface.eigs(10)",
+                              lambda q_=q, Q_=Qr: Surface(q_ @ Q_.T).eigs(10), ("points",),
+                              lambda v, k=key: close(v.values, r.memo(k, lambda: None).eigs(10).values, 1e-6,
+                                                     "eigenvalues vs the unrotated noisy cloud's")))
+    # adaptive h at every scale
+    for s in SCALES:
+        ref_key = ("adaptive",)
+        cases.append(Case(f"sphere x {s:g}, h='adaptive'", "Surface.laplacian",
+                          lambda s_=s: Surface(P * s_, N, h="adaptive").laplacian(f), ("points", "h"),
+                          lambda v, s_=s, k=ref_key: close(v * s_**2, r.memo(k, lambda: Surface(P, N, h="adaptive").laplacian(f)),
+                                                           SCALE_RTOL, "Lap f * s^2 vs unscaled")))
 
     # translation and rotation: the same operators
     rng = np.random.default_rng(3)
