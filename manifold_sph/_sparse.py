@@ -57,7 +57,7 @@ class RowBlocks:
     True
     """
 
-    def __init__(self, A, n_blocks: int | None = None):
+    def __init__(self, A: sp.spmatrix | sp.sparray | np.ndarray, n_blocks: int | None = None) -> None:
         A = sp.csr_matrix(A)
         self.shape = A.shape
         self.dtype = A.dtype
@@ -120,7 +120,7 @@ def _solve_blocks(A: sp.csr_matrix) -> np.ndarray:
 
 
 def bicgstab_csr(A: sp.csr_matrix, b: np.ndarray, dinv: np.ndarray, x0: np.ndarray, rtol: float, maxiter: int,
-                 stall_window: int | None = None):
+                 stall_window: int | None = None) -> tuple[np.ndarray, int]:
     """BiCGSTAB for ``A x = b`` with the preconditioner ``diag(dinv)``, each step one fused compiled pass on threads.
 
     scipy's iteration (right preconditioning by ``diag(dinv)``, stop when

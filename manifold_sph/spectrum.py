@@ -50,7 +50,8 @@ from __future__ import annotations
 
 import dataclasses
 import warnings
-from typing import Any
+from collections.abc import Iterator
+from typing import Any, SupportsIndex, overload
 
 import numpy as np
 import scipy.linalg as sla
@@ -105,14 +106,20 @@ class Eigenpairs(Result):
     sigma: float | None
     method: str
 
-    def __iter__(self):
+    def __iter__(self) -> Iterator[np.ndarray]:
         yield self.values
         yield self.vectors
 
     def __len__(self) -> int:
         return 2
 
-    def __getitem__(self, index):
+    @overload
+    def __getitem__(self, index: SupportsIndex) -> np.ndarray: ...
+
+    @overload
+    def __getitem__(self, index: slice) -> tuple[np.ndarray, ...]: ...
+
+    def __getitem__(self, index: SupportsIndex | slice) -> np.ndarray | tuple[np.ndarray, ...]:
         return (self.values, self.vectors)[index]
 
 

@@ -18,8 +18,10 @@ import os
 import resource
 import sys
 import time
+from collections.abc import Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 __all__ = ["RTOL", "main", "rank_tiles"]
 
@@ -30,7 +32,7 @@ METHODS = {"heat": "petsc-cg-gamg", "poisson": "petsc-cg-gamg", "geodesic": "pet
            "eigs": "slepc-krylovschur-sinvert-cg-gamg"}
 
 
-def rank_tiles(bounds, size: int, rank: int) -> tuple[int, int]:
+def rank_tiles(bounds: ArrayLike, size: int, rank: int) -> tuple[int, int]:
     """The tiles ``[t0, t1)`` of ``rank``: contiguous, cut where the particle count crosses ``N r / size``."""
     bounds = np.asarray(bounds)
     n = int(bounds[-1])
@@ -271,7 +273,7 @@ def _eigs(job, R, its, secs):
     return np.maximum(np.asarray(vals)[order], 0.0), np.stack([vecs[i] for i in order], axis=1)
 
 
-def main(argv=None) -> int:
+def main(argv: Sequence[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     if len(argv) != 1:
         print("usage: mpirun -n RANKS python -m manifold_sph.mpi JOB.json  (written by TiledSurface)", file=sys.stderr)

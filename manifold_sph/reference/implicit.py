@@ -36,7 +36,7 @@ AXIS_MIN = 1e-100
 # ----------------------------------------------------------------------------
 # validation helpers
 # ----------------------------------------------------------------------------
-def as_center(center) -> np.ndarray:
+def as_center(center: ArrayLike) -> np.ndarray:
     try:
         c = np.asarray(center, dtype=np.float64)
     except (TypeError, ValueError) as exc:
