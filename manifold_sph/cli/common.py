@@ -9,13 +9,13 @@ import sys
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, NoReturn
+from typing import TYPE_CHECKING, NoReturn, TypeAlias
 
 if TYPE_CHECKING:
     from ..pointcloud import PointCloud
 
 
-__all__ = ["FOUR_SCHEMES", "MAX_WINDOW", "BYTES_PER_POINT", "STATE", "UserError", "Parser", "error_json",
+__all__ = ["FOUR_SCHEMES", "MAX_WINDOW", "BYTES_PER_POINT", "STATE", "UserError", "Parser", "SubParsers", "error_json",
            "check_size", "sizes_arg", "pair_arg", "window_arg", "positive_int_arg", "percent_arg", "h_arg", "xyz_arg",
            "up_arg", "add_common_options", "add_picture_options", "surface_kwargs", "cloud_from_args", "out_dir",
            "check_free", "render_ok"]
@@ -62,6 +62,11 @@ class Parser(argparse.ArgumentParser):
             command = words[1] if len(words) > 1 else STATE.command
             error_json(" ".join(message.split()), "ArgumentError", command, 2)
         super().error(message)
+
+
+#: What ``Parser.add_subparsers`` returns: each command module adds its subcommands to it
+#: (a string, for type checkers: argparse's action class cannot be subscripted at run time).
+SubParsers: TypeAlias = "argparse._SubParsersAction[Parser]"
 
 
 def memory_bytes() -> int | None:

@@ -9,12 +9,12 @@ import time
 
 import numpy as np
 
-from .common import FOUR_SCHEMES, UserError, check_free, check_size, out_dir, render_ok
+from .common import FOUR_SCHEMES, SubParsers, UserError, check_free, check_size, out_dir, render_ok
 
 __all__ = ["add_parsers", "run_demo"]
 
 
-def add_parsers(sub) -> None:
+def add_parsers(sub: SubParsers) -> None:
     """Register ``demo``."""
     demo = sub.add_parser("demo", help="the main job: schemes vs exact operators on a sphere, heat and wave, pictures")
     demo.add_argument("--out", required=True, help="folder for the pictures and summary (created if missing)")

@@ -6,7 +6,7 @@ import json
 
 import numpy as np
 
-from .common import UserError, add_common_options, add_picture_options, cloud_from_args, positive_int_arg
+from .common import SubParsers, UserError, add_common_options, add_picture_options, cloud_from_args, positive_int_arg
 from .inputs import (
     add_colour_options,
     add_input,
@@ -23,7 +23,7 @@ from .inputs import (
 __all__ = ["add_parsers"]
 
 
-def add_parsers(sub, schemes: list[str]) -> None:
+def add_parsers(sub: SubParsers, schemes: list[str]) -> None:
     """Register ``heat`` and ``wave``."""
     for name, helptext in (("heat", "heat equation u_t = diffusivity Lap u"), ("wave", "wave equation u_tt = c^2 Lap u")):
         q = sub.add_parser(name, help=helptext + " on a point-cloud file or a built-in shape")

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from .common import (
+    SubParsers,
     UserError,
     add_picture_options,
     check_free,
@@ -51,7 +52,7 @@ _scale_arg.__name__ = "length or 'auto'"
 _vector_arg.__name__ = "vector X,Y,Z"
 
 
-def add_parsers(sub, schemes: list[str]) -> None:
+def add_parsers(sub: SubParsers, schemes: list[str]) -> None:
     """Register ``curvature``, ``geodesic``, ``transport``, ``logmap`` and ``smooth``."""
     from ..geometry import CURVATURE_METHODS, GEODESIC_METHODS, SMOOTH_METHODS
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .common import UserError, add_picture_options
+from .common import SubParsers, UserError, add_picture_options
 from .inputs import (
     add_colour_options,
     add_input,
@@ -25,7 +25,7 @@ from .inputs import (
 __all__ = ["add_parsers"]
 
 
-def add_parsers(sub, schemes: list[str]) -> None:
+def add_parsers(sub: SubParsers, schemes: list[str]) -> None:
     """Register ``render``."""
     ren = sub.add_parser("render", help="picture of a field on a point-cloud file")
     add_input(ren)

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .common import UserError, add_picture_options, positive_int_arg
+from .common import SubParsers, UserError, add_picture_options, positive_int_arg
 from .inputs import (
     add_colour_options,
     add_input,
@@ -26,7 +26,7 @@ from .inputs import (
 __all__ = ["add_parsers"]
 
 
-def add_parsers(sub, schemes: list[str]) -> None:
+def add_parsers(sub: SubParsers, schemes: list[str]) -> None:
     """Register ``normals`` and ``eigs``."""
     nor = sub.add_parser("normals", help="estimate the outward normals of a point-cloud file")
     add_input(nor, help="point cloud or mesh file (ply, pcd, xyz, csv, pts, obj, npy, npz, las, laz, e57, vtk, vtp)")

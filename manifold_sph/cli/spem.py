@@ -7,12 +7,12 @@ import io
 import re
 import sys
 
-from .common import UserError, error_json
+from .common import SubParsers, UserError, error_json
 
 __all__ = ["add_parsers"]
 
 
-def add_parsers(sub) -> None:
+def add_parsers(sub: SubParsers) -> None:
     """Register ``spem`` (its options are defined by :func:`manifold_sph.spem.cli.add_parser`)."""
     from ..spem.cli import add_parser
 

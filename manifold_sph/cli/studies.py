@@ -9,6 +9,7 @@ import numpy as np
 
 from .common import (
     FOUR_SCHEMES,
+    SubParsers,
     UserError,
     add_common_options,
     add_picture_options,
@@ -23,7 +24,7 @@ from .inputs import add_input, add_out, check_outputs
 __all__ = ["add_parsers"]
 
 
-def add_parsers(sub, schemes: list[str]) -> None:
+def add_parsers(sub: SubParsers, schemes: list[str]) -> None:
     """Register ``operators``, ``convergence`` and ``poisson``."""
     ops = sub.add_parser("operators", help="errors of every scheme on one cloud")
     add_input(ops, optional=True, help="read the points from this file (they must lie on --shape) instead of sampling it")
