@@ -8,15 +8,25 @@ layout (``chunks``, ``bounds``, ``order``, ``_tile_path``, ``_contrib``), its sc
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+import os
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, TypeAlias
 
 import numpy as np
 import scipy.sparse as sp
+from numpy.typing import ArrayLike
 
 from .._validation import as_field, check_bool, check_in, check_int, check_positive
 from .tiles import TileData, tile_apply, tile_field, tile_points, write_rows
 
-__all__ = ["TiledOperators"]
+if TYPE_CHECKING:  # dask is the optional "distributed" extra, imported where it is used
+    from dask.array import Array as DaskArray
+
+__all__ = ["FieldLike", "TiledOperators"]
+
+#: A field given to :meth:`TiledOperators.field`: values (N,) or (N, width) in the input order, a Dask
+#: array in tile order, or a callable ``f(points (M, 3)) -> values`` evaluated tile by tile.
+FieldLike: TypeAlias = "ArrayLike | DaskArray | Callable[[np.ndarray], ArrayLike]"
 
 
 class TiledOperators:
@@ -38,7 +48,7 @@ class TiledOperators:
         @property
         def client(self) -> Any: ...
 
-        def compute(self, x: Any) -> np.ndarray: ...
+        def compute(self, x: DaskArray) -> np.ndarray: ...
 
         def _compute(self, *objs: Any) -> list[Any]: ...
 
@@ -62,26 +72,26 @@ class TiledOperators:
         return da.concatenate(blocks, axis=0)
 
     @property
-    def normals(self):
+    def normals(self) -> DaskArray:
         """(N, 3) Dask array of unit normals (tile order): the given ones, or the estimated and oriented ones."""
         return self._field("normals", 3)
 
     @property
-    def h(self):
+    def h(self) -> DaskArray:
         """(N,) Dask array of smoothing lengths (tile order)."""
         return self._field("h")
 
     @property
-    def dV(self):
+    def dV(self) -> DaskArray:
         """(N,) Dask array of area elements (tile order)."""
         return self._field("dV")
 
     @property
-    def points(self):
+    def points(self) -> DaskArray:
         """(N, 3) Dask array of the coordinates in tile order (read from the cache directory)."""
         return self._points_array(None, 3)
 
-    def mean_curvature(self, method: str = "auto"):
+    def mean_curvature(self, method: str = "auto") -> DaskArray:
         """(N,) Dask array of the mean curvature; ``method`` as :func:`manifold_sph.geometry.mean_curvature`.
 
         ``"auto"`` is ``"normals"`` (the shape operator's trace), as for ``Surface``, when the
@@ -109,7 +119,7 @@ class TiledOperators:
             blocks.append(da.from_delayed(delayed(tile_points, pure=True)(self._points_file, lo, hi, func), shape=shape, dtype=np.float64))
         return da.concatenate(blocks, axis=0)
 
-    def field(self, values, width=None):
+    def field(self, values: FieldLike, width: int | None = None) -> DaskArray:
         """A field as a Dask array in tile order, chunk = tile.
 
         Parameters
@@ -153,20 +163,21 @@ class TiledOperators:
                                           shape=shape, dtype=np.float64))
         return da.concatenate(blocks, axis=0)
 
-    def laplacian(self, f):
+    def laplacian(self, f: FieldLike) -> DaskArray:
         """Laplace-Beltrami of a scalar field, (N,) Dask array in tile order. ``f`` as in :meth:`field`."""
         return self._apply("laplacian", self.field(f))
 
-    def gradient(self, f):
+    def gradient(self, f: FieldLike) -> DaskArray:
         """Tangential gradient of a scalar field, (N, 3) Dask array in tile order. ``f`` as in :meth:`field`."""
         return self._apply("gradient", self.field(f))
 
-    def divergence(self, F):
+    def divergence(self, F: FieldLike) -> DaskArray:
         """Divergence of the tangential part of a vector field, (N,) Dask array in tile order."""
         return self._apply("divergence", self.field(F, 3))
 
-    def heat(self, u0, dt: float, steps: int, *, diffusivity: float = 1.0, method: str = "explicit",
-             every: int | None = None, check: bool = True, engine: str = "auto", ranks: int = 2):
+    def heat(self, u0: FieldLike, dt: float, steps: int, *, diffusivity: float = 1.0, method: str = "explicit",
+             every: int | None = None, check: bool = True, engine: str = "auto",
+             ranks: int = 2) -> DaskArray | list[DaskArray]:
         """Heat steps: explicit Euler on the tiles' Laplacian, or implicit Euler on the stable Laplacian.
 
         Parameters
@@ -201,8 +212,7 @@ class TiledOperators:
         if method == "implicit":
             if every is not None:
                 raise ValueError("every= is for explicit steps; implicit steps return the final state")
-            u = self._tile_values(u0)
-            out = self._global("heat", engine, ranks, u0=u, a_dt=a * dt, steps=steps)
+            out = self._global("heat", engine, ranks, u0=self._tile_values(u0), a_dt=a * dt, steps=steps)
             return self._as_dask(out)
         if every is not None:
             every = check_int("every", every, minimum=1)
@@ -247,14 +257,14 @@ class TiledOperators:
 
         return da.from_array(np.asarray(x), chunks=(self.chunks,) + tuple((s,) for s in np.shape(x)[1:]))
 
-    def poisson(self, f, *, engine: str = "auto", ranks: int = 2):
+    def poisson(self, f: FieldLike, *, engine: str = "auto", ranks: int = 2) -> DaskArray:
         """The zero-mean solution of ``-Lap u = f - mean(f)`` on the stable Laplacian, ``K u = M (f - mean_M f)``.
 
         ``f`` as in :meth:`field`; ``engine``, ``ranks`` as in :meth:`heat`. Returns a Dask array (N,) in tile order.
         """
         return self._as_dask(self._global("poisson", engine, ranks, f=self._tile_values(f)))
 
-    def geodesic_distance(self, sources, *, engine: str = "auto", ranks: int = 2):
+    def geodesic_distance(self, sources: ArrayLike, *, engine: str = "auto", ranks: int = 2) -> DaskArray:
         """Geodesic distance from ``sources`` (input indices) by the heat method on the stable Laplacian.
 
         The formulation of :class:`manifold_sph.geometry.GeodesicSolver` (module notes of
@@ -270,7 +280,8 @@ class TiledOperators:
         where[self.order] = np.arange(self.n_points)
         return self._as_dask(self._global("geodesic", engine, ranks, sources=np.unique(where[src])))
 
-    def eigs(self, k: int = 50, *, sigma: float | None = None, engine: str = "auto", ranks: int = 2):
+    def eigs(self, k: int = 50, *, sigma: float | None = None, engine: str = "auto",
+             ranks: int = 2) -> tuple[np.ndarray, DaskArray]:
         """The ``k`` smallest eigenpairs of ``K v = lambda M v`` (or those nearest ``sigma``), whole cloud.
 
         Returns ``(values (k,), vectors)``, the vectors a (N, k) Dask array in tile order, M-orthonormal.
@@ -301,7 +312,8 @@ class TiledOperators:
             m = out
         return sp.diags(m).tocsr()
 
-    def wave(self, u0, dt: float, steps: int, *, c: float = 1.0, v0=None, every: int | None = None, check: bool = True):
+    def wave(self, u0: FieldLike, dt: float, steps: int, *, c: float = 1.0, v0: FieldLike | None = None,
+             every: int | None = None, check: bool = True) -> DaskArray | list[DaskArray]:
         """Centred wave steps ``u' = 2 u - u_prev + (c dt)^2 L u`` (as :func:`manifold_sph.pde.wave`), one halo exchange per step.
 
         Started with ``u1 = u0 + dt v0 + (c dt)^2 L u0 / 2``. ``check`` refuses
@@ -339,7 +351,7 @@ class TiledOperators:
         """
         return self._global_matrix("lap", order)
 
-    def derivative_matrices(self, order: str = "input"):
+    def derivative_matrices(self, order: str = "input") -> tuple[sp.csr_matrix, sp.csr_matrix]:
         """The global tangent-plane derivative matrices ``(Dx, Dy)`` in each particle's frame."""
         return self._global_matrix("dx", order), self._global_matrix("dy", order)
 
@@ -365,7 +377,7 @@ class TiledOperators:
         return sp.csr_matrix((v, (r, c)), shape=(N, N))
 
     # ------------------------------------------------------------------ output
-    def to_npy(self, x, path, *, order: str = "input") -> None:
+    def to_npy(self, x: DaskArray, path: str | os.PathLike[str], *, order: str = "input") -> None:
         """Write a Dask array (tile order) to a ``.npy`` file, tile by tile (never whole in memory).
 
         ``order="input"`` writes row ``i`` of the input cloud at row ``i``; the workers
@@ -385,8 +397,11 @@ class TiledOperators:
         tasks = [delayed(write_rows, pure=False)(xb[t], path, self._order_file, int(self.bounds[t])) for t in range(len(self.chunks))]
         self._compute(*tasks)
 
-    def to_zarr(self, x, url, component=None, **kwargs):
-        """Write a Dask array (tile order, chunk = tile) to zarr; the input order is :attr:`order`."""
+    def to_zarr(self, x: DaskArray, url: object, component: str | None = None, **kwargs: Any) -> None:
+        """Write a Dask array (tile order, chunk = tile) to zarr; the input order is :attr:`order`.
+
+        ``url``, ``component`` and ``kwargs`` as for :func:`dask.array.to_zarr` (a path, a URL or a zarr store).
+        """
         import dask.array as da
 
         self._compute(da.to_zarr(x, url, component=component, compute=False, **kwargs))

@@ -39,11 +39,15 @@ import sys
 import tempfile
 import time
 import warnings
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import scipy.sparse as sp
 
 from ..exceptions import ManifoldSPHWarning
+
+if TYPE_CHECKING:
+    from .operators import TiledOperators
 
 __all__ = ["ENGINES", "GEODESIC_T", "SOURCE_RADIUS", "engine_available", "geodesic_from_matrices", "run"]
 
@@ -65,7 +69,7 @@ def engine_available() -> str | None:
     return None
 
 
-def job_description(ts) -> dict:
+def job_description(ts: TiledOperators) -> dict[str, Any]:
     """What an MPI rank needs to read the tiles: sizes, tile files, points and order files."""
     return {"n_points": int(ts.n_points), "bounds": [int(b) for b in ts.bounds],
             "tiles": [ts._tile_path(t) for t in range(len(ts.chunks))], "points": ts._points_file,
@@ -73,12 +77,12 @@ def job_description(ts) -> dict:
 
 
 # ----------------------------------------------------------------------------- local engine
-def assemble(ts, name: str) -> sp.csr_matrix:
+def assemble(ts: TiledOperators, name: str) -> sp.csr_matrix:
     """A kept operator over the whole cloud, tile order."""
     return ts._global_matrix(name, "tile")
 
 
-def tile_vector(ts, name: str, width: int | None = None) -> np.ndarray:
+def tile_vector(ts: TiledOperators, name: str, width: int | None = None) -> np.ndarray:
     from .tiles import TileData
 
     parts = [np.asarray(TileData(ts._tile_path(t))[name]) for t in range(len(ts.chunks))]
@@ -111,7 +115,7 @@ def _local_poisson(ts, f):
     return u, {"iterations": [solver.info.iterations], "method": solver.method}
 
 
-def geodesic_rhs(K, pts, X):
+def geodesic_rhs(K: sp.spmatrix | sp.sparray, pts: np.ndarray, X: np.ndarray) -> np.ndarray:
     """``b_i = sum_j w_ij (X_i + X_j) / 2 . (x_i - x_j)`` over the off-diagonal ``w_ij = -K_ij`` of ``K``'s rows."""
     Kc = K.tocoo()
     off = Kc.row != Kc.col
@@ -120,7 +124,7 @@ def geodesic_rhs(K, pts, X):
                        minlength=K.shape[0])
 
 
-def held_particles(pts, src, m):
+def held_particles(pts: np.ndarray, src: np.ndarray, m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``(held mask, Euclidean distance to the nearest source)``: the particles within the source radius."""
     from scipy.spatial import cKDTree
 
@@ -138,7 +142,8 @@ def _local_geodesic(ts, src):
     return geodesic_from_matrices(K, m, dx, dy, U, V, pts, src)
 
 
-def geodesic_from_matrices(K, m, dx, dy, U, V, pts, src):
+def geodesic_from_matrices(K: sp.csr_matrix, m: np.ndarray, dx: sp.csr_matrix, dy: sp.csr_matrix, U: np.ndarray,
+                           V: np.ndarray, pts: np.ndarray, src: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:
     """The geodesic heat method of the module notes on whole-cloud matrices; ``(distance, info)``.
 
     ``K``, ``m``: the stable Laplacian; ``dx``, ``dy`` the tangent-plane derivative matrices in
@@ -174,7 +179,7 @@ def _local_eigs(ts, k, sigma):
 
 
 # ----------------------------------------------------------------------------- dispatch
-def run(ts, problem: str, *, engine: str, ranks: int, **args):
+def run(ts: TiledOperators, problem: str, *, engine: str, ranks: int, **args: Any) -> tuple[Any, dict[str, Any]]:
     """Run a global solve on ``engine``; returns ``(result in tile order, info dict)``."""
     need = ["stable"] + (["derivatives"] if problem == "geodesic" else [])
     missing = [k for k in need if k not in ts.keep]

@@ -37,15 +37,21 @@ import json
 import os
 import shutil
 import tempfile
+from collections.abc import Iterable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import scipy.sparse as sp
+from numpy.typing import ArrayLike
 
 from .._validation import as_points, check_bool, check_in, check_int, check_positive
 from ..pointcloud import PointCloud
 from .operators import TiledOperators
+
+if TYPE_CHECKING:  # dask is the optional "distributed" extra, imported where it is used
+    from dask.array import Array as DaskArray
+    from dask.distributed import Client
 from .tiles import KEEP, TILE_FORMAT, TileData, build_tile, dependency_k
 from .tiling import grid_tiles, kd_tiles
 
@@ -69,7 +75,7 @@ _H_GUESS_SAMPLE = 200_000
 class TileBuildError(RuntimeError):
     """One or more tiles failed to build; ``.failures`` lists ``(index, bounding box, message)``."""
 
-    def __init__(self, message: str, failures: list):
+    def __init__(self, message: str, failures: list[tuple[int, list[list[float]], str]]) -> None:
         super().__init__(message)
         self.failures = failures
 
@@ -160,10 +166,13 @@ class TiledSurface(TiledOperators):
     >>> ts.close()
     """
 
-    def __init__(self, source, normals=None, *, tile_points: int = 1_000_000, grid=None, halo=None, client=None,
-                 scheduler: str = "distributed", n_workers: int = 2, memory_limit=None, cache_dir=None,
-                 progress: bool = False, normal_options=None, keep=("laplacian", "derivatives"), _fail_tiles=(),
-                 **surface_options):
+    def __init__(self, source: ArrayLike | PointCloud | str | os.PathLike[str],
+                 normals: ArrayLike | str | os.PathLike[str] | None = None, *, tile_points: int = 1_000_000,
+                 grid: Sequence[int] | None = None, halo: float | None = None, client: Client | None = None,
+                 scheduler: str = "distributed", n_workers: int = 2, memory_limit: str | int | None = None,
+                 cache_dir: str | os.PathLike[str] | None = None, progress: bool = False,
+                 normal_options: dict[str, Any] | None = None, keep: str | Sequence[str] = ("laplacian", "derivatives"),
+                 _fail_tiles: Iterable[int] = (), **surface_options: Any) -> None:
         unknown = sorted(set(surface_options) - set(SURFACE_OPTIONS))
         if unknown:
             raise TypeError(f"unexpected option(s) {unknown}; TiledSurface takes the Surface options {list(SURFACE_OPTIONS)}")
@@ -417,7 +426,7 @@ class TiledSurface(TiledOperators):
 
     # ------------------------------------------------------------------ scheduling
     @property
-    def client(self):
+    def client(self) -> Client | None:
         """The Dask client (a LocalCluster is started on first use), or None for the local schedulers."""
         if self.scheduler != "distributed":
             return None
@@ -435,6 +444,7 @@ class TiledSurface(TiledOperators):
 
         if self.scheduler == "distributed":
             client = self.client
+            assert client is not None  # the "distributed" scheduler always has one
             futures = client.compute(list(objs))
             if self.progress:
                 from dask.distributed import progress
@@ -448,7 +458,7 @@ class TiledSurface(TiledOperators):
                 return list(dask.compute(*objs, scheduler=self.scheduler))
         return list(dask.compute(*objs, scheduler=self.scheduler))
 
-    def compute(self, x):
+    def compute(self, x: DaskArray) -> np.ndarray:
         """Compute a Dask array (in tile order) on this surface's scheduler; returns numpy."""
         self._check_open()
         return self._compute(x)[0]
@@ -461,7 +471,7 @@ class TiledSurface(TiledOperators):
                 + ("" if self._tmp else " with the same cache_dir= to reuse them")
             )
 
-    def gather(self, x) -> np.ndarray:
+    def gather(self, x: DaskArray) -> np.ndarray:
         """Compute a Dask array in tile order and return it as numpy in the input order."""
         v = self.compute(x)
         out = np.empty_like(v)
@@ -470,7 +480,8 @@ class TiledSurface(TiledOperators):
 
     def _shutdown(self) -> None:
         if self._own_cluster is not None:
-            self._client.close()
+            if self._client is not None:  # the client of the cluster this surface started
+                self._client.close()
             self._own_cluster.close()
             self._client = self._own_cluster = None
 
@@ -481,10 +492,10 @@ class TiledSurface(TiledOperators):
         if self._tmp and self.cache_dir.exists():
             shutil.rmtree(self.cache_dir, ignore_errors=True)
 
-    def __enter__(self):
+    def __enter__(self) -> TiledSurface:
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
     # ------------------------------------------------------------------ build

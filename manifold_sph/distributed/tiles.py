@@ -27,9 +27,12 @@ import shutil
 import time
 import traceback
 import warnings
+from collections.abc import Callable, Collection, Sequence
+from typing import Any, Literal, overload
 
 import numpy as np
 import scipy.sparse as sp
+from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 
 from .tiling import all_rows, margin
@@ -62,7 +65,7 @@ def _arrays_of(keep) -> list[str]:
     return names
 
 
-def read_meta(path: str, keep=None) -> dict | None:
+def read_meta(path: str, keep: Collection[str] | None = None) -> dict[str, Any] | None:
     """The tile's ``meta.json`` if the tile is complete and readable (every kept array's header), else None."""
     try:
         with open(os.path.join(path, "meta.json")) as f:
@@ -77,7 +80,7 @@ def read_meta(path: str, keep=None) -> dict | None:
 class TileData:
     """A finished tile's arrays, memory-mapped on first use."""
 
-    def __init__(self, path: str):
+    def __init__(self, path: str) -> None:
         self.path = path
         meta = read_meta(path)
         if meta is None:
@@ -89,7 +92,13 @@ class TileData:
         self.n = int(meta["summary"]["n_own"])
         self._arrays: dict = {}
 
-    def __getitem__(self, name: str):
+    @overload
+    def __getitem__(self, name: Literal["lap", "dx", "dy", "K"]) -> sp.csr_matrix: ...
+
+    @overload
+    def __getitem__(self, name: str) -> np.ndarray: ...
+
+    def __getitem__(self, name: str) -> sp.csr_matrix | np.ndarray:
         if name not in self._arrays:
             if name in ("lap", "dx", "dy", "K"):
                 ns = int(self["cols"].size)
@@ -337,7 +346,7 @@ def _stable_rows(s, n_own: int, order: np.ndarray, cols: np.ndarray) -> dict:
 
 
 # ----------------------------------------------------------------------------- reading tiles (on workers)
-def tile_apply(path: str, kind: str, sign: float, extra, *chunks):
+def tile_apply(path: str, kind: str, sign: float, extra: Sequence[np.ndarray], *chunks: np.ndarray) -> np.ndarray:
     """One tile's rows of an operator applied to the field chunks of the tiles it reads.
 
     ``extra``: own-row arrays of the time steps (the previous state, the initial velocity).
@@ -362,7 +371,7 @@ def tile_apply(path: str, kind: str, sign: float, extra, *chunks):
     raise ValueError(kind)  # pragma: no cover
 
 
-def tile_field(path: str, name: str, sign: float):
+def tile_field(path: str, name: str, sign: float) -> np.ndarray:
     d = TileData(path)
     if name == "normals":
         return sign * np.asarray(d["normals_s"][: d.n])
@@ -371,12 +380,12 @@ def tile_field(path: str, name: str, sign: float):
     return np.asarray(d[name])
 
 
-def tile_points(points_file: str, lo: int, hi: int, func=None):
+def tile_points(points_file: str, lo: int, hi: int, func: Callable[[np.ndarray], ArrayLike] | None = None) -> np.ndarray:
     p = np.asarray(np.load(points_file, mmap_mode="r")[lo:hi])
     return p if func is None else np.asarray(func(p), dtype=np.float64)
 
 
-def write_rows(block, path: str, order_file: str, lo: int):
+def write_rows(block: np.ndarray, path: str, order_file: str, lo: int) -> np.ndarray:
     """Write one tile's rows into the input-order .npy memory map (disjoint rows per tile)."""
     idx = np.load(order_file, mmap_mode="r")[lo : lo + block.shape[0]]
     out = np.load(path, mmap_mode="r+")

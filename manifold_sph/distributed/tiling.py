@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 __all__ = ["MIN_TILE_POINTS", "all_rows", "grid_tiles", "kd_tiles", "margin"]
 
@@ -12,7 +13,7 @@ __all__ = ["MIN_TILE_POINTS", "all_rows", "grid_tiles", "kd_tiles", "margin"]
 MIN_TILE_POINTS = 64
 
 
-def kd_tiles(pts: np.ndarray, tile_points: int, lo: np.ndarray, hi: np.ndarray):
+def kd_tiles(pts: np.ndarray, tile_points: int, lo: np.ndarray, hi: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
     """k-d split at medians along the box's longest side until every leaf holds at most ``tile_points``.
 
     Returns the permutation (leaves in depth-first order, contiguous) and the leaf boxes (T, 2, 3).
@@ -38,7 +39,8 @@ def kd_tiles(pts: np.ndarray, tile_points: int, lo: np.ndarray, hi: np.ndarray):
     return order, np.array(boxes)
 
 
-def grid_tiles(pts: np.ndarray, grid, lo: np.ndarray, hi: np.ndarray, min_points: int = MIN_TILE_POINTS):
+def grid_tiles(pts: np.ndarray, grid: ArrayLike, lo: np.ndarray, hi: np.ndarray,
+               min_points: int = MIN_TILE_POINTS) -> tuple[list[np.ndarray], np.ndarray]:
     """A regular ``nx x ny x nz`` grid over the bounding box, without its empty cells.
 
     Non-empty cells are taken in ``(i, j, k)`` order and merged with the next ones until a
