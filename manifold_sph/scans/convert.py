@@ -33,7 +33,7 @@ __all__ = [
 ]
 
 
-def cloud_arrays(cloud):
+def cloud_arrays(cloud: object) -> tuple[np.ndarray, np.ndarray | None]:
     """Points and normals (or None) of anything point-like (:func:`~manifold_sph.as_cloud`); an
     array is taken as it is (any number of points, repeats allowed): real, finite, non-empty."""
     if not is_point_array(cloud):
