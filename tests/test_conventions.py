@@ -276,10 +276,6 @@ def test_entry_points_take_options_by_keyword():
 #: functions, called only from the package's typed functions.
 COMPILED = ("manifold_sph._jit", "manifold_sph.spem.compiled")
 
-#: Unannotated parts allowed for now, by name; each must still be missing (the list only shrinks).
-KNOWN_GAPS = {"manifold_sph.scans.convert.cloud_arrays(cloud)", "manifold_sph.scans.convert.cloud_arrays -> return"}
-
-
 #: Module-level dunders that are part of a module's interface (PEP 562).
 MODULE_DUNDERS = {"__getattr__", "__dir__"}
 
@@ -399,10 +395,8 @@ def test_public_callables_are_annotated() -> None:
     # the walk reaches the subpackages (a short module list would pass vacuously)
     assert {"manifold_sph.surface", "manifold_sph.distributed.surface", "manifold_sph.spem.tmz", "manifold_sph.cli.app"} <= set(modules)
     total, complete, missing = walk(modules)
-    gaps = sorted(set(missing) - KNOWN_GAPS)
-    assert not gaps, (f"{len(gaps)} unannotated parameters/returns ({complete}/{total} public callables complete):\n  "
-                      + "\n  ".join(gaps))
-    assert KNOWN_GAPS <= set(missing), f"annotated now, remove from KNOWN_GAPS: {sorted(KNOWN_GAPS - set(missing))}"
+    assert not missing, (f"{len(missing)} unannotated parameters/returns ({complete}/{total} public callables complete):\n  "
+                         + "\n  ".join(missing))
 
 
 def test_walker_reports_missing_annotations(tmp_path: pathlib.Path, monkeypatch: pytest.MonkeyPatch) -> None:
