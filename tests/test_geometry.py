@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -409,3 +410,48 @@ def test_cli_geometry_commands(tmp_path, capsys):
         with pytest.raises(SystemExit) as exc:
             main(argv)
         assert exc.value.code == 2
+
+
+MODELS = Path(__file__).resolve().parents[2] / "shared" / "data" / "models"
+
+
+def cotan_operators(V, F):
+    """The mesh's cotan stiffness matrix (negative semidefinite, as libigl's) and barycentric vertex areas."""
+    import scipy.sparse as sp
+
+    L = sp.csr_matrix((len(V), len(V)))
+    for a, b, c in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):  # the angle at corner a is opposite the edge (b, c)
+        e1, e2 = V[F[:, b]] - V[F[:, a]], V[F[:, c]] - V[F[:, a]]
+        cot = np.einsum("fd,fd->f", e1, e2) / np.linalg.norm(np.cross(e1, e2), axis=1)
+        L = L + sp.csr_matrix((0.5 * cot, (F[:, b], F[:, c])), shape=L.shape)
+    L = L + L.T
+    L = L - sp.diags(np.asarray(L.sum(axis=1)).ravel())
+    area = 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
+    return L.tocsc(), np.bincount(F.ravel(), np.repeat(area / 3, 3), len(V))
+
+
+def test_curvature_at_a_scale_matches_the_mesh_at_that_scale():
+    """Clean homer vertices: ``scale=r`` against the mesh's cotan mean curvature diffused over the same
+    scale (heat kernel ``exp(-(2 d / r)^2)``): rank correlation 0.93 at r = 4 edge lengths. A quadric fitted
+    over the whole radius crosses the thin arms and fingers (0.62)."""
+    from scipy.sparse import diags
+    from scipy.sparse.linalg import factorized
+    from scipy.stats import spearmanr
+
+    from manifold_sph.scans.io import read_mesh
+
+    if not (MODELS / "homer.obj").exists():
+        pytest.skip("../shared/data/models is absent")
+    V, F = read_mesh(str(MODELS / "homer.obj"))
+    L, m = cotan_operators(V, F)
+    fn = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    vn = np.stack([np.bincount(F.ravel(), np.repeat(fn[:, d], 3), len(V)) for d in range(3)], axis=1)
+    H = -0.5 * np.einsum("nd,nd->n", L @ V, vn / np.linalg.norm(vn, axis=1)[:, None]) / m
+    r = 4 * float(np.mean(np.linalg.norm(V[F] - V[np.roll(F, 1, axis=1)], axis=2)))
+    solve = factorized((diags(m) - (r * r / 64) * L).tocsc())
+    for _ in range(4):
+        H = solve(m * H)
+    s = quiet(V)
+    assert np.mean(np.einsum("nd,nd->n", s.normals, vn) > 0) > 0.999  # oriented as the mesh
+    rho = spearmanr(s.mean_curvature(scale=r), H)[0]
+    assert rho > 0.85, rho

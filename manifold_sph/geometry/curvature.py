@@ -10,17 +10,21 @@
   a noisy scan: derivatives of noisy normals.
 - **At a scale** (``scale=r``, a length). A quadric height function
   ``z = c0 + g . y + y^T A y / 2`` is fitted by weighted least squares to the points
-  within ``r`` of each particle (Gaussian weights of width ``r / 2``), in the particle's
-  tangent frame; ``W = -(I + g g^T)^-1 A / sqrt(1 + |g|^2)`` (the sign so that a sphere
-  with outward normals is positive). Noise of amplitude ``sigma`` leaves a scatter of
-  about ``sigma h / r^3`` (``h`` the spacing); the surface's own variation a bias that
-  grows with ``r``.
+  within ``b = min(r, 2.5 h)`` of each particle (Gaussian weights of width ``b / 2``), in the
+  particle's tangent frame; ``W = -(I + g g^T)^-1 A / sqrt(1 + |g|^2)`` (the sign so that a
+  sphere with outward normals is positive). For ``r > b`` these shape operators are averaged
+  over the points within ``r`` on the same side (``n_j . n_i > 0``), weights
+  ``exp(-(2 d / r)^2)``, each carried to the particle's tangent plane by the rotation between
+  the normals (:func:`average_shape_operators`): the mean curvature of the surface smoothed
+  over ``r``. A quadric fitted over the whole of ``r`` would not be: where ``r`` exceeds the
+  thickness of a thin part its ball holds both sides, which no height function fits.
 - **Automatic scale** (``scale="auto"``): the cloud is first denoised
   (:func:`~manifold_sph.geometry.smooth`, jet fits over ``4 h``), then per particle the
   largest radius of the ladder ``2.5 h, 3.5 h, 5 h, 7 h, 10 h, 14 h`` is taken whose estimate
-  agrees with every smaller one within their combined uncertainties (the intersection of
-  confidence intervals of Lepski's method; each uncertainty from the fit's own variance and
-  the noise left, measured by the residuals of the smallest fit). ``h`` is the mean
+  (the averages above, on the denoised points) agrees with every smaller one within their
+  combined uncertainties (the intersection of confidence intervals of Lepski's method; the
+  uncertainty at ``2.5 h`` from the fit's variance and the noise of the raw points, measured by
+  the residuals of their fits, and ``2.5 h / R`` times it at radius ``R``). ``h`` is the mean
   distance to the 6 nearest points.
 """
 
@@ -29,17 +33,22 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from .._validation import check_in, check_positive
 from .common import SCALE_RANGE, check_scale, check_surface
 from .jets import fit_jets, mean_spacing
+
+_ROWS = 1024  # particles a chunk of the averaging
 
 if TYPE_CHECKING:
     from ..surface import Surface
 
 __all__ = [
     "AUTO_RADII",
+    "BASE_RADIUS",
     "CURVATURE_METHODS",
+    "average_shape_operators",
     "curvature_method",
     "curvature_scale",
     "gaussian_curvature",
@@ -51,6 +60,8 @@ __all__ = [
 CURVATURE_METHODS = ("auto", "normals", "laplacian")
 #: Radii of the automatic scale, in units of the mean spacing ``h`` (mean distance to the 6 nearest points).
 AUTO_RADII = (2.5, 3.5, 5.0, 7.0, 10.0, 14.0)
+#: Radius of the quadric fits that ``scale=r`` averages, in mean spacings (``r`` itself if smaller).
+BASE_RADIUS = AUTO_RADII[0]
 #: Half-width of the confidence intervals of the automatic scale, in standard deviations.
 AUTO_WIDTH = 2.0
 
@@ -77,6 +88,13 @@ def _spacing(surface) -> float:
     return surface.cached("mean_spacing", lambda: mean_spacing(surface.points))
 
 
+def _fit_frame(surface, normals):
+    """Tangent vectors (u, v), each (N, 3), of the planes normal to ``normals``: the Surface's u projected on them."""
+    u = surface.u - np.einsum("nd,nd->n", surface.u, normals)[:, None] * normals
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    return u, np.cross(normals, u)
+
+
 def _jet_fits(surface, radii, points=None, normals=None):
     """Quadric fits at each radius (:func:`~manifold_sph.geometry.jets.fit_jets`) in frames close to the
     Surface's (of ``normals`` if given): shape operators (R, N, 2, 2), the standard deviation of their H per
@@ -84,9 +102,7 @@ def _jet_fits(surface, radii, points=None, normals=None):
     check_scale(surface.points, "curvature at a scale", SCALE_RANGE)
     P = surface.points if points is None else points
     nrm = surface.normals if normals is None else normals
-    u = surface.u - np.einsum("nd,nd->n", surface.u, nrm)[:, None] * nrm  # the Surface's u, in the fit's plane
-    u /= np.linalg.norm(u, axis=1)[:, None]
-    v = np.cross(nrm, u)
+    u, v = _fit_frame(surface, nrm)
     h = _spacing(surface)
     fits = [fit_jets(P, nrm, r, u=u, v=v, spacing=h) for r in radii]
     return (np.stack([f.shape_operator() for f in fits]), np.stack([f.mean_sd for f in fits]), fits[0].noise)
@@ -97,7 +113,67 @@ def _scaled_shape_operator(surface, scale):
         check_in("scale", scale, ("auto",))
         return surface.cached(("shape_operator", "auto"), lambda: _auto_fits(surface))[0]
     r = check_positive("scale", scale)
-    return surface.cached(("shape_operator", r), lambda: _jet_fits(surface, [r])[0][0])
+    return surface.cached(("shape_operator", r), lambda: _at_scale(surface, r))
+
+
+def _at_scale(surface, r):
+    """``scale=r``: quadric fits over ``min(r, BASE_RADIUS h)``, averaged over the same side within ``r``."""
+    base = min(r, BASE_RADIUS * _spacing(surface))
+    W = _jet_fits(surface, [base])[0][0]
+    if r <= base:
+        return W
+    return average_shape_operators(surface.points, surface.normals, _frames(surface), W, r, spacing=_spacing(surface))
+
+
+def average_shape_operators(
+    points: np.ndarray, normals: np.ndarray, frames: np.ndarray, W: np.ndarray, radius: float, *, spacing: float
+) -> np.ndarray:
+    """Shape operators (N, 2, 2) averaged over each particle's neighbours on the same side of the surface.
+
+    Neighbour ``j`` of particle ``i`` counts if ``|x_j - x_i| <= radius`` and ``n_j . n_i > 0``
+    (a thin part's far side and a misoriented normal are left out), with the weight
+    ``exp(-(2 |x_j - x_i| / radius)^2)``. Its operator, written in ambient coordinates
+    ``E_j W_j E_j^T`` (``frames`` ``E``, shape (N, 3, 2)), is carried to ``i``'s tangent plane by the
+    smallest rotation taking ``n_j`` to ``n_i`` before the weighted mean, which is written back in
+    ``E_i``: a sphere's ``I / R`` is kept exactly.
+    """
+    return _average(points, normals, frames, W, radius, spacing, None)[0]
+
+
+def _average(points, normals, frames, W, radius, spacing, values):
+    """:func:`average_shape_operators`, and the same weighted mean of ``values`` (N,) if given."""
+    n = points.shape[0]
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    L = float(np.max(hi - lo))
+    P = (points - (lo + 0.5 * (hi - lo))) / L
+    r, h = radius / L, spacing / L
+    tree = cKDTree(P)
+    k = int(min(n, max(12, np.ceil(1.2 * np.pi * r * r / (0.9 * h * h)))))
+    S = np.einsum("nai,nij,nbj->nab", frames, W, frames)  # (N, 3, 3)
+    out = np.empty_like(W)
+    vals = None if values is None else np.empty(n)
+    for lo_ in range(0, n, _ROWS):
+        rows = np.arange(lo_, min(n, lo_ + _ROWS))
+        dist, idx = tree.query(P[rows], k=k, workers=-1)
+        if k == 1:
+            dist, idx = dist[:, None], idx[:, None]
+        ni, nj = normals[rows][:, None, :], normals[idx]
+        c = np.einsum("rkd,rkd->rk", nj, ni)
+        w = np.exp(-((2.0 * dist / r) ** 2)) * (dist <= r) * (c > 0)
+        # R = I + [a]x + [a]x^2 / (1 + c), a = n_j x n_i: the rotation about a taking n_j to n_i
+        a = np.cross(nj, np.broadcast_to(ni, nj.shape))
+        ax = np.zeros(a.shape + (3,))
+        ax[..., 0, 1], ax[..., 0, 2], ax[..., 1, 2] = -a[..., 2], a[..., 1], -a[..., 0]
+        ax -= np.swapaxes(ax, -1, -2)
+        R = np.eye(3) + ax + (ax @ ax) / np.maximum(1.0 + c, 1e-12)[..., None, None]
+        Sr = R @ S[idx] @ np.swapaxes(R, -1, -2)
+        sw = w.sum(axis=1)
+        mean = np.einsum("rk,rkab->rab", w, Sr) / sw[:, None, None]
+        E = frames[rows]
+        out[rows] = np.einsum("rai,rab,rbj->rij", E, mean, E)
+        if vals is not None:
+            vals[rows] = np.einsum("rk,rk->r", w, values[idx]) / sw
+    return 0.5 * (out + out.transpose(0, 2, 1)), vals
 
 
 def _auto_fits(surface) -> tuple[np.ndarray, np.ndarray]:
@@ -106,12 +182,23 @@ def _auto_fits(surface) -> tuple[np.ndarray, np.ndarray]:
 
     h = _spacing(surface)
     den = smooth(surface)  # noise normal to the surface removed first: the fits' scatter falls with it
-    Ws, unit_sd, _ = _jet_fits(surface, [f * h for f in AUTO_RADII], den.points, den.normals)
+    base = AUTO_RADII[0] * h
+    W0, unit_sd, _ = _jet_fits(surface, [base], den.points, den.normals)
     # the noise of the raw points sets the intervals: what smoothing leaves is correlated over its
     # own scale, which the residuals of a small fit cannot see
-    noise = _jet_fits(surface, [AUTO_RADII[0] * h])[2]
+    noise = _jet_fits(surface, [base])[2]
+    var0 = (unit_sd[0] * noise) ** 2
+    frames = np.stack(_fit_frame(surface, den.normals), axis=2)
+    fits, sds = [W0[0]], [np.sqrt(var0)]
+    for f in AUTO_RADII[1:]:
+        W, var = _average(den.points, den.normals, frames, W0[0], f * h, h, var0)
+        # neighbouring fits share points: the mean of fits over radius R scatters like one fit over R, about
+        # (base / R) times one fit over the base radius
+        fits.append(W)
+        sds.append(np.sqrt(var) * AUTO_RADII[0] / f)
+    Ws = np.stack(fits)
     H = 0.5 * (Ws[:, :, 0, 0] + Ws[:, :, 1, 1])
-    sd = AUTO_WIDTH * unit_sd * noise[None, :]
+    sd = AUTO_WIDTH * np.stack(sds)
     lo, hi = H[0] - sd[0], H[0] + sd[0]
     pick = np.zeros(H.shape[1], dtype=np.int64)
     alive = np.ones(H.shape[1], dtype=bool)
