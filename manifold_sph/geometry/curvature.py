@@ -21,11 +21,10 @@
 - **Automatic scale** (``scale="auto"``): the cloud is first denoised
   (:func:`~manifold_sph.geometry.smooth`, jet fits over ``4 h``), then per particle the
   largest radius of the ladder ``2.5 h, 3.5 h, 5 h, 7 h, 10 h, 14 h`` is taken whose estimate
-  (the averages above, on the denoised points) agrees with every smaller one within their
-  combined uncertainties (the intersection of confidence intervals of Lepski's method; the
-  uncertainty at ``2.5 h`` from the fit's variance and the noise of the raw points, measured by
-  the residuals of their fits, and ``2.5 h / R`` times it at radius ``R``). ``h`` is the mean
-  distance to the 6 nearest points.
+  (one quadric fitted over that radius) agrees with every smaller one within their combined
+  uncertainties (the intersection of confidence intervals of Lepski's method; each uncertainty
+  from the fit's own variance and the noise left, measured by the residuals of the smallest
+  fit). ``h`` is the mean distance to the 6 nearest points.
 """
 
 from __future__ import annotations
@@ -61,7 +60,7 @@ CURVATURE_METHODS = ("auto", "normals", "laplacian")
 #: Radii of the automatic scale, in units of the mean spacing ``h`` (mean distance to the 6 nearest points).
 AUTO_RADII = (2.5, 3.5, 5.0, 7.0, 10.0, 14.0)
 #: Radius of the quadric fits that ``scale=r`` averages, in mean spacings (``r`` itself if smaller).
-BASE_RADIUS = AUTO_RADII[0]
+BASE_RADIUS = 2.5
 #: Half-width of the confidence intervals of the automatic scale, in standard deviations.
 AUTO_WIDTH = 2.0
 
@@ -137,11 +136,6 @@ def average_shape_operators(
     smallest rotation taking ``n_j`` to ``n_i`` before the weighted mean, which is written back in
     ``E_i``: a sphere's ``I / R`` is kept exactly.
     """
-    return _average(points, normals, frames, W, radius, spacing, None)[0]
-
-
-def _average(points, normals, frames, W, radius, spacing, values):
-    """:func:`average_shape_operators`, and the same weighted mean of ``values`` (N,) if given."""
     n = points.shape[0]
     lo, hi = points.min(axis=0), points.max(axis=0)
     L = float(np.max(hi - lo))
@@ -151,7 +145,6 @@ def _average(points, normals, frames, W, radius, spacing, values):
     k = int(min(n, max(12, np.ceil(1.2 * np.pi * r * r / (0.9 * h * h)))))
     S = np.einsum("nai,nij,nbj->nab", frames, W, frames)  # (N, 3, 3)
     out = np.empty_like(W)
-    vals = None if values is None else np.empty(n)
     for lo_ in range(0, n, _ROWS):
         rows = np.arange(lo_, min(n, lo_ + _ROWS))
         dist, idx = tree.query(P[rows], k=k, workers=-1)
@@ -171,9 +164,7 @@ def _average(points, normals, frames, W, radius, spacing, values):
         mean = np.einsum("rk,rkab->rab", w, Sr) / sw[:, None, None]
         E = frames[rows]
         out[rows] = np.einsum("rai,rab,rbj->rij", E, mean, E)
-        if vals is not None:
-            vals[rows] = np.einsum("rk,rk->r", w, values[idx]) / sw
-    return 0.5 * (out + out.transpose(0, 2, 1)), vals
+    return 0.5 * (out + out.transpose(0, 2, 1))
 
 
 def _auto_fits(surface) -> tuple[np.ndarray, np.ndarray]:
@@ -182,23 +173,12 @@ def _auto_fits(surface) -> tuple[np.ndarray, np.ndarray]:
 
     h = _spacing(surface)
     den = smooth(surface)  # noise normal to the surface removed first: the fits' scatter falls with it
-    base = AUTO_RADII[0] * h
-    W0, unit_sd, _ = _jet_fits(surface, [base], den.points, den.normals)
+    Ws, unit_sd, _ = _jet_fits(surface, [f * h for f in AUTO_RADII], den.points, den.normals)
     # the noise of the raw points sets the intervals: what smoothing leaves is correlated over its
     # own scale, which the residuals of a small fit cannot see
-    noise = _jet_fits(surface, [base])[2]
-    var0 = (unit_sd[0] * noise) ** 2
-    frames = np.stack(_fit_frame(surface, den.normals), axis=2)
-    fits, sds = [W0[0]], [np.sqrt(var0)]
-    for f in AUTO_RADII[1:]:
-        W, var = _average(den.points, den.normals, frames, W0[0], f * h, h, var0)
-        # neighbouring fits share points: the mean of fits over radius R scatters like one fit over R, about
-        # (base / R) times one fit over the base radius
-        fits.append(W)
-        sds.append(np.sqrt(var) * AUTO_RADII[0] / f)
-    Ws = np.stack(fits)
+    noise = _jet_fits(surface, [AUTO_RADII[0] * h])[2]
     H = 0.5 * (Ws[:, :, 0, 0] + Ws[:, :, 1, 1])
-    sd = AUTO_WIDTH * np.stack(sds)
+    sd = AUTO_WIDTH * unit_sd * noise[None, :]
     lo, hi = H[0] - sd[0], H[0] + sd[0]
     pick = np.zeros(H.shape[1], dtype=np.int64)
     alive = np.ones(H.shape[1], dtype=bool)
