@@ -9,17 +9,19 @@
   of the normals. This is accurate on clean clouds (``docs/geometry.md``) and pure noise on
   a noisy scan: derivatives of noisy normals.
 - **At a scale** (``scale=r``, a length). A quadric height function
-  ``z = c0 + g . y + y^T A y / 2`` is fitted by weighted least squares to the points
-  within ``b = min(r, 2.5 h)`` of each particle (Gaussian weights of width ``b / 2``), in the
-  particle's tangent frame; ``W = -(I + g g^T)^-1 A / sqrt(1 + |g|^2)`` (the sign so that a
-  sphere with outward normals is positive). For ``r > b`` these shape operators are averaged
-  over the points within ``r`` on the same side (``n_j . n_i > 0``), weights
-  ``exp(-(2 d / r)^2)``, each carried to the particle's tangent plane by the rotation between
-  the normals (:func:`average_shape_operators`): the curvature of the surface smoothed over
-  ``r``. Where the surface within ``r`` is a height function over the tangent plane (at most
-  2 % of the weight on normals turned more than 60 degrees) one quadric fitted over ``r``
-  replaces the average: the same scale, less scatter from noise. Where it is not (``r`` beyond
-  the thickness of a thin part or the radius of a bend) one quadric cannot fit the ball.
+  ``z = c0 + g . y + y^T A y / 2`` is fitted by weighted least squares to the points within
+  a radius ``b`` of each particle (Gaussian weights ``exp(-(2 d / b)^2)``), in the particle's
+  tangent frame; ``W = -(I + g g^T)^-1 A / sqrt(1 + |g|^2)`` (the sign so that a sphere with
+  outward normals is positive). ``b`` is the largest of ``2.5 h, 2.5 sqrt(2) h, ...`` and ``r``
+  (not above ``r``) over which the surface is a height function over the tangent plane: at
+  most 2 % of the weight on normals turned more than 60 degrees. Where ``b < r`` the fits of
+  radius ``b`` are averaged over the points within ``sqrt(r^2 - b^2)`` on the same side
+  (``n_j . n_i > 0``), weights ``exp(-(2 d / r)^2)``, each carried to the particle's tangent
+  plane by the rotation between the normals (:func:`average_shape_operators`): the
+  curvature of the surface smoothed over about ``r``. One quadric over ``r`` cannot fit a ball
+  that holds both sides of a thin part or a bend of radius below ``r``; the average of small
+  fits can, but its scatter from noise is that of the small fits (the curvature's lever arm
+  is ``b``, not ``r``), hence the largest ``b`` that still fits.
 - **Automatic scale** (``scale="auto"``): the cloud is first denoised
   (:func:`~manifold_sph.geometry.smooth`, jet fits over ``4 h``), then per particle the
   largest radius of the ladder ``2.5 h, 3.5 h, 5 h, 7 h, 10 h, 14 h`` is taken whose estimate
@@ -61,10 +63,10 @@ __all__ = [
 CURVATURE_METHODS = ("auto", "normals", "laplacian")
 #: Radii of the automatic scale, in units of the mean spacing ``h`` (mean distance to the 6 nearest points).
 AUTO_RADII = (2.5, 3.5, 5.0, 7.0, 10.0, 14.0)
-#: Radius of the quadric fits that ``scale=r`` averages, in mean spacings (``r`` itself if smaller).
+#: Smallest radius of the quadric fits of ``scale=r``, in mean spacings (``r`` itself if smaller).
 BASE_RADIUS = 2.5
-#: ``scale=r`` fits one quadric over ``r`` where at most this weighted share of the points within ``r`` have
-#: normals turned more than 60 degrees from the particle's (the surface there is a height function).
+#: ``scale=r`` fits quadrics over the largest radius where at most this weighted share of the points within it
+#: have normals turned more than 60 degrees from the particle's (the surface there is a height function).
 GRAPH_TURNED = 0.02
 #: Half-width of the confidence intervals of the automatic scale, in standard deviations.
 AUTO_WIDTH = 2.0
@@ -121,17 +123,45 @@ def _scaled_shape_operator(surface, scale):
 
 
 def _at_scale(surface, r):
-    """``scale=r``: quadric fits over ``min(r, BASE_RADIUS h)`` averaged over the same side within ``r``, or
-    one quadric over ``r`` where the surface is a height function there (module notes)."""
-    base = min(r, BASE_RADIUS * _spacing(surface))
-    W = _jet_fits(surface, [base])[0][0]
-    if r <= base:
-        return W
-    avg, turned = _average(surface.points, surface.normals, _frames(surface), W, r, _spacing(surface))
-    graph = turned <= GRAPH_TURNED
-    if graph.any():
-        avg[graph] = _jet_fits(surface, [r])[0][0][graph]
-    return avg
+    """``scale=r``: at each particle the quadric fit of the largest radius ``b`` of ``2.5 h * sqrt(2)^k`` (and ``r``)
+    over which the surface is a height function, averaged over the same side within ``sqrt(r^2 - b^2)``
+    (module notes)."""
+    h = _spacing(surface)
+    radii = [min(r, BASE_RADIUS * h)]
+    while radii[-1] * np.sqrt(2.0) < r:
+        radii.append(radii[-1] * np.sqrt(2.0))
+    if radii[-1] < r:
+        radii.append(r)
+    Ws = _jet_fits(surface, radii)[0]
+    pick = np.zeros(surface.n_points, dtype=np.int64)
+    for k in range(1, len(radii)):
+        graph = _turned(surface.points, surface.normals, radii[k], h) <= GRAPH_TURNED
+        pick[graph & (pick == k - 1)] = k
+    out = Ws[pick, np.arange(surface.n_points)]
+    for k in range(len(radii) - 1):
+        rows = np.flatnonzero(pick == k)
+        if rows.size:
+            a = np.sqrt(r * r - radii[k] ** 2)
+            out[rows] = _average(surface.points, surface.normals, _frames(surface), Ws[k], a, h, rows)[0][rows]
+    return out
+
+
+def _turned(points, normals, radius, spacing):
+    """Weighted share (N,) of each particle's neighbours within ``radius`` whose normals turn past 60 degrees."""
+    n = points.shape[0]
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    L = float(np.max(hi - lo))
+    P = (points - (lo + 0.5 * (hi - lo))) / L
+    r, h = radius / L, spacing / L
+    tree = cKDTree(P)
+    k = int(min(n, max(12, np.ceil(1.2 * np.pi * r * r / (0.9 * h * h)))))
+    out = np.empty(n)
+    for lo_ in range(0, n, _ROWS):
+        rows = np.arange(lo_, min(n, lo_ + _ROWS))
+        dist, idx = tree.query(P[rows], k=k, workers=-1)
+        w = np.exp(-((2.0 * dist / r) ** 2)) * (dist <= r)
+        out[rows] = np.einsum("rk,rk->r", w, np.einsum("rkd,rd->rk", normals[idx], normals[rows]) < 0.5) / w.sum(axis=1)
+    return out
 
 
 def average_shape_operators(
@@ -146,10 +176,10 @@ def average_shape_operators(
     smallest rotation taking ``n_j`` to ``n_i`` before the weighted mean, which is written back in
     ``E_i``: a sphere's ``I / R`` is kept exactly.
     """
-    return _average(points, normals, frames, W, radius, spacing)[0]
+    return _average(points, normals, frames, W, radius, spacing, np.arange(points.shape[0]))[0]
 
 
-def _average(points, normals, frames, W, radius, spacing):
+def _average(points, normals, frames, W, radius, spacing, subset):
     """:func:`average_shape_operators`, and the weighted share of each particle's neighbours within ``radius``
     whose normals turn more than 60 degrees from its own (N,)."""
     n = points.shape[0]
@@ -160,10 +190,10 @@ def _average(points, normals, frames, W, radius, spacing):
     tree = cKDTree(P)
     k = int(min(n, max(12, np.ceil(1.2 * np.pi * r * r / (0.9 * h * h)))))
     S = np.einsum("nai,nij,nbj->nab", frames, W, frames)  # (N, 3, 3)
-    out = np.empty_like(W)
-    turned = np.empty(n)
-    for lo_ in range(0, n, _ROWS):
-        rows = np.arange(lo_, min(n, lo_ + _ROWS))
+    out = np.zeros_like(W)
+    turned = np.zeros(n)
+    for lo_ in range(0, subset.size, _ROWS):
+        rows = subset[lo_:lo_ + _ROWS]
         dist, idx = tree.query(P[rows], k=k, workers=-1)
         if k == 1:
             dist, idx = dist[:, None], idx[:, None]
