@@ -28,7 +28,9 @@
   (one quadric fitted over that radius) agrees with every smaller one within their combined
   uncertainties (the intersection of confidence intervals of Lepski's method; each uncertainty
   from the fit's own variance and the noise left, measured by the residuals of the smallest
-  fit). ``h`` is the mean distance to the 6 nearest points.
+  fit), and over which the denoised surface is still a height function (as for ``scale=r``:
+  a ball across a thin part or a tight bend holds what no quadric fits, and the intervals of
+  noisy fits are too wide to tell). ``h`` is the mean distance to the 6 nearest points.
 """
 
 from __future__ import annotations
@@ -233,7 +235,7 @@ def _auto_fits(surface) -> tuple[np.ndarray, np.ndarray]:
     alive = np.ones(H.shape[1], dtype=bool)
     for k in range(1, H.shape[0]):
         lo, hi = np.maximum(lo, H[k] - sd[k]), np.minimum(hi, H[k] + sd[k])
-        alive &= lo <= hi
+        alive &= (lo <= hi) & (_turned(den.points, den.normals, AUTO_RADII[k] * h, h) <= GRAPH_TURNED)
         pick[alive] = k
     return Ws[pick, np.arange(H.shape[1])], np.asarray(AUTO_RADII)[pick] * h
 
