@@ -357,11 +357,13 @@ def curvature_table(quick):
         gauss = np.random.default_rng(0).standard_normal(U.shape)
         inputs = [("clean", U)] + [(f"{a}h", U + a * h * gauss) for a in CURVATURE_NOISE]
         thick = opposite_distance(U, Nm) / h
-        print(f"{name}: {len(U)} vertices; distance to the nearest vertex facing the other way (a thin part's far "
-              f"side), in h: median {np.median(thick[keep]):.1f}, below 8 for {np.mean(thick[keep] < 8):.0%} of them")
 
         def rho(a, b, keep=keep):
             return spearmanr(a[keep], b[keep])[0]
+
+        print(f"{name}: {len(U)} vertices; distance to the nearest vertex facing the other way (a thin part's far "
+              f"side), in h: median {np.median(thick[keep]):.1f}, below 8 for {np.mean(thick[keep] < 8):.0%} of them; "
+              "the vertex H against itself at r = " + ", ".join(f"{r}h {rho(H0, ref):.2f}" for r, ref in zip(CURVATURE_SCALES, refs)))
 
         global_sign = 1.0 if rho(quiet(Surface, U).mean_curvature(), H0) >= 0 else -1.0
         for label, P in inputs:
