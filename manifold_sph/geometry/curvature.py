@@ -167,18 +167,18 @@ def _turned(points, normals, radius, spacing):
 
 
 def average_shape_operators(
-    points: np.ndarray, normals: np.ndarray, frames: np.ndarray, W: np.ndarray, radius: float, *, spacing: float
+    points: np.ndarray, normals: np.ndarray, tangents: np.ndarray, W: np.ndarray, radius: float, *, spacing: float
 ) -> np.ndarray:
     """Shape operators (N, 2, 2) averaged over each particle's neighbours on the same side of the surface.
 
     Neighbour ``j`` of particle ``i`` counts if ``|x_j - x_i| <= radius`` and ``n_j . n_i > 0``
     (a thin part's far side and a misoriented normal are left out), with the weight
     ``exp(-(2 |x_j - x_i| / radius)^2)``. Its operator, written in ambient coordinates
-    ``E_j W_j E_j^T`` (``frames`` ``E``, shape (N, 3, 2)), is carried to ``i``'s tangent plane by the
+    ``E_j W_j E_j^T`` (``tangents`` ``E = [u, v]``, shape (N, 3, 2)), is carried to ``i``'s tangent plane by the
     smallest rotation taking ``n_j`` to ``n_i`` before the weighted mean, which is written back in
     ``E_i``: a sphere's ``I / R`` is kept exactly.
     """
-    return _average(points, normals, frames, W, radius, spacing, np.arange(points.shape[0]))[0]
+    return _average(points, normals, tangents, W, radius, spacing, np.arange(points.shape[0]))[0]
 
 
 def _average(points, normals, frames, W, radius, spacing, subset):
