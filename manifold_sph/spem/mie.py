@@ -151,6 +151,21 @@ def _series(coef, radial, theta):
     return (radial * w[None, :] * np.cos(np.outer(theta, n))).sum(axis=1)
 
 
+def _outside_series(p: np.ndarray, coef: np.ndarray, freq: float, radius: float
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The scattered series outside the cylinder (both polarisations): ``(out, inside, r, theta, incident)``,
+    ``out`` filled where ``r >= radius`` and left for the caller inside."""
+    k = wavenumber(freq)
+    r = np.hypot(p[:, 0], p[:, 1])
+    th = np.arctan2(p[:, 1], p[:, 0])
+    n = np.arange(len(coef))
+    out = np.empty(len(p), dtype=complex)
+    outside = r >= radius
+    if outside.any():
+        out[outside] = _series(coef, hankel1(n[None, :], k * r[outside, None]), th[outside])
+    return out, ~outside, r, th, np.exp(1j * k * p[:, 0])
+
+
 def incident_field(points: ArrayLike, freq: float) -> np.ndarray:
     """Incident phasor ``exp(i k x)`` at ``points`` (P, 2)."""
     p = as_points("points", points, dim=2)
@@ -175,16 +190,8 @@ def scattered_field(points: ArrayLike, kind: str, *, freq: float, radius: float,
     kind, radius, eps_r, core_radius = check_scatterer(kind, radius, eps_r, core_radius)
     p = as_points("points", points, dim=2)
     a_n, c_n = mie_coefficients(kind, freq, radius, eps_r=eps_r, core_radius=core_radius, n_terms=n_terms)
-    k = wavenumber(freq)
-    r = np.hypot(p[:, 0], p[:, 1])
-    th = np.arctan2(p[:, 1], p[:, 0])
-    n = np.arange(len(a_n))
-    inc = np.exp(1j * k * p[:, 0])
-    out = np.empty(len(p), dtype=complex)
-    outside = r >= radius
-    if outside.any():
-        out[outside] = _series(a_n, hankel1(n[None, :], k * r[outside, None]), th[outside])
-    inside = ~outside
+    out, inside, r, th, inc = _outside_series(p, a_n, freq, radius)
+    k, n = wavenumber(freq), np.arange(len(a_n))
     if kind == "pec":
         out[inside] = -inc[inside]
         return out
@@ -284,16 +291,8 @@ def tez_scattered_field(points: ArrayLike, kind: str, *, freq: float, radius: fl
     kind, radius, eps_r = check_tez_scatterer(kind, radius, eps_r)
     p = as_points("points", points, dim=2)
     b_n, d_n = tez_mie_coefficients(kind, freq, radius, eps_r=eps_r, n_terms=n_terms)
-    k = wavenumber(freq)
-    r = np.hypot(p[:, 0], p[:, 1])
-    th = np.arctan2(p[:, 1], p[:, 0])
-    n = np.arange(len(b_n))
-    inc = np.exp(1j * k * p[:, 0])
-    out = np.empty(len(p), dtype=complex)
-    outside = r >= radius
-    if outside.any():
-        out[outside] = _series(b_n, hankel1(n[None, :], k * r[outside, None]), th[outside])
-    inside = ~outside
+    out, inside, r, th, inc = _outside_series(p, b_n, freq, radius)
+    k, n = wavenumber(freq), np.arange(len(b_n))
     if kind == "pec":
         out[inside] = -inc[inside]
     elif inside.any():
