@@ -148,15 +148,21 @@ def _at_scale(surface, r):
     return out
 
 
-def _turned(points, normals, radius, spacing):
-    """Weighted share (N,) of each particle's neighbours within ``radius`` whose normals turn past 60 degrees."""
+def _ball_search(points: np.ndarray, radius: float, spacing: float) -> tuple[np.ndarray, float, cKDTree, int]:
+    """Points in units of the cloud's extent (scale-free), the radius in those units, their KD-tree, and
+    the neighbour count that covers a ball of ``radius`` at this ``spacing``."""
     n = points.shape[0]
     lo, hi = points.min(axis=0), points.max(axis=0)
     L = float(np.max(hi - lo))
     P = (points - (lo + 0.5 * (hi - lo))) / L
     r, h = radius / L, spacing / L
-    tree = cKDTree(P)
-    k = int(min(n, max(12, np.ceil(1.2 * np.pi * r * r / (0.9 * h * h)))))
+    return P, r, cKDTree(P), int(min(n, max(12, np.ceil(1.2 * np.pi * r * r / (0.9 * h * h)))))
+
+
+def _turned(points, normals, radius, spacing):
+    """Weighted share (N,) of each particle's neighbours within ``radius`` whose normals turn past 60 degrees."""
+    n = points.shape[0]
+    P, r, tree, k = _ball_search(points, radius, spacing)
     out = np.empty(n)
     for lo_ in range(0, n, _ROWS):
         rows = np.arange(lo_, min(n, lo_ + _ROWS))
@@ -185,12 +191,7 @@ def _average(points, normals, frames, W, radius, spacing, subset):
     """:func:`average_shape_operators`, and the weighted share of each particle's neighbours within ``radius``
     whose normals turn more than 60 degrees from its own (N,)."""
     n = points.shape[0]
-    lo, hi = points.min(axis=0), points.max(axis=0)
-    L = float(np.max(hi - lo))
-    P = (points - (lo + 0.5 * (hi - lo))) / L
-    r, h = radius / L, spacing / L
-    tree = cKDTree(P)
-    k = int(min(n, max(12, np.ceil(1.2 * np.pi * r * r / (0.9 * h * h)))))
+    P, r, tree, k = _ball_search(points, radius, spacing)
     S = np.einsum("nai,nij,nbj->nab", frames, W, frames)  # (N, 3, 3)
     out = np.zeros_like(W)
     turned = np.zeros(n)
