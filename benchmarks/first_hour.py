@@ -114,7 +114,7 @@ def python_row(name: str, path: Path, pts: np.ndarray | None, spread: bool, tmp:
     if err:
         row["eigs"] = f"FAIL {err}"
     else:
-        lam = np.asarray(res[0] if isinstance(res, tuple) else res.values)
+        lam = res.values
         zero = int((np.abs(lam) <= 1e-8 * np.abs(lam).max()).sum())
         row["eigs"] = f"{sec:.1f}s {zero} zero"
     HK, err, sec, _ = timed(lambda: (s.mean_curvature(), s.gaussian_curvature()))

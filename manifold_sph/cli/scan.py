@@ -99,8 +99,7 @@ def _cmd_eigs(args) -> int:
         s, estimated = build_surface(args, cloud, bar)
         bar.step("eigenpairs")
         res = s.eigs(args.k)
-        lam, vec = (res if isinstance(res, tuple) else (res.values, res.vectors))[:2]
-        lam, vec = np.asarray(lam), np.asarray(vec)
+        lam, vec = res.values, res.vectors
         bar.update()
         bar.step("output")
         saved = save_values(args, s, {"modes" if args.save and args.save.lower().endswith(".npy") else "mode": vec})
