@@ -145,10 +145,10 @@ class OperatorSet:
                 f"max_condition={self.max_condition:g}; the simpler scheme is less accurate there.",
                 count=idx.size, indices=idx,
             )
-        self._warn_inconsistent(nb.n_rows)
+        self._note_inconsistent(nb.n_rows)
         self._cache = {}
 
-    def _warn_inconsistent(self, n: int) -> None:
+    def _note_inconsistent(self, n: int) -> None:
         """A warning when rows of the scheme asked for fail the quadratic-consistency test
         (:func:`manifold_sph.assembly.quadratic_defect`); rows that fell back are reported as such."""
         defect = np.where(self._ops.used_code == 0, self._ops.defect, 0.0)
