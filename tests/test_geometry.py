@@ -325,8 +325,38 @@ def test_transport_and_log_map_on_the_sphere(sphere16k):
     v = P - (P @ P[0])[:, None] * P[0]
     lv = np.arccos(np.clip(P @ P[0], -1, 1))[:, None] * v / np.maximum(np.linalg.norm(v, axis=1), 1e-300)[:, None]
     exL = np.stack([lv @ s.u[0], lv @ s.v[0]], axis=1)
-    assert rel(L[far], exL[far]) < 2e-3  # measured 1.0e-3
-    assert np.allclose(np.linalg.norm(L, axis=1)[far], s.geodesic_distance(0, method="heat")[far])
+    assert rel(L[far], exL[far]) < 1.5e-3  # measured 9.5e-4
+    r = np.linalg.norm(L, axis=1)
+    assert rel(r[far], np.arccos(np.clip(P[far] @ P[0], -1, 1))) < 1e-3  # the radius alone
+    assert np.all(r >= np.linalg.norm(P - P[0], axis=1) * (1 - 1e-12))  # never below the straight line
+
+
+def exact_log_map(P, s, i):
+    """The unit sphere's log map at particle ``i`` in its frame (u, v), and the exact distances."""
+    th = np.arccos(np.clip(P @ P[i], -1, 1))
+    v = P - (P @ P[i])[:, None] * P[i]
+    lv = th[:, None] * v / np.maximum(np.linalg.norm(v, axis=1), 1e-300)[:, None]
+    return np.stack([lv @ s.u[i], lv @ s.v[i]], axis=1), th
+
+
+def test_log_map_on_uniformly_random_points():
+    """Uniformly random points on the unit sphere (seed 0), against the exact log map away from the antipode:
+    the error falls with N (40,000 points: 1.2e-3 in benchmarks/geometry.py --only vector)."""
+    errors = []
+    for n in (4000, 16000):
+        x = np.random.default_rng(0).standard_normal((n, 3))
+        P = x / np.linalg.norm(x, axis=1)[:, None]
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ManifoldSPHWarning)  # near-duplicate random points
+            s = Surface(P, P.copy())
+        L = s.log_map(0)
+        exL, th = exact_log_map(P, s, 0)
+        far = th < np.pi - 0.1
+        errors.append(rel(L[far], exL[far]))
+        r = np.linalg.norm(L, axis=1)
+        assert rel(r[far], th[far]) < (4e-3 if n == 4000 else 1.3e-3)  # measured 2.7e-3, 9.1e-4
+    assert errors[1] < 3.5e-3  # measured 2.6e-3 (the gradient of the heat-method distance: 7.9e-3)
+    assert np.log(errors[0] / errors[1]) / np.log(2.0) > 1.0  # fitted order in h: measured 1.7
 
 
 def test_karcher_mean_of_a_symmetric_set(sphere16k):

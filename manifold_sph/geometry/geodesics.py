@@ -117,9 +117,7 @@ class _Heat:
         self._poisson: Any = None  # spd_solver of the free particles' block, for the sources in _poisson_key
 
     def distance(self, src, offsets, targets):
-        from ..solvers import spd_solver
-
-        s, P, N = self.s, self.s.points, self.s.n_points
+        s, N = self.s, self.s.n_points
         rhs = np.zeros(N)
         rhs[src] = 1.0 / self.m[src]  # a unit of heat at each source, whatever its cell's size
         u = self._heat.solve(rhs)
@@ -133,7 +131,13 @@ class _Heat:
                 ManifoldSPHWarning,
                 stacklevel=3,
             )
-        X = -_unit(s.gradient(u))
+        return self.integrate(-_unit(s.gradient(u)), src)
+
+    def integrate(self, X, src):
+        """The Poisson step: ``K phi = -M div X`` for the unit field ``X`` (N, 3), particles near ``src`` held."""
+        from ..solvers import spd_solver
+
+        s, P, N = self.s, self.s.points, self.s.n_points
         if self.divergence == "strong":
             b = -(self.m * self.h2) * s.divergence(X)
         else:  # -M div X from the stable Laplacian's fluxes
@@ -338,6 +342,29 @@ class GeodesicSolver:
         return out
 
     __call__ = distance
+
+    def integrate(self, directions: ArrayLike, sources: ArrayLike) -> np.ndarray:
+        """The distance whose gradient best fits a field of unit directions (the heat method's Poisson step).
+
+        Solves ``K phi = -M div X`` on the stable Laplacian for ``X`` the unit vectors of
+        ``directions`` (N, 3), with the particles within ``source_radius * h`` of ``sources``
+        held at their straight-line distance; ``method="heat"`` only. :meth:`distance` calls
+        it with ``X`` the direction of the heat step's decrease; the log map
+        (:mod:`~manifold_sph.geometry.vector_heat`) with its own directions.
+
+        Returns
+        -------
+        ndarray, shape (N,)
+            Never below the straight-line distance to the nearest source; ``inf`` in pieces
+            of the cloud without a source.
+        """
+        if self.method != "heat":
+            raise ValueError(f"integrate needs method='heat', this solver's method is {self.method!r}")
+        src = np.unique(self._indices("sources", sources, allow_mask=True))
+        X = np.asarray(directions, dtype=np.float64)
+        if X.shape != (self.n_points, 3) or not np.all(np.isfinite(X)):
+            raise ValueError(f"directions must be finite with shape ({self.n_points}, 3), got shape {X.shape}")
+        return self._engine.integrate(_unit(X), src)
 
     def pairwise(self, indices: ArrayLike | None = None) -> np.ndarray:
         """Geodesic distances between all pairs of ``indices`` (default: every particle), shape (M, M).

@@ -14,13 +14,17 @@ Tangent vectors at particle ``i`` are complex numbers in its frame ``(u_i, v_i)`
   vector transported along the shortest geodesic (its length is kept). The solve is the
   real symmetric form ``[[Re A, -Im A], [Im A, Re A]]`` of the Hermitian system, set up once
   by :func:`manifold_sph.solvers.spd_solver` and reused for every source.
-- **Logarithmic map** (:func:`log_map`). The geodesic distance ``r`` (a
-  :class:`~manifold_sph.geometry.GeodesicSolver`) and the angle, at each particle, between
-  the direction of increasing distance and the transported frame vector ``u_source``:
-  ``log(x) = r (cos theta, sin theta)`` in the frame of the source particle. The direction of increasing
-  distance is the gradient of ``r`` from quadric fits over the 24 nearest points
-  (:func:`~manifold_sph.geometry.jets.field_gradient`), smoother on irregular clouds than
-  the scheme's gradient.
+- **Logarithmic map** (:func:`log_map`). The geodesic distance ``r`` and the angle, at each
+  particle, between the direction of increasing distance and the transported frame vector
+  ``u_source``: ``log(x) = r (cos theta, sin theta)`` in the frame of the source particle.
+  The direction of increasing distance is that of ``-grad log u``, ``u`` the scalar heat
+  step ``(M + t K) u = delta`` with the same ``t`` (Varadhan: ``-4 t log u`` tends to
+  ``r^2``), the gradient from quadric fits over the 96 nearest points
+  (:func:`~manifold_sph.geometry.jets.field_gradient`): ``log u`` is smooth where ``u``
+  spans many decades, and the wide fits average the irregular cloud's noise. ``r`` is the
+  distance whose gradient best fits those directions
+  (:meth:`~manifold_sph.geometry.GeodesicSolver.integrate`, the heat method's Poisson
+  step), or the wavefront distance (``geodesics="wavefront"``).
 - **Karcher mean** (:func:`karcher_mean`): the particle ``p`` where the weighted mean of
   ``log_p`` of the given particles vanishes, by the fixed-point iteration
   ``p <- exp_p(mean log_p)`` (the particle nearest to that tangent point in the log map).
@@ -31,7 +35,7 @@ The normals must be consistently oriented (a Surface's are): the sign of the ang
 from __future__ import annotations
 
 import warnings
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -48,8 +52,10 @@ if TYPE_CHECKING:
 
 __all__ = ["VectorHeatSolver", "connection_laplacian", "karcher_mean", "log_map", "transport"]
 
-#: Heat time of the vector diffusion, in units of the mean cell area.
-VECTOR_HEAT_TIME = 16.0
+#: Heat time of the vector diffusion (and of the log map's scalar heat step), in units of the mean cell area.
+VECTOR_HEAT_TIME = 64.0
+#: Nearest points of the quadric fits that give the log map's radial directions.
+LOG_MAP_NEIGHBORS = 96
 
 
 def _frame_rotations(n: np.ndarray, u: np.ndarray, v: np.ndarray, i: np.ndarray, j: np.ndarray) -> np.ndarray:
@@ -117,9 +123,9 @@ class VectorHeatSolver:
         Heat time of the vector diffusion (default the mean cell area times
         ``VECTOR_HEAT_TIME``).
     geodesics : {"heat", "wavefront"}
-        The :class:`~manifold_sph.geometry.GeodesicSolver` method of the log map's
-        distances: ``"heat"`` (default; smooth, the more accurate on smooth well-sampled
-        surfaces) or ``"wavefront"`` (coarse or sharp models, several sources).
+        The log map's distances: ``"heat"`` (default; the distance integrated from the
+        radial directions, the more accurate on smooth surfaces) or ``"wavefront"`` (the
+        :class:`~manifold_sph.geometry.GeodesicSolver` default, for coarse or sharp models).
     """
 
     def __init__(self, surface: Surface, *, t: float | None = None, geodesics: str = "heat") -> None:
@@ -137,6 +143,7 @@ class VectorHeatSolver:
         self._m = m / self._h2
         self._solve = spd_solver(sp.bmat([[Ar, -Ai], [Ai, Ar]], format="csr")).solve
         self._distance: GeodesicSolver | None = None
+        self._heat: Any = None  # the scalar heat step of the log map, set up at its first call
 
     def _source(self, source) -> int:
         n = self.surface.n_points
@@ -179,20 +186,35 @@ class VectorHeatSolver:
         Their length is the geodesic distance; their angle that of the initial direction of
         the shortest geodesic from the source.
         """
+        from ..solvers import cholesky_available, spd_solver
         from .geodesics import GeodesicSolver
 
         s = self.surface
         i = self._source(source)
+        n = s.n_points
+        if self._heat is None:  # Cholesky keeps the far field's small values to their last digits
+            A = (sp.diags(self._m) + (self.t / self._h2) * s.stiffness_matrix()).tocsr()
+            self._heat = spd_solver(A, method="cholesky" if cholesky_available() else "auto")
         if self._distance is None:
             self._distance = GeodesicSolver(s, method=self.geodesics)
+        b = np.zeros(n)
+        b[i] = 1.0
+        u = self._heat.solve(b)
+        ok = u > 1e-300 * u.max()
+        logu = np.full(n, np.nan)
+        logu[ok] = np.log(u[ok] / u.max())
+        g = -field_gradient(s.points, s.u, s.v, logu, neighbors=LOG_MAP_NEIGHBORS)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ManifoldSPHWarning)
-            r = self._distance.distance(i)
-        g = field_gradient(s.points, s.u, s.v, np.where(np.isfinite(r), r, np.nan))
+            r = self._distance.integrate(g, i) if self.geodesics == "heat" else self._distance.distance(i)
+        lost = np.isfinite(r) & ~ok
+        if lost.any():
+            warnings.warn(f"log_map: the heat step's solution is below the solver's accuracy or float64's range at "
+                          f"{int(lost.sum())} particle(s): their directions are fitted from their neighbours' only "
+                          "(a larger t reaches farther)", ManifoldSPHWarning, stacklevel=2)
         radial = np.einsum("nd,nd->n", g, s.u) + 1j * np.einsum("nd,nd->n", g, s.v)
         Y = self.diffuse(i, s.u[i])
-        ratio = radial * np.conj(Y)
-        theta = np.angle(ratio)
+        theta = np.angle(radial * np.conj(Y))
         out = np.stack([r * np.cos(theta), r * np.sin(theta)], axis=1)
         out[i] = 0.0
         out[~np.isfinite(r)] = np.nan
