@@ -81,9 +81,10 @@ class _Wavefront:
     def distance(self, src, offsets, targets):
         P = self.tri.points
         d = propagate(P, self._inc, self._adj, src, offsets / self.tri.scale, targets)
-        if offsets.max() == 0:  # never below the straight line to the nearest source
-            d = np.maximum(d, np.where(np.isfinite(d), straight_line(P, src), np.inf))
-        return d * self.tri.scale
+        if not offsets.any():  # never below the straight line to the nearest source (unreached: inf stays inf)
+            np.maximum(d, straight_line(P, src), out=d)
+        d *= self.tri.scale
+        return d
 
 
 class _Heat:
@@ -279,6 +280,22 @@ class GeodesicSolver:
             raise ValueError(f"{name} must lie in [0, {n}), got {arr[bad][:5].tolist()}")
         return arr.astype(np.int64)
 
+    def _sources(self, sources: ArrayLike, offsets: ArrayLike | None) -> tuple[np.ndarray, np.ndarray]:
+        """Checked sources and offsets, one entry a source (the smallest offset of a repeated one)."""
+        src = self._indices("sources", sources, allow_mask=True)
+        if offsets is None:
+            off = np.zeros(src.size)
+        else:
+            if self.method != "wavefront":
+                raise ValueError("offsets are supported by method='wavefront' only")
+            off = np.atleast_1d(np.asarray(offsets, dtype=np.float64))
+            if off.shape != src.shape or not np.all(np.isfinite(off) & (off >= 0)):
+                raise ValueError(f"offsets must be {src.size} finite values >= 0 (one a source), got {off!r}")
+        order = np.lexsort((off, src))
+        src, off = src[order], off[order]
+        first = np.concatenate([[True], src[1:] != src[:-1]])
+        return src[first], off[first]
+
     # ------------------------------------------------------------------ queries
     @overload
     def distance(self, sources: ArrayLike, *, to: None = None, offsets: ArrayLike | None = None) -> np.ndarray: ...
@@ -306,30 +323,25 @@ class GeodesicSolver:
         ndarray, shape (N,), or float / ndarray of the shape of ``to``
             ``inf`` where not reached (see :attr:`unreached`).
         """
-        src = self._indices("sources", sources, allow_mask=True)
-        if offsets is None:
-            off = np.zeros(src.size)
+        if offsets is None and isinstance(sources, (int, np.integer)) and not isinstance(sources, (bool, np.bool_)) \
+                and 0 <= sources < self.n_points:  # one particle: nothing to sort or merge
+            src, off = np.array([sources], dtype=np.int64), np.zeros(1)
         else:
-            if self.method != "wavefront":
-                raise ValueError("offsets are supported by method='wavefront' only")
-            off = np.atleast_1d(np.asarray(offsets, dtype=np.float64))
-            if off.shape != src.shape or not np.all(np.isfinite(off) & (off >= 0)):
-                raise ValueError(f"offsets must be {src.size} finite values >= 0 (one a source), got {off!r}")
-        # one entry a source (the smallest offset of a repeated one)
-        order = np.lexsort((off, src))
-        src, off = src[order], off[order]
-        first = np.concatenate([[True], src[1:] != src[:-1]])
-        src, off = src[first], off[first]
+            src, off = self._sources(sources, offsets)
         targets = None if to is None else self._indices("to", to, allow_mask=False)
         d = self._engine.distance(src, off, targets)
-        labels = self._engine.labels
-        reached = np.isin(labels, labels[src])
-        self.unreached = np.flatnonzero(~reached)
-        d[~reached] = np.inf
-        if targets is None:
-            out, missing = d, self.unreached.size
+        if self.n_components == 1:  # every particle is reached
+            self.unreached = np.zeros(0, dtype=np.int64)
+            out, missing = (d if targets is None else d[targets]), 0
         else:
-            out, missing = d[targets], int(np.count_nonzero(~reached[targets]))
+            labels = self._engine.labels
+            reached = np.isin(labels, labels[src])
+            self.unreached = np.flatnonzero(~reached)
+            d[~reached] = np.inf
+            if targets is None:
+                out, missing = d, self.unreached.size
+            else:
+                out, missing = d[targets], int(np.count_nonzero(~reached[targets]))
         if missing:
             warnings.warn(
                 f"{missing} particle(s) lie in pieces of the cloud that hold no source (the cloud has "

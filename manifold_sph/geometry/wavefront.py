@@ -56,33 +56,40 @@ def _compile(fn):
 
 
 # ----------------------------------------------------------------------------- kernels
-def _sift_up(heap, pos, key, k):
+def _sift_up(heap, key, pos, k):
+    """Move entry ``k`` of the binary heap (particles ``heap``, their distances ``key`` beside them) up."""
     v = heap[k]
+    kv = key[k]
     while k > 0:
         p = (k - 1) >> 1
-        if key[heap[p]] <= key[v]:
+        if key[p] <= kv:
             break
         heap[k] = heap[p]
+        key[k] = key[p]
         pos[heap[k]] = k
         k = p
     heap[k] = v
+    key[k] = kv
     pos[v] = k
 
 
-def _sift_down(heap, pos, key, k, size):
+def _sift_down(heap, key, pos, k, size):
     v = heap[k]
+    kv = key[k]
     while True:
         c = 2 * k + 1
         if c >= size:
             break
-        if c + 1 < size and key[heap[c + 1]] < key[heap[c]]:
+        if c + 1 < size and key[c + 1] < key[c]:
             c += 1
-        if key[heap[c]] >= key[v]:
+        if key[c] >= kv:
             break
         heap[k] = heap[c]
+        key[k] = key[c]
         pos[heap[k]] = k
         k = c
     heap[k] = v
+    key[k] = kv
     pos[v] = k
 
 
@@ -125,12 +132,14 @@ def _triangle_update(lab, cx, cy, da, db, k):
 _triangle_update = _compile(_triangle_update)
 
 
-def _push(heap, pos, d, size, v):
+def _push(heap, key, pos, size, v, dv):
+    """Insert particle ``v`` with distance ``dv``, or lower its entry to ``dv``; the heap's new size."""
     if pos[v] < 0:
         heap[size] = v
         pos[v] = size
         size += 1
-    _sift_up(heap, pos, d, pos[v])
+    key[pos[v]] = dv
+    _sift_up(heap, key, pos, pos[v])
     return size
 
 
@@ -143,6 +152,7 @@ def _propagate(P, vt_ptr, vt_pair, vt_geom, e_ptr, e_idx, e_len, src, d0, target
     o = np.zeros(n)  # the offset of the source each particle's front comes from
     sid = np.full(n, -1, np.int64)  # and which source that is
     heap = np.empty(n, np.int64)
+    key = np.empty(n)  # the heap entries' distances, stored beside them (no indirection in the sifts)
     pos = np.full(n, -1, np.int64)
     size = 0
     for k in range(src.size):
@@ -151,7 +161,7 @@ def _propagate(P, vt_ptr, vt_pair, vt_geom, e_ptr, e_idx, e_len, src, d0, target
             d[v] = d0[k]
             o[v] = d0[k]
             sid[v] = v
-            size = _push(heap, pos, d, size, v)
+            size = _push(heap, key, pos, size, v, d[v])
     wanted = np.zeros(n, np.bool_)
     left = 0
     for k in range(targets.size):
@@ -164,8 +174,9 @@ def _propagate(P, vt_ptr, vt_pair, vt_geom, e_ptr, e_idx, e_len, src, d0, target
         size -= 1
         if size > 0:
             heap[0] = heap[size]
+            key[0] = key[size]
             pos[heap[0]] = 0
-            _sift_down(heap, pos, d, 0, size)
+            _sift_down(heap, key, pos, 0, size)
         if wanted[v]:
             wanted[v] = False
             left -= 1
@@ -181,7 +192,7 @@ def _propagate(P, vt_ptr, vt_pair, vt_geom, e_ptr, e_idx, e_len, src, d0, target
                 d[w] = cand
                 o[w] = ov
                 sid[w] = sv
-                size = _push(heap, pos, d, size, w)
+                size = _push(heap, key, pos, size, w, cand)
         for q in range(vt_ptr[v], vt_ptr[v + 1]):
             for r in range(2):
                 x = vt_pair[q, r]
@@ -192,6 +203,10 @@ def _propagate(P, vt_ptr, vt_pair, vt_geom, e_ptr, e_idx, e_len, src, d0, target
                 lab = vt_geom[q, 3 * r]
                 cx = vt_geom[q, 3 * r + 1]
                 cy = vt_geom[q, 3 * r + 2]
+                # any candidate through the edge vx is at least (dv + dx - |vx|) / 2 (the front's distance is
+                # 1-Lipschitz along the edge) plus y's height cy over it: skip y when that cannot improve it
+                if d[y] <= 0.5 * (dv + dx - lab) + cy:
+                    continue
                 sx = sid[x]
                 if sx == sv:  # both corners' fronts come from one point source
                     cand = _triangle_update(lab, cx, cy, dv - ov, dx - ov, 1.0 / (dv - ov) if dv > ov else np.inf) + ov
@@ -208,7 +223,7 @@ def _propagate(P, vt_ptr, vt_pair, vt_geom, e_ptr, e_idx, e_len, src, d0, target
                     d[y] = cand
                     o[y] = ov
                     sid[y] = sv
-                    size = _push(heap, pos, d, size, y)
+                    size = _push(heap, key, pos, size, y, cand)
     return d
 
 
