@@ -21,10 +21,11 @@ import scipy.sparse.linalg as spla
 from . import _jit
 from ._sparse import MIN_THREADED_NNZ, RowBlocks, bicgstab_csr
 from ._validation import check_positive
+from .allocator import release_freed_memory
 from .diagnostics import note
 from .frames import PairOffsets, offsets_of_rows
 from .kernels import Kernel, QuinticSpline
-from .neighbors import Neighborhood, release_freed_memory
+from .neighbors import Neighborhood
 from .threads import get_num_threads, in_chunk, pool, run_chunks
 
 __all__ = ["AREA_METHODS", "AreaElements", "area_elements", "check_area_method", "kernel_matrix", "kernel_values"]

@@ -10,7 +10,7 @@ first. ``j`` belongs to particle ``i``'s neighbourhood iff
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Literal, SupportsFloat, cast, overload
+from typing import Literal, SupportsFloat, cast, overload
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -18,6 +18,7 @@ from scipy.spatial import cKDTree
 
 from . import _jit
 from ._validation import as_points, check_int, check_positive
+from .allocator import release_freed_memory
 from .threads import resolve_workers, run_chunks
 
 __all__ = [
@@ -428,35 +429,6 @@ GRID_MAX_COLUMN = 4096
 
 #: Sorted positions per chunk (thread task) of the grid search.
 _GRID_ROWS = 8192
-
-
-#: Builds of fewer points skip :func:`release_freed_memory`: at N = 131072 a call took 3-13 ms (two a
-#: build, serial) to return some 15-25 MB.
-TRIM_MIN_POINTS = 400_000
-
-
-def release_freed_memory(n_points: int | None = None) -> None:
-    """Give the memory freed by a build step back to the system (glibc's ``malloc_trim``; nothing elsewhere).
-
-    Buffers allocated and freed on worker threads stay in their threads' malloc arenas, resident: the
-    grid search's chunk buffers and the area solve's vectors left 100-200 MB per million points
-    resident under the assembly's peak (measured with ``ru_maxrss``). ``n_points``: the build's size;
-    below :data:`TRIM_MIN_POINTS` nothing is done."""
-    global _TRIM
-    if n_points is not None and n_points < TRIM_MIN_POINTS:
-        return
-    if _TRIM is None:
-        try:
-            import ctypes
-
-            _TRIM = ctypes.CDLL("libc.so.6").malloc_trim
-        except (OSError, AttributeError):
-            _TRIM = False
-    if _TRIM:
-        _TRIM(0)
-
-
-_TRIM: Any = None  # libc's malloc_trim once looked up; False where there is none
 
 
 def _grid_search(pts, nr, radii, normal_threshold, workers, index_dtype):

@@ -143,8 +143,9 @@ def build_tile(spec: dict) -> dict:
                 return meta["summary"] | {"reused": True}
             rebuilt = "damaged" if meta is None else "stale"
         from .. import threads
+        from ..allocator import build_heap
 
-        with threads.limit(spec["threads"]):
+        with threads.limit(spec["threads"]), build_heap():  # heap reuse also in a Dask worker (allocator's notes)
             arrays, summary = _build_tile_arrays(spec)
         summary["seconds"] = time.perf_counter() - t0
         summary["cpu_seconds"] = time.process_time() - c0
