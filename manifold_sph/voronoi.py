@@ -80,6 +80,11 @@ ROUGHNESS_FACTOR = 3.0
 INCOMPLETE, BOUNDARY, DEGENERATE, NEAR_DUPLICATE = 1, 2, 4, 8
 
 
+#: Rows per block of :func:`roughness` and of :func:`voronoi_cells` with heights: their temporary pair
+#: arrays (a dozen of 8 bytes a pair) scale with the block, not the cloud.
+LIFT_BLOCK_ROWS = 131072
+
+
 @dataclass(frozen=True)
 class VoronoiCells:
     """Voronoi cells of every particle in its tangent plane.
@@ -303,6 +308,15 @@ def voronoi_cells(
             height_tol = np.ascontiguousarray(height_tol, dtype=np.float64)
             if height_tol.shape != (n,) or np.any(~(height_tol >= 0)):
                 raise ValueError(f"height_tol must have shape ({n},) with values >= 0, got {describe(height_tol)}")
+        if n > LIFT_BLOCK_ROWS:  # rows are independent: the lift's pair arrays block by block, a fraction of the memory
+            blocks = []
+            for a in range(0, n, LIFT_BLOCK_ROWS):
+                b = min(a + LIFT_BLOCK_ROWS, n)
+                p0, p1 = int(indptr[a]), int(indptr[b])
+                blocks.append(voronoi_cells(indptr[a : b + 1] - p0, xy[p0:p1], radius[a:b], dup_tol=dup_tol,
+                                            height=height[p0:p1], height_tol=None if height_tol is None else height_tol[a:b]))
+            return VoronoiCells(weights=np.concatenate([c.weights for c in blocks]),
+                                area=np.concatenate([c.area for c in blocks]), flags=np.concatenate([c.flags for c in blocks]))
         xy, scale, keep = lift_offsets(xy, height, LIFT_SLOPE, tol=0.0 if height_tol is None else np.repeat(height_tol, np.diff(indptr)))
         # bisector beyond the search radius: it can cut only cells already flagged incomplete
         far = np.flatnonzero(scale > 1.0)  # only lifted offsets can have left the search radius
@@ -354,6 +368,13 @@ def roughness(indptr: np.ndarray, xy: np.ndarray, height: np.ndarray, radius: np
     ndarray, shape (N,)
     """
     n = radius.shape[0]
+    if n > LIFT_BLOCK_ROWS:  # rows are independent: the fit's pair arrays block by block
+        parts = []
+        for a in range(0, n, LIFT_BLOCK_ROWS):
+            b = min(a + LIFT_BLOCK_ROWS, n)
+            p0, p1 = int(indptr[a]), int(indptr[b])
+            parts.append(roughness(indptr[a : b + 1] - p0, xy[p0:p1], height[p0:p1], radius[a:b]))
+        return np.concatenate(parts)
     counts = np.diff(indptr)
     out = np.zeros(n)
     if xy.shape[0] == 0:
