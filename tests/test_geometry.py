@@ -460,6 +460,43 @@ def cotan_operators(V, F):
     return L.tocsc(), np.bincount(F.ravel(), np.repeat(area / 3, 3), len(V))
 
 
+def mesh_mean_curvature(V, F, r):
+    """The mesh's cotan mean curvature diffused over ``r`` (heat kernel ``exp(-(2 d / r)^2)``, four implicit
+    steps) and its area-weighted vertex normals."""
+    from scipy.sparse import diags
+    from scipy.sparse.linalg import factorized
+
+    L, m = cotan_operators(V, F)
+    fn = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    vn = np.stack([np.bincount(F.ravel(), np.repeat(fn[:, d], 3), len(V)) for d in range(3)], axis=1)
+    vn /= np.linalg.norm(vn, axis=1)[:, None]
+    H = -0.5 * np.einsum("nd,nd->n", L @ V, vn) / m
+    solve = factorized((diags(m) - (r * r / 64) * L).tocsc())
+    for _ in range(4):
+        H = solve(m * H)
+    return H, vn
+
+
+def test_automatic_scale_keeps_a_clean_cloud_raw():
+    """The clean cow (2,903 vertices, features 2 spacings across): the automatic scale finds no noise (median
+    residual of its smallest fits 0.20 spacings, below AUTO_NOISE) and fits the raw points, whose curvature a
+    smoothing pass would blur. Rank correlation with the mesh's H diffused over 2 edge lengths: 0.62 (denoised
+    first: 0.13)."""
+    from scipy.stats import spearmanr
+
+    from manifold_sph.scans.io import read_mesh
+
+    if not (MODELS / "cow.obj").exists():
+        pytest.skip("../shared/data/models is absent")
+    V, F = read_mesh(str(MODELS / "cow.obj"))
+    h = float(np.mean(np.linalg.norm(V[F] - V[np.roll(F, 1, axis=1)], axis=2)))
+    H, vn = mesh_mean_curvature(V, F, 2 * h)
+    s = quiet(V)
+    side = np.sign(np.einsum("nd,nd->n", s.normals, vn))  # our H signed as the mesh's (2 % of normals flipped)
+    rho = spearmanr(s.mean_curvature(scale="auto") * side, H)[0]
+    assert rho > 0.5, rho
+
+
 def test_curvature_at_a_scale_matches_the_mesh_at_that_scale():
     """Clean homer vertices: ``scale=r`` against the mesh's cotan mean curvature diffused over the same
     scale (heat kernel ``exp(-(2 d / r)^2)``): rank correlation 0.93 at r = 4 edge lengths. A quadric fitted

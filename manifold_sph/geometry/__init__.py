@@ -19,6 +19,7 @@ names call them); the geodesic solver and the smoother also take bare points.
 
 from .common import SCALE_RANGE, WAVEFRONT_SCALE_RANGE
 from .curvature import (
+    AUTO_NOISE,
     AUTO_RADII,
     CURVATURE_METHODS,
     curvature_method,
@@ -40,6 +41,7 @@ from .vector_heat import (
 )
 
 __all__ = [
+    "AUTO_NOISE",
     "AUTO_RADII",
     "CURVATURE_METHODS",
     "GEODESIC_METHODS",
