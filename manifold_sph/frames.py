@@ -15,7 +15,7 @@ from numpy.typing import ArrayLike
 from . import _jit
 from .threads import run_chunks
 
-__all__ = ["tangent_frames", "check_frames", "project_pairs", "project_neighborhood", "PairOffsets", "FramePair"]
+__all__ = ["tangent_frames", "check_frames", "unit_rows", "project_pairs", "project_neighborhood", "PairOffsets", "FramePair"]
 
 #: Below this value of sqrt(n_x^2 + n_z^2) the normal counts as parallel to e_y.
 PARALLEL_TOL = 0.1
@@ -57,6 +57,25 @@ def tangent_frames(normals: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     u /= np.linalg.norm(u, axis=1, keepdims=True)
     v = np.cross(n, u)
     return u, v
+
+
+def unit_rows(v: np.ndarray) -> np.ndarray:
+    """The rows of ``v`` (N, d) scaled to unit length; zero rows stay zero.
+
+    Each row is first divided by its largest component, so that rows of any magnitude
+    representable in float64 come out unit: the squares of a gradient of 1e-170 underflow
+    (a heat method's far field), and those of 1e+170 overflow.
+
+    Examples
+    --------
+    >>> unit_rows(np.array([[3e-200, 4e-200], [0.0, 0.0], [3e200, -4e200]])).tolist()
+    [[0.6, 0.8], [0.0, 0.0], [0.6, -0.8]]
+    """
+    v = np.asarray(v, dtype=np.float64)
+    big = np.abs(v).max(axis=-1, keepdims=True)
+    w = v / np.where(big > 0, big, 1.0)
+    n = np.linalg.norm(w, axis=-1, keepdims=True)
+    return w / np.where(n > 0, n, 1.0)
 
 
 def check_frames(normals: ArrayLike, u: np.ndarray, v: np.ndarray, tol: float = 1e-10) -> None:

@@ -149,6 +149,7 @@ def geodesic_from_matrices(K: sp.csr_matrix, m: np.ndarray, dx: sp.csr_matrix, d
     ``K``, ``m``: the stable Laplacian; ``dx``, ``dy`` the tangent-plane derivative matrices in
     the frames ``U``, ``V`` (N, 3); ``pts`` (N, 3); ``src`` source indices.
     """
+    from ..frames import unit_rows
     from ..solvers import cholesky_available, spd_solver
 
     n = m.size
@@ -157,9 +158,7 @@ def geodesic_from_matrices(K: sp.csr_matrix, m: np.ndarray, dx: sp.csr_matrix, d
     # direct, whatever the size: u decays exponentially away from the sources, below what AMG-CG resolves
     heat = spd_solver(sp.diags(m) + GEODESIC_T * m.mean() * K, method="cholesky" if cholesky_available() else "auto")
     u = heat.solve(rhs)
-    g = (dx @ u)[:, None] * U + (dy @ u)[:, None] * V
-    norm = np.linalg.norm(g, axis=1)
-    X = -g / np.where(norm > 0, norm, 1.0)[:, None]
+    X = -unit_rows((dx @ u)[:, None] * U + (dy @ u)[:, None] * V)  # u's far field is tiny: no squares of it
     b = geodesic_rhs(K, pts, X)
     held, r = held_particles(pts, src, m)
     free = ~held

@@ -29,6 +29,7 @@ from scipy.spatial import cKDTree
 
 from .._validation import check_in, check_int, check_positive
 from ..exceptions import ManifoldSPHWarning
+from ..frames import unit_rows
 from .common import (
     SCALE_RANGE,
     WAVEFRONT_SCALE_RANGE,
@@ -49,8 +50,7 @@ PAIRWISE_MAX_BYTES = 2 << 30
 
 
 def _unit(g: np.ndarray) -> np.ndarray:
-    norm = np.linalg.norm(g, axis=1)
-    return g / np.where(norm > 0, norm, 1.0)[:, None]
+    return unit_rows(g)  # the heat step's far field is tiny: its squares would underflow
 
 
 def straight_line(P: np.ndarray, src: np.ndarray) -> np.ndarray:

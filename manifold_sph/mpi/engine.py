@@ -183,6 +183,7 @@ def _geodesic(job, R, its, secs):
     from scipy.spatial import cKDTree
 
     from ..distributed.solve import GEODESIC_T, SOURCE_RADIUS
+    from ..frames import unit_rows
 
     src = np.asarray(_load(job, "sources"), dtype=np.int64)
     pts = np.load(job["points"], mmap_mode="r")
@@ -201,9 +202,7 @@ def _geodesic(job, R, its, secs):
     X = []
     for d in R.tiles:  # -grad u / |grad u| on the own rows
         uc = u[np.asarray(d["cols"])]
-        g = (d["dx"] @ uc)[:, None] * d["u"] + (d["dy"] @ uc)[:, None] * d["v"]
-        nrm = np.linalg.norm(g, axis=1)
-        X.append(-g / np.where(nrm > 0, nrm, 1.0)[:, None])
+        X.append(-unit_rows((d["dx"] @ uc)[:, None] * d["u"] + (d["dy"] @ uc)[:, None] * d["v"]))  # no squares of tiny u
     X = R.allgather(np.concatenate(X) if X else np.zeros((0, 3)))
     b_parts = []
     for d in R.tiles:  # sum_j w_ij (X_i + X_j) / 2 . (x_i - x_j), the own rows of K
