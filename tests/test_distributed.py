@@ -297,6 +297,22 @@ def test_local_engine_equals_single_process(stable, single, cloud):
     assert V.shape == (2000, 4)
 
 
+def test_driver_results_are_gathered_on_the_driver(cloud):
+    """A global solve's result is already on the driver: gathering it does not send it through the cluster
+    (whose client warns about graphs above 10 MB, 1.3M points of float64), and equals the synchronous one."""
+    x = cloud.points
+    with TiledSurface(x, cloud.normals, tile_points=700, n_workers=1, keep=("stable",)) as ts:
+        sent = []
+        compute = ts.client.compute
+        ts.client.compute = lambda *a, **k: sent.append(a) or compute(*a, **k)
+        u = ts.gather(ts.poisson(x[:, 2], engine="local"))
+        assert not sent
+        lap = ts.compute(ts.field(x[:, 2]) * 2.0)  # anything else still runs on the cluster
+        assert len(sent) == 1 and np.array_equal(lap, 2.0 * x[ts.order, 2])
+    with TiledSurface(x, cloud.normals, tile_points=700, scheduler="synchronous", keep=("stable",)) as sync:
+        assert np.array_equal(u, sync.gather(sync.poisson(x[:, 2], engine="local")))
+
+
 def test_global_solves_need_the_stable_rows(given):
     with pytest.raises(ValueError, match="keep=.*'stable'"):
         given.poisson(np.ones(2000), engine="local")

@@ -22,7 +22,10 @@ from .tiles import TileData, tile_apply, tile_field, tile_points, write_rows
 if TYPE_CHECKING:  # dask is the optional "distributed" extra, imported where it is used
     from dask.array import Array as DaskArray
 
-__all__ = ["FieldLike", "TiledOperators"]
+__all__ = ["DRIVER_PREFIX", "FieldLike", "TiledOperators"]
+
+#: Name prefix of the Dask arrays wrapping results held by the driver (the global solves'): computed there.
+DRIVER_PREFIX = "msph-driver-"
 
 #: A field given to :meth:`TiledOperators.field`: values (N,) or (N, width) in the input order, a Dask
 #: array in tile order, or a callable ``f(points (M, 3)) -> values`` evaluated tile by tile.
@@ -253,9 +256,13 @@ class TiledOperators:
         return as_field("field", values, self.n_points)[self.order]
 
     def _as_dask(self, x):
+        """A result held by the driver (a global solve's) as a Dask array; computing it alone stays on the driver."""
+        import uuid
+
         import dask.array as da
 
-        return da.from_array(np.asarray(x), chunks=(self.chunks,) + tuple((s,) for s in np.shape(x)[1:]))
+        return da.from_array(np.asarray(x), chunks=(self.chunks,) + tuple((s,) for s in np.shape(x)[1:]),
+                             name=DRIVER_PREFIX + uuid.uuid4().hex)
 
     def poisson(self, f: FieldLike, *, engine: str = "auto", ranks: int = 2) -> DaskArray:
         """The zero-mean solution of ``-Lap u = f - mean(f)`` on the stable Laplacian, ``K u = M (f - mean_M f)``.

@@ -47,7 +47,7 @@ from numpy.typing import ArrayLike
 
 from .._validation import as_points, check_bool, check_in, check_int, check_positive
 from ..pointcloud import PointCloud
-from .operators import TiledOperators
+from .operators import DRIVER_PREFIX, TiledOperators
 
 if TYPE_CHECKING:  # dask is the optional "distributed" extra, imported where it is used
     from dask.array import Array as DaskArray
@@ -442,7 +442,7 @@ class TiledSurface(TiledOperators):
     def _compute(self, *objs):
         import dask
 
-        if self.scheduler == "distributed":
+        if self.scheduler == "distributed" and not all(str(getattr(o, "name", "")).startswith(DRIVER_PREFIX) for o in objs):
             client = self.client
             assert client is not None  # the "distributed" scheduler always has one
             futures = client.compute(list(objs))
@@ -451,12 +451,14 @@ class TiledSurface(TiledOperators):
 
                 progress(futures)
             return client.gather(futures)
+        # a global solve's result is already on the driver: slicing it there beats sending it to the cluster
+        scheduler = "synchronous" if self.scheduler == "distributed" else self.scheduler
         if self.progress:
             from dask.diagnostics import ProgressBar
 
             with ProgressBar():
-                return list(dask.compute(*objs, scheduler=self.scheduler))
-        return list(dask.compute(*objs, scheduler=self.scheduler))
+                return list(dask.compute(*objs, scheduler=scheduler))
+        return list(dask.compute(*objs, scheduler=scheduler))
 
     def compute(self, x: DaskArray) -> np.ndarray:
         """Compute a Dask array (in tile order) on this surface's scheduler; returns numpy."""
