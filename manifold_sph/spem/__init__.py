@@ -47,7 +47,7 @@ from .cases import (
     tez_disk_mode,
     tez_scattering_layout,
 )
-from .certify import pml_certificate, restricted
+from .certify import certificate_failures, pml_certificate, restricted
 from .constants import C0, EPS0, ETA0, MU0
 from .dirichlet import KroneckerSystem
 from .interfaces import (
@@ -129,5 +129,5 @@ __all__ = [
     "scattering_layout", "tez_scattering_layout", "run_scattering", "run_tez_scattering",
     "RunResult", "FieldHistory", "CaseResult", "LineResult", "CavityResult", "PlanewaveResult", "WaveguideResult",
     "PMLResult", "ScatteringResult", "TEzScatteringResult", "TEzCavityResult", "TEzPMLResult",
-    "KroneckerSystem", "restricted", "pml_certificate", "PMLCertificate",
+    "KroneckerSystem", "restricted", "pml_certificate", "PMLCertificate", "certificate_failures",
 ]

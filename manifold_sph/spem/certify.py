@@ -12,6 +12,11 @@ zero (a PEC wall behind the layer) and dropped with the H particles no kept E pa
 weight, volume and material value of the kept particles is the reference's. The cut operators are
 a principal part of the reference's energy-conserving pair, so the reference's stable step holds.
 
+:func:`certificate_failures` reads the certificates a case result reports (the PML reflection, the energy
+drift) against their validated ranges (:data:`PML_REFLECTION_LIMIT_DB`, :data:`ENERGY_DRIFT_LIMIT`); every
+TMz case fills its ``certificate_failures`` with it (:func:`certified`), and the command line exits 3 when
+one fails.
+
 :func:`pml_probe` runs the pair and returns the reflection per probe in dB;
 :func:`pml_certificate` measures the layer a case uses on a small pulse problem with the case's
 layout, support, coupling and layer (cached per configuration): the plane wave and the waveguide
@@ -40,12 +45,13 @@ from .._validation import check_int, check_positive
 from .constants import C0
 from .layouts import Layout, make_layout
 from .pml import PML
-from .results import PMLCertificate
+from .results import CaseResult, PMLCertificate
 from .sources import GaussianPulse, Source, point_source
 from .tmz import TMzSolver
 
-__all__ = ["restricted", "pml_probe", "pml_certificate", "pulse", "pulse_problem", "inside_box", "CERTIFICATE_CELLS",
-           "CERTIFIED_COUPLINGS"]
+__all__ = ["restricted", "pml_probe", "pml_certificate", "pulse", "pulse_problem", "pulse_source", "inside_box",
+           "CERTIFICATE_CELLS", "CERTIFIED_COUPLINGS", "SHARED_SOURCE_WIDTH", "PML_REFLECTION_LIMIT_DB",
+           "ENERGY_DRIFT_LIMIT", "certificate_failures", "certified"]
 
 #: Interior of the certificate's pulse problem, in spacings (the source at its centre, the probes 5
 #: spacings in front of the right layer and of the top-right corner).
@@ -55,6 +61,25 @@ CERTIFICATE_CELLS = 20
 #: global set-up on the certificate's reference domain costs minutes), "direct" is refused by
 #: :func:`restricted` (not energy-conserving).
 CERTIFIED_COUPLINGS = ("sbp", "adjoint")
+
+#: Largest PML reflection (dB, the worse of the normal and 45 degree probes) of a certified run: 1 % of the
+#: incident amplitude, the accuracy the propagation cases are validated at (plane wave 1e-2). Measured with
+#: the default "sbp" coupling: Yee lattice -63.1 dB (5-cell layer) to -90.7 dB (10 cells), staggered lattice
+#: -72.8 dB (10 cells); jittered layouts -32 to -35 dB with 10 cells and -37 dB with 20; the lattice at h/dr
+#: 1.0 / 1.3 -38.7 / -17.8 dB.
+PML_REFLECTION_LIMIT_DB = -40.0
+
+#: Largest ``|W(end) / W(0) - 1|`` of the discrete energy of a lossless, undriven certified run: leap-frog
+#: conserves it to round-off with the energy-conserving couplings (4.4e-16 over one period of the cavity).
+ENERGY_DRIFT_LIMIT = 1e-8
+
+#: Width (standard deviation, in spacings) of the probe pulse's source on layouts whose Hx and Hy share
+#: particles (the staggered B-grid). A source at one E particle excites the B-grid's checkerboard mode
+#: ``(-1)^(i+j) g`` as strongly as the physical wave; for that mode the lattice's x and y differences trade
+#: places, so the split-field layer damps the wrong split component and lets it through (measured: -5.3 /
+#: -2.8 dB on the 60-cell case). A Gaussian of this width excites it below the layer's own reflection:
+#: -72.8 / -72.8 dB (width 1 spacing: -55 / -59 dB on the 20-cell certificate, 1.5: -72 / -79, 2: -71 / -63).
+SHARED_SOURCE_WIDTH = 1.5
 
 
 def restricted(solver: TMzSolver, keep: ArrayLike, *, pml: PML | None = None) -> TMzSolver:
@@ -182,6 +207,68 @@ def pulse_problem(cells: int, pml_cells: int, dr: float, order: int, reflection:
     return pml, probes, c, t_end, (-margin * dr, L + margin * dr, -margin * dr, L + margin * dr)
 
 
+def certificate_failures(result: CaseResult) -> tuple[str, ...]:
+    """The certificates of a case result outside their validated range, one sentence each (empty: certified).
+
+    Reads the fields a result reports: ``pml_reflection_db`` (the plane wave's and the waveguide's layer,
+    :func:`pml_certificate`) and the pml case's own ``reflection_normal_db`` / ``reflection_oblique_db``
+    against :data:`PML_REFLECTION_LIMIT_DB`; ``energy_drift`` against :data:`ENERGY_DRIFT_LIMIT`.
+
+    Examples
+    --------
+    >>> from manifold_sph.spem.results import PMLResult
+    >>> r = PMLResult(case="pml", particles=1, steps=1, seconds=0.0, step_seconds=0.0, error=1e-2, dt=1.0, dr=1.0,
+    ...               reference_particles=1, reflection_normal_db=-40.5, reflection_oblique_db=-35.0, pml_cells=10,
+    ...               order=3, target_reflection=1e-6, layout="jittered")
+    >>> certificate_failures(r)  # doctest: +ELLIPSIS
+    ('the PML reflects -35.0 dB (45 deg), above the validated -40 dB ...',)
+    """
+    out = []
+    d = result.to_dict()
+    for key, what in (("pml_reflection_db", "the run's PML reflects {v:.1f} dB (its certificate)"),
+                      ("reflection_normal_db", "the PML reflects {v:.1f} dB (normal incidence)"),
+                      ("reflection_oblique_db", "the PML reflects {v:.1f} dB (45 deg)")):
+        v = d.get(key)
+        if v is not None and v > PML_REFLECTION_LIMIT_DB:
+            out.append(what.format(v=v) + f", above the validated {PML_REFLECTION_LIMIT_DB:g} dB (1 % of the "
+                       "incident wave): the layer does not absorb on this layout and support")
+    drift = d.get("energy_drift")
+    if drift is not None and not drift <= ENERGY_DRIFT_LIMIT:
+        out.append(f"the discrete energy drifts by {drift:.3g}, above the validated {ENERGY_DRIFT_LIMIT:g}: the "
+                   "run is not the energy-conserving scheme")
+    return tuple(out)
+
+
+def certified(result: CaseResult) -> CaseResult:
+    """``result`` with its ``certificate_failures`` filled in (:func:`certificate_failures`)."""
+    import dataclasses
+
+    return dataclasses.replace(result, certificate_failures=certificate_failures(result))
+
+
+def pulse_source(layout: Layout, centre: Sequence[float], wave: GaussianPulse) -> Source:
+    """The soft source of the probe pulse: the E particle nearest ``centre``, or on layouts with shared H
+    particles (the B-grid) a Gaussian of :data:`SHARED_SOURCE_WIDTH` spacings over the E particles around it
+    (unit weight at its peak), which leaves the B-grid's checkerboard mode unexcited."""
+    if not layout.shared:
+        return point_source(layout.e, centre, wave, kind="soft")
+    width = SHARED_SOURCE_WIDTH
+    r2 = ((layout.e - np.asarray(centre, dtype=np.float64)) ** 2).sum(axis=1) / layout.dr**2
+    idx = np.flatnonzero((r2 < (3.5 * width) ** 2) & ~layout.e_fixed)
+    weights = np.exp(-r2[idx] / (2 * width**2))
+    return Source(idx, _Weighted(weights / weights.max(), wave), "soft")
+
+
+class _Weighted:
+    """``weights * wave(t)``: one waveform over several particles."""
+
+    def __init__(self, weights: np.ndarray, wave: GaussianPulse) -> None:
+        self.weights, self.wave = weights, wave
+
+    def __call__(self, t: float) -> np.ndarray:
+        return self.weights * self.wave(t)
+
+
 def inside_box(points: np.ndarray, bounds: Sequence[float], tol: float) -> np.ndarray:
     """Points strictly inside the box ``bounds`` (by more than ``tol``)."""
     x0, x1, y0, y1 = bounds
@@ -197,7 +284,7 @@ def _certificate(layout: str, h_ratio: float | None, coupling: str, pml_cells: i
     lay = make_layout(layout, ref_bounds, dr, seed=seed)
     kw = {"mimetic_fast": True} if mimetic_fast else {}
     ref = TMzSolver(lay, h_ratio=h_ratio, kernel=kernel, form=form, coupling=coupling,
-                    sources=[point_source(lay.e, c, wave, kind="soft")], **kw)
+                    sources=[pulse_source(lay, c, wave)], **kw)
     test = restricted(ref, inside_box(lay.e, pml.outer_bounds(), 1e-6 * dr), pml=pml)
     steps = int(math.ceil(t_end / ref.dt - 1e-9))
     db, seconds = pml_probe(test, ref, probes, steps)
@@ -210,7 +297,7 @@ def pml_certificate(layout: str, *, pml_cells: int, order: int = 3, reflection: 
                     mimetic_fast: bool = False, seed: int | None = 0) -> PMLCertificate:
     """The reflection of a split-field PML with these settings, measured on probes (cached per configuration).
 
-    A soft pulse (about 20 spacings per wavelength at its centre) at the centre of a
+    A soft pulse (about 20 spacings per wavelength at its centre; :func:`pulse_source`) at the centre of a
     :data:`CERTIFICATE_CELLS` square with the layer on every side, against the reference without it
     (:func:`pml_probe`, the test domain cut out of the reference solver by :func:`restricted`), on the
     layout ``layout`` (:func:`.layouts.make_layout`, ``seed``) with the support, coupling and layer of

@@ -73,7 +73,9 @@ class CaseResult(Result):
     (:meth:`.TMzSolver.consistency_residual`: round-off for a consistent coupling, O(1) for an
     inconsistent one); None where not computed. ``error`` is mean |numerical - exact| / max |exact|
     over the case's evaluation points (the PML case: the relative reflection at normal
-    incidence, None where the pulse never reaches the probe).
+    incidence, None where the pulse never reaches the probe). ``certificate_failures``: one sentence per
+    certificate outside its validated range (:func:`~manifold_sph.spem.certify.certificate_failures`), empty
+    when the run is certified (``certified``).
     """
 
     _dict_skip = ('fields',)
@@ -88,6 +90,13 @@ class CaseResult(Result):
     dr: float
     fields: FieldHistory | None = dataclasses.field(default=None, repr=False)
     consistency: float | None = None
+    certificate_failures: tuple = ()
+
+    @property
+    def certified(self) -> bool:
+        """True when every certificate the run reports lies in its validated range
+        (:func:`~manifold_sph.spem.certify.certificate_failures`; ``certificate_failures`` names the others)."""
+        return not self.certificate_failures
 
 
 @dataclass(frozen=True, repr=False, eq=False, kw_only=True)
@@ -292,7 +301,8 @@ class TEzCavityResult(Result):
     error of that mode's resonance, fitted to the projection of Hz onto the mode.
     :func:`run_tez_circular_cavity` also gives ``probe_frequency_error`` (the
     peak of the spectrum of Hz at one particle) and ``stable_fraction`` (the
-    time step over the CFL step ``h / (sqrt(2) c)``).
+    time step over the CFL step ``h / (sqrt(2) c)``). ``h_ratio`` is the support the run used and
+    ``wall_closure`` whether the rectangle's walls were closure columns (None for the disk).
     """
 
     case: str
@@ -309,6 +319,8 @@ class TEzCavityResult(Result):
     layout: str
     probe_frequency_error: float | None = None
     stable_fraction: float | None = None
+    h_ratio: float | None = None
+    wall_closure: bool | None = None
 
 
 # ----------------------------------------------------------------------------- PML reflection

@@ -26,13 +26,23 @@ from numpy.typing import ArrayLike
 from scipy.special import j1
 
 from ..._validation import check_in, check_int, check_positive
-from ..certify import CERTIFIED_COUPLINGS, inside_box, pml_certificate, pml_probe, pulse, pulse_problem, restricted
+from ..certify import (
+    CERTIFIED_COUPLINGS,
+    certified,
+    inside_box,
+    pml_certificate,
+    pml_probe,
+    pulse,
+    pulse_problem,
+    pulse_source,
+    restricted,
+)
 from ..constants import C0
 from ..layouts import Layout, make_layout, tez_layout
-from ..operators import DEFAULT_COUPLING
+from ..operators import COUPLINGS, DEFAULT_COUPLING, DEFAULT_H_RATIO, MIMETIC_H_RATIO
 from ..pml import PML
 from ..results import PlanewaveResult, PMLResult, TEzPMLResult, WaveguideResult
-from ..sources import Sinusoid, Source, point_source
+from ..sources import Sinusoid, Source
 from ..tez import DISK_H_RATIO, TEzPMLSolver
 from ..tmz import TMzSolver
 
@@ -216,14 +226,14 @@ def run_planewave(*, size: float = 0.5, freq: float = 3.6e9, ppw: float = 40.0, 
     # grazing incidence): also report the error away from the sides
     centre = (e[inside, 0] > 0.1 * size) & (e[inside, 0] < 0.9 * size)
     lattice = layout in ("yee", "staggered")
-    return PlanewaveResult(
+    return certified(PlanewaveResult(
         case="planewave", particles=lay.n_particles, steps=steps, seconds=res.seconds, step_seconds=res.seconds,
         error=relative_error(s.e_field[inside], exact), dt=dt, dr=dr, layout=lay.name, form=form,
         ppw=C0 / freq / dr, pml_cells=pml_cells, error_centre=relative_error(s.e_field[inside][centre], exact[centre]),
         adjacent_line_difference=adjacent_line_difference(e, s.e_field, dr, axis=0, mask=inside) if lattice else None,
         alternating_amplitude=alternating_amplitude(e, s.e_field, dr, mask=inside) if lattice else None,
         fields=field_history(e, s.e_field, s.t, res), consistency=s.consistency_residual(),
-        pml_reflection_db=_certificate(certify, s, layout, pml_cells, kernel=kernel, form=form, seed=seed))
+        pml_reflection_db=_certificate(certify, s, layout, pml_cells, kernel=kernel, form=form, seed=seed)))
 
 
 @timed
@@ -282,12 +292,13 @@ def run_waveguide(*, width: float = 0.5, length: float = 0.4, pml_thickness: flo
         column = np.abs(e[:, 0] - xs) <= 0.5 * dr
     on_line = column & (e[:, 1] <= length + tol) & ~fixed
     exact = np.sin(np.pi * e[on_line, 0] / width) * guided_exact(wave, e[on_line, 1], s.t, cutoff=fc)
-    return WaveguideResult(case="waveguide", particles=lay.n_particles, steps=steps, seconds=res.seconds,
+    return certified(WaveguideResult(case="waveguide", particles=lay.n_particles, steps=steps, seconds=res.seconds,
                            step_seconds=res.seconds, error=relative_error(s.e_field[on_line], exact), dt=dt, dr=dr,
                            layout=layout, form=form, freq=freq, f_cutoff=fc, line_x=float(xs), ppw=C0 / freq / dr,
                            pml_cells=npml, fields=field_history(e, s.e_field, s.t, res),
                            consistency=s.consistency_residual(),
-                           pml_reflection_db=_certificate(certify, s, layout, npml, kernel=kernel, form=form, seed=0))
+                           pml_reflection_db=_certificate(certify, s, layout, npml, kernel=kernel, form=form,
+                                                          seed=0)))
 
 
 @timed
@@ -298,7 +309,8 @@ def run_pml(*, cells: int = 60, pml_cells: int = 10, order: int = 3, reflection:
     """PML reflection: a pulse in a ``cells`` square with PML, against a reference run without echo.
 
     A soft point source (differentiated-Gaussian-like modulated pulse, about
-    20 spacings per wavelength at its centre frequency) sits at the centre;
+    20 spacings per wavelength at its centre frequency; on the staggered
+    layout a Gaussian over a few particles, :func:`.certify.pulse_source`) sits at the centre;
     probes lie 5 spacings in front of the right layer (normal incidence) and
     in front of the top-right corner along the diagonal (oblique, 45 deg).
     The reference domain is large enough that no echo reaches the probes
@@ -317,25 +329,27 @@ def run_pml(*, cells: int = 60, pml_cells: int = 10, order: int = 3, reflection:
     pml, probes_xy, c, t_end, ref_bounds = pulse_problem(cells, pml_cells, dr, order, reflection, layout)
     wave, _ = pulse(dr)
     lay = make_layout(layout, ref_bounds, dr, seed=seed)
+    if pml_check:  # the layer's validated support (the reference has no layer: checked here, before its set-up)
+        check_in("coupling", coupling, COUPLINGS)
+        support = MIMETIC_H_RATIO if coupling == "mimetic" else (lay.h_ratio or DEFAULT_H_RATIO)
+        TMzSolver.check_pml_support(check_positive("h_ratio", h_ratio) if h_ratio is not None else support, coupling)
     ref = TMzSolver(lay, h_ratio=h_ratio, kernel=kernel, form=form, coupling=coupling, courant=courant,
-                    sources=[point_source(lay.e, c, wave, kind="soft")])
-    if pml_check:  # the layer's validated support (the reference has no layer: checked here)
-        TMzSolver.check_pml_support(ref.h / dr, coupling)
+                    sources=[pulse_source(lay, c, wave)])
     test = restricted(ref, inside_box(lay.e, pml.outer_bounds(), 1e-6 * dr), pml=pml)
     dt, steps = fit_dt(t_end, ref.dt)
     ref.set_dt(dt)
     test.set_dt(dt)
     db, seconds = pml_probe(test, ref, probes_xy, steps, progress=progress)
     rel = [None if v is None else 10 ** (v / 20) for v in db]
-    return PMLResult(case="pml", particles=test.layout.n_particles, steps=2 * steps, seconds=seconds,
+    return certified(PMLResult(case="pml", particles=test.layout.n_particles, steps=2 * steps, seconds=seconds,
                      step_seconds=seconds, error=rel[0], dt=dt, dr=dr, reference_particles=lay.n_particles,
                      reflection_normal_db=db[0], reflection_oblique_db=db[1], pml_cells=pml_cells, order=order,
-                     target_reflection=reflection, layout=layout, consistency=ref.consistency_residual())
+                     target_reflection=reflection, layout=layout, consistency=ref.consistency_residual()))
 
 
 def run_tez_pml(*, cells: int = 60, pml_cells: int = 10, order: int = 3, reflection: float = 1e-6,
                 angles: tuple = (0.0, 30.0, 45.0), h_ratio: float = DISK_H_RATIO, courant: float = 0.9,
-                dr: float = 1e-3) -> TEzPMLResult:
+                dr: float = 1e-3, pml_check: bool = True) -> TEzPMLResult:
     """Reflection of the TEz split-field PML: a pulse in a ``cells`` square with PML, against a run without echo.
 
     As :func:`.run_pml` (TMz): a soft Hz point source (modulated Gaussian,
@@ -346,6 +360,8 @@ def run_tez_pml(*, cells: int = 60, pml_cells: int = 10, order: int = 3, reflect
     behind the PML (:func:`.wall_closure_layout`); the reference domain is
     large enough that no echo reaches the probes within the window, run with
     the same step. Reflection = max |Hz - Hz_ref| / max |Hz_ref| per probe, in dB.
+    ``pml_check``: refuse a support outside the layer's validated range
+    (:data:`.tez.TEZ_PML_H_RATIO_MAX`), as :class:`.TEzPMLSolver` does.
 
     Examples
     --------
@@ -382,7 +398,7 @@ def run_tez_pml(*, cells: int = 60, pml_cells: int = 10, order: int = 3, reflect
     solvers = []
     for bounds, p in ((pml.outer_bounds(), pml), ((-margin * dr, L + margin * dr, -margin * dr, L + margin * dr), None)):
         lay = wall_closure_layout(tez_layout(bounds, dr))
-        solvers.append(TEzPMLSolver(lay, pml=p, h_ratio=h_ratio, courant=courant))
+        solvers.append(TEzPMLSolver(lay, pml=p, h_ratio=h_ratio, courant=courant, pml_check=pml_check))
     dt = min(s.dt for s in solvers)
     steps = int(math.ceil(t_end / dt))
     out = []
