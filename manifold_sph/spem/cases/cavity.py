@@ -23,6 +23,7 @@ from numpy.typing import ArrayLike
 from scipy.special import j0, j1, jn_zeros
 
 from ..._validation import as_points, check_in, check_int, check_positive
+from ..certify import certified
 from ..constants import C0, EPS0, MU0
 from ..layouts import POISSON_H_RATIO, disk_layout, tez_disk_layout, tez_layout, wall_closure_layout
 from ..operators import DEFAULT_COUPLING, DEFAULT_H_RATIO, SBP_LAYERS
@@ -36,7 +37,35 @@ if TYPE_CHECKING:
 from .common import check_every, field_history, fit_solver_dt, relative_error, timed
 
 __all__ = ["cavity_exact", "cavity_frequency", "peak_frequency", "run_cavity", "tez_cavity_frequency", "run_tez_cavity",
+           "TEZ_RECTANGLE_H_RATIO_MAX", "check_tez_rectangle_support",
            "tez_disk_frequency", "tez_disk_mode", "run_tez_circular_cavity"]
+
+
+#: Largest ``h / dr`` validated for the TEz rectangle (:func:`run_tez_cavity`) per layout; None: no support
+#: validated. Measured at 12 spacings (modes (1, 0) + (1, 1), one period, "sbp"; the lattice's default 9.1e-3):
+#: lattice with closure walls 6.5e-3 / 1.5e-2 / 5.3e-2 / 6.2e-2 / 5.0e-2 / 1.3e-1 at h/dr 0.8 / 1.0 / 1.1 / 1.2 /
+#: 1.3 / 1.5 (plain walls at 1.3: 0.32, the frequency 4.4 % off); jittered (closure walls) 1.9e-2 / 2.4e-2 /
+#: 4.6e-2 - 7.8e-2 (seeds 0-2) / 1.0e-1 / 1.4e-1 at 0.8 / 0.9 / 1.0 / 1.1 / 1.2; Poisson (closure walls) 4.4e-2 -
+#: 4.7e-2 or refused (seeds 0-2) / 5.2e-2 - 9.5e-2 / 1.1e-1 / 1.5e-1 / 1.8e-1 at 0.9 / 1.0 / 1.1 / 1.2 / 1.5:
+#: its Hz operator's spurious modes (docs/spem.md) keep it above 5x the lattice at every support.
+TEZ_RECTANGLE_H_RATIO_MAX = {"yee": 1.3, "jittered": 1.0, "poisson": None, "poisson-shared": None}
+
+
+def check_tez_rectangle_support(layout: str, h_ratio: float) -> None:
+    """Refuse (ValueError) a layout and support of the TEz rectangle outside :data:`TEZ_RECTANGLE_H_RATIO_MAX`."""
+    top = TEZ_RECTANGLE_H_RATIO_MAX[layout]
+    lattice = TEZ_RECTANGLE_H_RATIO_MAX["yee"]
+    if top is None:
+        raise ValueError(
+            f"layout = {layout!r} is outside the validated range of the TEz rectangle: its Hz operator has spurious "
+            f"modes below the fundamental and the error is 5-20x the lattice's at every h_ratio 0.9-1.5 (1.5e-1 at 12 "
+            f"spacings, h_ratio 1.2); use layout 'yee' (h_ratio <= {lattice}) or 'jittered' (h_ratio <= "
+            f"{TEZ_RECTANGLE_H_RATIO_MAX['jittered']}), or support_check=False to run anyway")
+    if h_ratio > top * (1 + 1e-9):
+        raise ValueError(
+            f"h_ratio = {h_ratio:.3g} is outside the validated range of the TEz rectangle on layout {layout!r} "
+            f"(h_ratio <= {top}: beyond it the error exceeds 10x the lattice's); use h_ratio <= {top}, or "
+            f"support_check=False to run anyway")
 
 
 # ----------------------------------------------------------------------------- cavity
@@ -116,7 +145,8 @@ def run_cavity(*, r0: float = 0.1, eps_r: float = 10.0, n_radial: int = 40, peri
     centre = int(np.argmin(r))
     energy0 = s.energy()
     res = s.run(steps, probes=[centre], every=every, progress=progress)
-    energy_drift = abs(s.energy() / energy0 - 1.0)
+    # the energy leap-frog conserves (not defined for the "direct" coupling, which conserves none)
+    energy_drift = None if coupling == "direct" else abs(s.energy() / energy0 - 1.0)
     exact = cavity_exact(r, s.t, r0, eps_r)
     out = CavityResult(case="cavity", particles=lay.n_particles, steps=steps, seconds=res.seconds,
                        step_seconds=res.seconds, error=relative_error(s.e_field, exact), dt=dt, dr=dr, layout=layout,
@@ -130,7 +160,7 @@ def run_cavity(*, r0: float = 0.1, eps_r: float = 10.0, n_radial: int = 40, peri
         fm = peak_frequency(sig, dt, fmin=0.3 * f1)
         out = dataclasses.replace(out, f1_measured=fm, f1_error=abs(fm - f1) / f1, steps=steps + more,
                                   seconds=res.seconds + res2.seconds, step_seconds=res.seconds + res2.seconds)
-    return out
+    return certified(out)
 
 
 def tez_cavity_frequency(a: float, b: float, m: int, n: int, eps_r: float = 1.0, mu_r: float = 1.0) -> float:
@@ -161,7 +191,8 @@ def run_tez_cavity(*, a: float = 0.1, b: float = 0.06, n: int = 12, modes: Seque
                    eps_r: float = 1.0, layout: str = "yee", amplitude: float = 0.2, seed: int | None = 0,
                    coupling: str = DEFAULT_COUPLING, h_ratio: float | None = None,
                    courant: float = 0.9, periods: float = 1.0, spectrum_periods: float = 5.0,
-                   sbp_layers: int | None = SBP_LAYERS, wall_closure: bool | None = None) -> TEzCavityResult:
+                   sbp_layers: int | None = SBP_LAYERS, wall_closure: bool | None = None,
+                   support_check: bool = True) -> TEzCavityResult:
     """TEz modes of a PEC rectangle ``a x b``: ``Hz = sum cos(m pi x/a) cos(n pi y/b) cos(w_mn t)``.
 
     ``n`` spacings along ``b`` (``dr = b / n``; ``a`` must be a multiple of
@@ -173,11 +204,14 @@ def run_tez_cavity(*, a: float = 0.1, b: float = 0.06, n: int = 12, modes: Seque
     onto it (``frequency_error``). ``wall_closure=True``: the walls as closure
     columns with fitted volumes (:func:`wall_closure_layout`; couplings "sbp"
     and "adjoint"), which converges on jittered layouts too; None (default):
-    on the jittered and Poisson layouts, not on the lattice (on irregular
-    layouts the plain walls' corrected rows collapse the step and lose the
-    mode; docs/spem.md has the numbers). ``h_ratio``
+    on the jittered and Poisson layouts, and on the lattice with ``h_ratio``
+    above 0.7 (on irregular layouts the plain walls' corrected rows collapse
+    the step and lose the mode; on the lattice at h/dr 1.3 the plain walls
+    are 0.32 off, the closure walls 5.0e-2; docs/spem.md has the numbers). ``h_ratio``
     defaults to 0.7, with ``wall_closure`` to :data:`DISK_H_RATIO` (at 0.7 an Hz
     volume of the lattice rectangle's correction turns negative and the layout is refused).
+    ``support_check``: refuse a layout and support outside
+    :data:`TEZ_RECTANGLE_H_RATIO_MAX` (:func:`check_tez_rectangle_support`).
 
     Examples
     --------
@@ -192,8 +226,10 @@ def run_tez_cavity(*, a: float = 0.1, b: float = 0.06, n: int = 12, modes: Seque
     modes = _check_modes(modes)
     dr = check_positive("b", b) / n
     check_in("layout", layout, ("yee", "jittered", "poisson", "poisson-shared"))
+    if h_ratio is not None:
+        h_ratio = check_positive("h_ratio", h_ratio)
     if wall_closure is None:
-        wall_closure = layout != "yee"
+        wall_closure = layout != "yee" or (h_ratio is not None and h_ratio > DEFAULT_H_RATIO * (1 + 1e-9))
     if not isinstance(wall_closure, bool):
         raise TypeError(f"wall_closure must be True, False or None, got {wall_closure!r}")
     lay = tez_layout((0.0, check_positive("a", a), 0.0, b), dr, amplitude=amplitude if layout == "jittered" else 0.0,
@@ -203,6 +239,8 @@ def run_tez_cavity(*, a: float = 0.1, b: float = 0.06, n: int = 12, modes: Seque
     if h_ratio is None:
         h_ratio = (POISSON_H_RATIO if layout.startswith("poisson") else DISK_H_RATIO) if wall_closure \
             else DEFAULT_H_RATIO
+    if support_check:
+        check_tez_rectangle_support(layout, h_ratio)
     s = TEzSolver(lay, h_ratio=h_ratio, eps_r=eps_r, coupling=coupling, courant=courant, sbp_layers=sbp_layers)
     x, y = lay.hz.T
     shapes = [np.cos(m * np.pi * x / a) * np.cos(k * np.pi * y / b) for m, k in modes]
@@ -224,7 +262,8 @@ def run_tez_cavity(*, a: float = 0.1, b: float = 0.06, n: int = 12, modes: Seque
         amp[k] = q @ s.hz
     fm = _fit_frequency(amp, s.dt * (steps + 1 + np.arange(more)), freqs[0])
     return TEzCavityResult("tez-cavity", err, abs(fm - freqs[0]) / freqs[0], fm, freqs[0], lay.n_particles, s.n,
-                           time.perf_counter() - t0, dr, s.dt, coupling, layout)
+                           time.perf_counter() - t0, dr, s.dt, coupling, layout, h_ratio=float(h_ratio),
+                           wall_closure=wall_closure)
 
 
 def _fit_frequency(signal, times, f0):
