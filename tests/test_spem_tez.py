@@ -230,8 +230,8 @@ def test_poisson_rectangle_layout_particles():
 def test_poisson_rectangle_converges_with_the_wall_closure():
     """Measured (seed=0, h/dr 1.2, 12 / 24 spacings along 0.06 m): error 1.5e-1 / 2.7e-2, TE10 frequency
     error 7.1e-5 / 4.7e-4 (5 periods); benchmarks/spem_tez_poisson.py has seeds 0-2 and 48 spacings."""
-    r12 = tez.run_tez_cavity(n=12, layout="poisson", wall_closure=True, spectrum_periods=3.0)
-    r24 = tez.run_tez_cavity(n=24, layout="poisson", wall_closure=True, spectrum_periods=3.0)
+    r12 = tez.run_tez_cavity(n=12, layout="poisson", wall_closure=True, spectrum_periods=3.0, support_check=False)
+    r24 = tez.run_tez_cavity(n=24, layout="poisson", wall_closure=True, spectrum_periods=3.0, support_check=False)
     assert r24.layout == "poisson"
     assert r12.error < 0.25 and r24.error < 0.05
     assert r24.error < r12.error / 3.0  # second order: 1/4
