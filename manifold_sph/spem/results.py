@@ -14,7 +14,7 @@ Examples
 >>> r = LineResult(case="line1d", particles=10, steps=5, seconds=0.1, step_seconds=0.05, error=0.01,
 ...                dt=1e-12, dr=1e-3, h=7e-4, particles_per_wavelength=20.0, courant=0.9)
 >>> r.error, sorted(r.to_dict())[:3]
-(0.01, ['case', 'consistency', 'courant'])
+(0.01, ['case', 'certificate_failures', 'consistency'])
 """
 
 from __future__ import annotations
