@@ -143,14 +143,18 @@ def local_client(n_workers, memory_limit=None):
 
 
 def warm(client):
-    """Import the package and load the compiled kernels on every worker (not part of any timing)."""
+    """Import the package and load the compiled kernels on every worker, as the single-process reference has them."""
     def job():
         from manifold_sph import Surface
         from manifold_sph.reference import shapes
 
+        from manifold_sph.distributed import TiledSurface
+
         c = shapes.sphere(2000)
         s = Surface(c.points, c.normals, area="shepard")
         s.laplacian_matrix(form="strong"), s.derivative_matrices(), s.stiffness_matrix()
+        keep = ("laplacian", "derivatives", "stable")  # a tile build's own compiled helpers too
+        TiledSurface(c.points, c.normals, tile_points=1000, scheduler="synchronous", keep=keep, area="shepard").close()
         return 1
 
     client.run(job)
