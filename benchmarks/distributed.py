@@ -146,9 +146,8 @@ def warm(client):
     """Import the package and load the compiled kernels on every worker, as the single-process reference has them."""
     def job():
         from manifold_sph import Surface
-        from manifold_sph.reference import shapes
-
         from manifold_sph.distributed import TiledSurface
+        from manifold_sph.reference import shapes
 
         c = shapes.sphere(2000)
         s = Surface(c.points, c.normals, area="shepard")
