@@ -15,7 +15,7 @@ the cloud itself defines:
    fans is the triangle set; each triangle's edge lengths are the distances in space.
 2. **Wavefront.** A Dijkstra-ordered sweep from the sources (a binary heap, each particle
    re-opened when its distance falls later). A triangle ``(a, b, c)`` with ``a``, ``b``
-   reached gives ``c`` the distance from the virtual point source that lies at distances
+   final (popped from the heap) gives ``c`` the distance from the virtual point source that lies at distances
    ``d_a`` from ``a`` and ``d_b`` from ``b`` in the triangle's plane, unfolded across the
    edge ``ab`` (Novotni and Klein 2002), when the straight ray from that source to ``c``
    crosses ``ab``; every Delaunay pair and triangle side gives ``d_a + |x_a - x_c|``. The smallest candidate
@@ -197,6 +197,8 @@ def _propagate(P, vt_ptr, vt_pair, vt_geom, e_ptr, e_idx, e_len, src, d0, target
             for r in range(2):
                 x = vt_pair[q, r]
                 y = vt_pair[q, 1 - r]
+                if pos[x] >= 0:  # x is not final yet: the triangle is swept when x is, from both final corners
+                    continue
                 dx = d[x]
                 if dx == np.inf:
                     continue
