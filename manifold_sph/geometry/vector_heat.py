@@ -276,9 +276,10 @@ def transport(surface: Surface, source: int, vector: ArrayLike) -> np.ndarray:
 def log_map(surface: Surface, source: int, *, geodesics: str = "heat") -> np.ndarray:
     """Logarithmic map at particle ``source``, shape (N, 2), in the frame ``(u, v)`` of ``source``.
 
-    The length of each row is the geodesic distance (``geodesics`` picks the
-    :class:`~manifold_sph.geometry.GeodesicSolver` method), its angle that of the initial
-    direction of the shortest geodesic. See :class:`VectorHeatSolver`.
+    The length of each row is the geodesic distance (``geodesics="heat"``: integrated from the
+    radial directions by :meth:`~manifold_sph.geometry.GeodesicSolver.integrate`;
+    ``"wavefront"``: the wavefront distance), its angle that of the initial direction of the
+    shortest geodesic. See :class:`VectorHeatSolver`.
     """
     return _solver(surface, check_in("geodesics", geodesics, ("heat", "wavefront"))).log_map(source)
 
