@@ -172,3 +172,29 @@ def test_tez_rectangle_adapts_its_walls_to_a_wide_support_and_refuses_outside_it
         run_tez_cavity(h_ratio=-1.0)
     assert main(["tez-cavity", "--layout", "poisson", "--json"]) == 2
     assert "layout = 'poisson'" in capsys.readouterr().err
+
+
+def test_interior_consistency_separates_the_adjoint_walls_from_an_inconsistent_interior():
+    from manifold_sph.spem import disk_layout
+    from manifold_sph.spem.certify import CONSISTENCY_LIMIT
+
+    b = (0.0, A, 0.0, A)
+    lattice = TMzSolver(yee_layout(b, A / 20), coupling="adjoint")
+    # measured: 2.3e-2 over every row (next to the walls), 2.2e-14 two supports away from them
+    assert lattice.consistency_residual() > 1e-2 and lattice.interior_consistency_residual() < 1e-12
+    disk = TMzSolver(disk_layout((0.0, 0.0), A, A / 10), coupling="adjoint")
+    assert disk.consistency_residual() > 1.0 and disk.interior_consistency_residual() < 1e-12  # 7.0 / 1.9e-14
+    jit = make_layout("jittered", b, A / 20, seed=0)
+    assert TMzSolver(jit, coupling="adjoint").interior_consistency_residual() > 1.0  # measured 5.0
+    assert TMzSolver(jit).interior_consistency_residual() < CONSISTENCY_LIMIT  # sbp: 7.5e-9
+    with pytest.raises(ValueError, match="margin"):
+        lattice.consistency_residual(margin=-1.0)
+
+
+def test_adjoint_cavity_is_certified_on_the_lattice_and_not_on_a_jittered_layout():
+    lattice = run_cavity(n_radial=8, coupling="adjoint")
+    assert lattice.certified and lattice.consistency > 1.0  # inconsistent only next to the wall
+    jit = run_cavity(n_radial=8, coupling="adjoint", layout="jittered")
+    # at 10 spacings per radius: error 0.57, 47x the lattice's (the sbp cavity 1.2e-2)
+    assert jit.error > 10 * lattice.error
+    assert not jit.certified and "interior consistency residual" in jit.certificate_failures[0]

@@ -71,7 +71,9 @@ class CaseResult(Result):
 
     ``consistency`` is the largest error of the run's derivative matrices on linear fields
     (:meth:`.TMzSolver.consistency_residual`: round-off for a consistent coupling, O(1) for an
-    inconsistent one); None where not computed. ``error`` is mean |numerical - exact| / max |exact|
+    inconsistent one); ``consistency_interior`` the same over the rows two kernel supports and more
+    from the walls and driven particles (:meth:`.TMzSolver.interior_consistency_residual`); None where
+    not computed. ``error`` is mean |numerical - exact| / max |exact|
     over the case's evaluation points (the PML case: the relative reflection at normal
     incidence, None where the pulse never reaches the probe). ``certificate_failures``: one sentence per
     certificate outside its validated range (:func:`~manifold_sph.spem.certify.certificate_failures`), empty
@@ -90,6 +92,7 @@ class CaseResult(Result):
     dr: float
     fields: FieldHistory | None = dataclasses.field(default=None, repr=False)
     consistency: float | None = None
+    consistency_interior: float | None = None
     certificate_failures: tuple = ()
 
     @property

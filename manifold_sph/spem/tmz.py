@@ -69,7 +69,7 @@ from .stepping import Leapfrog
 if TYPE_CHECKING:
     from ..kernels import Kernel
 
-__all__ = ["TMzSolver", "DENSE_SPECTRUM", "THREADED_STEP", "DRIVEN_ROW_LIMIT", "PML_H_RATIO_MAX"]
+__all__ = ["TMzSolver", "DENSE_SPECTRUM", "THREADED_STEP", "DRIVEN_ROW_LIMIT", "PML_H_RATIO_MAX", "CONSISTENCY_MARGIN"]
 
 
 #: Up to this many free E particles the "direct" spectrum is computed densely.
@@ -81,6 +81,10 @@ DENSE_SPECTRUM = 900
 #: reflection is -90.7 / -90.6 / -38.7 / -17.8 dB at h/dr 0.7 / 0.8 / 1.0 / 1.3 (-63.5 dB at 1.0 with 20
 #: cells): the layer reflects more as the support widens, and a thicker layer recovers only part of it.
 PML_H_RATIO_MAX = 0.8
+#: :meth:`TMzSolver.interior_consistency_residual`: rows this many kernel supports (kappa h) and more from
+#: every PEC and driven E particle. An "adjoint" E row is the transpose of the H rows within one support,
+#: which see E particles within one more: two supports from a wall no row of any coupling sees it.
+CONSISTENCY_MARGIN = 2.0
 #: "sbp": a driven E particle whose derivative weights sum above this over ``dr`` (a one-sided,
 #: nearly singular system: a source row on the edge of an irregular layout) is boundary data, as on
 #: the lattice where that system is singular (the lattice interior sums to about 2-4).
@@ -560,7 +564,7 @@ class TMzSolver(Leapfrog):
         self.hx -= 0.5 * self.db_x * (self.Dy_hx @ ez0)
         self.hy += 0.5 * self.db_y * (self.Dx_hy @ ez0)
 
-    def consistency_residual(self) -> float:
+    def consistency_residual(self, *, margin: float | None = None) -> float:
         """Largest error of the four derivative matrices on the linear fields ``x`` and ``y`` (dimensionless).
 
         A consistent first-derivative row maps ``f = x`` to 1 and ``f = y`` to 0 (``Dx``), and
@@ -568,6 +572,9 @@ class TMzSolver(Leapfrog):
         particle's (the PEC and driven ones included). The "sbp", "mimetic" and "direct" couplings
         are exact to round-off on every layout; "adjoint" is not next to walls and on irregular
         layouts (O(1)). This is the certificate that the operators the run used are consistent.
+        ``margin`` (m): only the rows of particles farther than this from every PEC and driven E
+        particle (the interior residual; :data:`CONSISTENCY_MARGIN` supports is where no wall reaches
+        a row of any coupling): "adjoint" is exact there on the lattice and O(1) on irregular layouts.
 
         >>> from manifold_sph.spem import yee_layout, jitter
         >>> lay = jitter(yee_layout((0, 0.1, 0, 0.1), 0.01), 0.2)
@@ -576,20 +583,45 @@ class TMzSolver(Leapfrog):
         >>> bool(TMzSolver(lay, coupling="adjoint").consistency_residual() > 0.1)
         True
         """
-        cached = getattr(self, "_consistency", None)
-        if cached is not None and cached[0] == (id(self.Dx_e), id(self.Dy_e), id(self.Dx_hy), id(self.Dy_hx)):
-            return cached[1]
+        if margin is not None:
+            margin = check_positive("margin", margin, allow_zero=True)
+        key = (id(self.Dx_e), id(self.Dy_e), id(self.Dx_hy), id(self.Dy_hx), margin)
+        cached = getattr(self, "_consistency", None) or {}
+        if key in cached:
+            return cached[key]
         lay = self.layout
         scale = lay.dr
+        rows = {}
+        if margin is not None:
+            from scipy.spatial import cKDTree
+
+            edge = ~np.isin(np.arange(self.n_e), self.free)  # PEC and driven E particles
+            tree = cKDTree(lay.e[edge]) if edge.any() else None
+
+            def far(points):
+                return np.ones(len(points), dtype=bool) if tree is None else tree.query(points)[0] > margin
+
+            rows = {"e": far(lay.e[self.free]), "hx": far(lay.hx), "hy": far(lay.hy)}
         worst = 0.0
-        for D, cols, axis in ((self.Dx_e, lay.hy, 0), (self.Dy_e, lay.hx, 1), (self.Dx_hy, lay.e, 0),
-                              (self.Dy_hx, lay.e, 1)):
+        for D, cols, axis, which in ((self.Dx_e, lay.hy, 0, "e"), (self.Dy_e, lay.hx, 1, "e"),
+                                     (self.Dx_hy, lay.e, 0, "hy"), (self.Dy_hx, lay.e, 1, "hx")):
             for k in (0, 1):
                 f = (cols[:, k] - cols[:, k].mean()) / scale
                 target = 1.0 / scale if k == axis else 0.0
-                worst = max(worst, float(np.abs(D @ f - target).max()) * scale)
-        self._consistency = ((id(self.Dx_e), id(self.Dy_e), id(self.Dx_hy), id(self.Dy_hx)), worst)
+                r = np.abs(D @ f - target)
+                if which in rows:
+                    r = r[rows[which]]
+                if r.size:
+                    worst = max(worst, float(r.max()) * scale)
+        self._consistency = {**cached, key: worst}
         return worst
+
+    def interior_consistency_residual(self) -> float:
+        """:meth:`consistency_residual` over the rows farther than :data:`CONSISTENCY_MARGIN` kernel supports
+        (``kappa h``) from every PEC and driven E particle: the certificate of a run's interior."""
+        from ..kernels import get_kernel
+
+        return self.consistency_residual(margin=CONSISTENCY_MARGIN * get_kernel(self.kernel).support * self.h)
 
     def energy(self) -> float:
         """The discrete energy that leap-frog conserves without losses and sources (J/m).

@@ -152,7 +152,8 @@ def run_cavity(*, r0: float = 0.1, eps_r: float = 10.0, n_radial: int = 40, peri
                        step_seconds=res.seconds, error=relative_error(s.e_field, exact), dt=dt, dr=dr, layout=layout,
                        form=form, r0=r0, eps_r=eps_r, f1_exact=f1,
                        fields=field_history(lay.e, s.e_field, s.t, res, exact),
-                       consistency=s.consistency_residual(), energy_drift=energy_drift)
+                       consistency=s.consistency_residual(),
+                       consistency_interior=s.interior_consistency_residual(), energy_drift=energy_drift)
     if spectrum_periods > 0:
         more = int(round(spectrum_periods * T1 / dt))
         res2 = s.run(more, probes=[centre], progress=progress)

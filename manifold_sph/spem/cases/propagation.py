@@ -233,6 +233,7 @@ def run_planewave(*, size: float = 0.5, freq: float = 3.6e9, ppw: float = 40.0, 
         adjacent_line_difference=adjacent_line_difference(e, s.e_field, dr, axis=0, mask=inside) if lattice else None,
         alternating_amplitude=alternating_amplitude(e, s.e_field, dr, mask=inside) if lattice else None,
         fields=field_history(e, s.e_field, s.t, res), consistency=s.consistency_residual(),
+        consistency_interior=s.interior_consistency_residual(),
         pml_reflection_db=_certificate(certify, s, layout, pml_cells, kernel=kernel, form=form, seed=seed)))
 
 
@@ -297,6 +298,7 @@ def run_waveguide(*, width: float = 0.5, length: float = 0.4, pml_thickness: flo
                            layout=layout, form=form, freq=freq, f_cutoff=fc, line_x=float(xs), ppw=C0 / freq / dr,
                            pml_cells=npml, fields=field_history(e, s.e_field, s.t, res),
                            consistency=s.consistency_residual(),
+                           consistency_interior=s.interior_consistency_residual(),
                            pml_reflection_db=_certificate(certify, s, layout, npml, kernel=kernel, form=form,
                                                           seed=0)))
 
@@ -344,7 +346,8 @@ def run_pml(*, cells: int = 60, pml_cells: int = 10, order: int = 3, reflection:
     return certified(PMLResult(case="pml", particles=test.layout.n_particles, steps=2 * steps, seconds=seconds,
                      step_seconds=seconds, error=rel[0], dt=dt, dr=dr, reference_particles=lay.n_particles,
                      reflection_normal_db=db[0], reflection_oblique_db=db[1], pml_cells=pml_cells, order=order,
-                     target_reflection=reflection, layout=layout, consistency=ref.consistency_residual()))
+                     target_reflection=reflection, layout=layout, consistency=ref.consistency_residual(),
+                     consistency_interior=ref.interior_consistency_residual()))
 
 
 def run_tez_pml(*, cells: int = 60, pml_cells: int = 10, order: int = 3, reflection: float = 1e-6,
