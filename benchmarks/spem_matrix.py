@@ -19,6 +19,7 @@ range: its numbers are printed with the reason.
     python benchmarks/spem_matrix.py --quick            # reduced resolution, every case (about 10 min)
     python benchmarks/spem_matrix.py                    # the CLI's own defaults (long)
     python benchmarks/spem_matrix.py --cases planewave,pml --h-ratios default,1.3
+    python benchmarks/spem_matrix.py --quick --cases cavity --h-ratios default --couplings default,adjoint
 """
 
 from __future__ import annotations
@@ -134,6 +135,7 @@ def main() -> None:
     ap.add_argument("--cases", default=",".join(CASES), help="comma-separated cases (default all)")
     ap.add_argument("--layouts", default=None, help="comma-separated layouts (default every layout a case accepts)")
     ap.add_argument("--h-ratios", default="default,1.0,1.3,1.5", help="supports: 'default' and h/dr values")
+    ap.add_argument("--couplings", default="default", help="couplings: 'default' and --coupling values (e.g. default,adjoint)")
     ap.add_argument("--limit", type=float, default=10.0, help="error ratio that counts as a violation (default 10)")
     ap.add_argument("--no-yee", action="store_true", help="skip the Yee references")
     ap.add_argument("--json", default=None, help="also write every row to this JSON file")
@@ -159,35 +161,41 @@ def main() -> None:
         rows.append({"case": case, "layout": "yee", "h_ratio": None, "exit": 0, "error": e0, "steps": s0,
                      "setup_seconds": setup, "run_seconds": run, "yee_error": yee, "pml_db": pml_db(base)})
         chosen = layouts if a.layouts is None else [x for x in layouts if x in a.layouts.split(",")]
-        for layout in chosen:
-            for hr in a.h_ratios.split(","):
-                if (layout in (None, "yee") and hr == "default") or (case in NO_SUPPORT and hr != "default"):
-                    continue
-                argv = [case, *extra]
-                if layout is not None:
-                    argv += ["--layout", layout, *NEEDS.get((case, layout), [])]
-                if hr != "default":
-                    argv += ["--h-ratio", hr]
-                code, d, msg, wall = run_cli(argv)
-                if d is None:
-                    print(f"{case:>22s} {layout!s:>16s} {hr:>7s} {code:>4d}  refused: {msg[:110]}", flush=True)
-                    rows.append({"case": case, "layout": layout, "h_ratio": hr, "exit": code, "message": msg})
-                    continue
-                e = error_of(d)
-                steps = int(d.get("steps", 0))
-                ratio = e / e0 if e is not None and e0 else math.nan
-                setup, run = timing(d, wall)
-                flag = "" if code == 0 else f"  not certified: {msg.split('not certified: ')[-1][:90]}"
-                if code == 0 and ratio > a.limit:
-                    flag = "  VIOLATION"
-                    violations += 1
-                if s0 and steps > 2 * s0:
-                    flag += "  steps>2x"
-                print(f"{case:>22s} {layout!s:>16s} {hr:>7s} {code:>4d} {e:9.3g} {ratio:7.2f} {steps:8d} "
-                      f"{steps / s0 if s0 else math.nan:7.2f} {setup:8.2f} {run:8.2f} {'':>9s} {pml_db(d):>7s}{flag}",
-                      flush=True)
-                rows.append({"case": case, "layout": layout, "h_ratio": hr, "exit": code, "error": e, "steps": steps,
-                             "setup_seconds": setup, "run_seconds": run, "error_ratio": ratio, "pml_db": pml_db(d)})
+        runs = [(layout, hr, cp) for layout in chosen for hr in a.h_ratios.split(",") for cp in a.couplings.split(",")]
+        for layout, hr, cp in runs:
+            if (layout in (None, "yee") and hr == "default" and cp == "default") \
+                    or (case in NO_SUPPORT and (hr != "default" or cp != "default")):
+                continue
+            argv = [case, *extra]
+            if layout is not None:
+                argv += ["--layout", layout, *NEEDS.get((case, layout), [])]
+            if hr != "default":
+                argv += ["--h-ratio", hr]
+            if cp != "default":
+                argv += ["--coupling", cp]
+            label = layout if cp == "default" else f"{layout} {cp}"
+            code, d, msg, wall = run_cli(argv)
+            if d is None:
+                print(f"{case:>22s} {label!s:>16s} {hr:>7s} {code:>4d}  refused: {msg[:110]}", flush=True)
+                rows.append({"case": case, "layout": layout, "coupling": cp, "h_ratio": hr, "exit": code,
+                             "message": msg})
+                continue
+            e = error_of(d)
+            steps = int(d.get("steps", 0))
+            ratio = e / e0 if e is not None and e0 else math.nan
+            setup, run = timing(d, wall)
+            flag = "" if code == 0 else f"  not certified: {msg.split('not certified: ')[-1][:90]}"
+            if code == 0 and ratio > a.limit:
+                flag = "  VIOLATION"
+                violations += 1
+            if s0 and steps > 2 * s0:
+                flag += "  steps>2x"
+            print(f"{case:>22s} {label!s:>16s} {hr:>7s} {code:>4d} {e:9.3g} {ratio:7.2f} {steps:8d} "
+                  f"{steps / s0 if s0 else math.nan:7.2f} {setup:8.2f} {run:8.2f} {'':>9s} {pml_db(d):>7s}{flag}",
+                  flush=True)
+            rows.append({"case": case, "layout": layout, "coupling": cp, "h_ratio": hr, "exit": code, "error": e,
+                         "steps": steps,
+                         "setup_seconds": setup, "run_seconds": run, "error_ratio": ratio, "pml_db": pml_db(d)})
     print(f"\n{violations} run(s) exit 0 with an error above {a.limit:g}x the default-lattice error")
     if a.json:
         Path(a.json).write_text(json.dumps(rows, indent=1))
