@@ -198,3 +198,20 @@ def test_adjoint_cavity_is_certified_on_the_lattice_and_not_on_a_jittered_layout
     # at 10 spacings per radius: error 0.57, 47x the lattice's (the sbp cavity 1.2e-2)
     assert jit.error > 10 * lattice.error
     assert not jit.certified and "interior consistency residual" in jit.certificate_failures[0]
+
+
+def test_tez_disk_refuses_supports_outside_its_range(capsys):
+    from manifold_sph.spem import run_tez_circular_cavity
+    from manifold_sph.spem.cases.cavity import TEZ_DISK_H_RATIO_MAX
+    from manifold_sph.spem.cli import main
+
+    assert TEZ_DISK_H_RATIO_MAX["yee"] == 1.5 and TEZ_DISK_H_RATIO_MAX["poisson"] == 1.3
+    # measured at 10 spacings per radius: lattice h/dr 2.0 0.28 (11x the default's 2.5e-2), Poisson 1.5 0.36 (14x)
+    with pytest.raises(ValueError, match=r"h_ratio = 2 is outside the validated range of the TEz disk .* <= 1\.5"):
+        run_tez_circular_cavity(n_radial=6, h_ratio=2.0)
+    with pytest.raises(ValueError, match=r"layout 'poisson' \(h_ratio <= 1\.3"):
+        run_tez_circular_cavity(n_radial=6, layout="poisson", h_ratio=1.5)
+    r = run_tez_circular_cavity(n_radial=6, spectrum_periods=1.0, h_ratio=2.0, support_check=False)
+    assert r.h_ratio == 2.0
+    assert main(["tez-disk", "--h-ratio", "2.0", "--json"]) == 2
+    assert "h_ratio = 2 is outside" in capsys.readouterr().err

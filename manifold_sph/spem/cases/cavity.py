@@ -37,7 +37,7 @@ if TYPE_CHECKING:
 from .common import check_every, field_history, fit_solver_dt, relative_error, timed
 
 __all__ = ["cavity_exact", "cavity_frequency", "peak_frequency", "run_cavity", "tez_cavity_frequency", "run_tez_cavity",
-           "TEZ_RECTANGLE_H_RATIO_MAX", "check_tez_rectangle_support",
+           "TEZ_RECTANGLE_H_RATIO_MAX", "check_tez_rectangle_support", "TEZ_DISK_H_RATIO_MAX",
            "tez_disk_frequency", "tez_disk_mode", "run_tez_circular_cavity"]
 
 
@@ -66,6 +66,14 @@ def check_tez_rectangle_support(layout: str, h_ratio: float) -> None:
             f"h_ratio = {h_ratio:.3g} is outside the validated range of the TEz rectangle on layout {layout!r} "
             f"(h_ratio <= {top}: beyond it the error exceeds 10x the lattice's); use h_ratio <= {top}, or "
             f"support_check=False to run anyway")
+
+
+#: Largest ``h / dr`` validated for the TEz disk (:func:`run_tez_circular_cavity`) per layout. Measured at 10
+#: spacings per radius (TE11 + TE21, one period; the lattice's default, h/dr 0.8: 2.52e-2): lattice 4.3e-2 /
+#: 6.2e-2 / 1.3e-1 / 1.5e-1 / 2.8e-1 at h/dr 0.6 / 1.0 / 1.3 / 1.5 / 2.0 (11x at 2.0); jittered 8.3e-2 / 1.1e-1 /
+#: 1.7e-1 / 3.5e-1 at 1.0 / 1.3 / 1.5 / 2.0 (14x at 2.0); Poisson 1.2e-1 / 1.8e-1 / 1.8e-1 / 3.6e-1 / 6.0e-1 at
+#: 1.0 / 1.2 / 1.3 / 1.5 / 2.0 (14x at 1.5). "poisson-shared" takes the Poisson value (not measured apart).
+TEZ_DISK_H_RATIO_MAX = {"yee": 1.5, "jittered": 1.5, "poisson": 1.3, "poisson-shared": 1.3}
 
 
 # ----------------------------------------------------------------------------- cavity
@@ -319,7 +327,7 @@ def run_tez_circular_cavity(*, radius: float = 0.1, n_radial: int = 20,
                             coupling: str = DEFAULT_COUPLING, h_ratio: float | None = None, courant: float = 0.9,
                             periods: float = 1.0, spectrum_periods: float = 10.0, wall_spacing: float = 0.5,
                             wall_margin: float = 0.3, layout: str = "yee", amplitude: float = 0.2,
-                            seed: int | None = 0) -> TEzCavityResult:
+                            seed: int | None = 0, support_check: bool = True) -> TEzCavityResult:
     """TE modes of a circular PEC cavity (curved walls, :func:`tez_disk_layout`) against the exact Bessel modes.
 
     ``Hz(0) = sum_(m, n) J_m(j'_mn r / a) cos(m phi)`` over ``modes`` (E = 0), ``dr = radius / n_radial``.
@@ -333,6 +341,7 @@ def run_tez_circular_cavity(*, radius: float = 0.1, n_radial: int = 20,
     covers the whole operator); ``"poisson"`` / ``"poisson-shared"``: the Poisson
     layouts of :func:`tez_disk_layout` (seeded). ``h_ratio`` defaults to
     :data:`DISK_H_RATIO` on the lattice, :data:`POISSON_H_RATIO` on Poisson layouts.
+    ``support_check``: refuse an ``h_ratio`` above :data:`TEZ_DISK_H_RATIO_MAX` for the layout.
 
     Examples
     --------
@@ -357,6 +366,12 @@ def run_tez_circular_cavity(*, radius: float = 0.1, n_radial: int = 20,
     poisson = layout.startswith("poisson")
     if h_ratio is None:
         h_ratio = POISSON_H_RATIO if poisson else DISK_H_RATIO
+    h_ratio = check_positive("h_ratio", h_ratio)
+    top = TEZ_DISK_H_RATIO_MAX[layout]
+    if support_check and h_ratio > top * (1 + 1e-9):
+        raise ValueError(f"h_ratio = {h_ratio:.3g} is outside the validated range of the TEz disk on layout {layout!r} "
+                         f"(h_ratio <= {top}: beyond it the error exceeds 10x the lattice's); use h_ratio <= {top}, "
+                         f"or support_check=False to run anyway")
     dr = radius / n_radial
     c = (radius, radius)
     lay = tez_disk_layout(c, radius, dr, wall_spacing=wall_spacing, wall_margin=wall_margin,
@@ -386,7 +401,8 @@ def run_tez_circular_cavity(*, radius: float = 0.1, n_radial: int = 20,
     cfl = s.h / (math.sqrt(2.0) * s.c_max)
     return TEzCavityResult("tez-disk", err, abs(fm - freqs[0]) / freqs[0], fm, freqs[0], lay.n_particles, s.n,
                            time.perf_counter() - t0, dr, s.dt, coupling, f"disk-{layout}",
-                           probe_frequency_error=abs(fp - freqs[0]) / freqs[0], stable_fraction=s.dt / cfl)
+                           probe_frequency_error=abs(fp - freqs[0]) / freqs[0], stable_fraction=s.dt / cfl,
+                           h_ratio=float(h_ratio))
 
 
 def _probe_peak(signal, dt, f0):
