@@ -98,6 +98,10 @@ class TileData:
     @overload
     def __getitem__(self, name: str) -> np.ndarray: ...
 
+    def release(self) -> None:
+        """Forget the arrays read so far (their memory maps close once no other reference holds them)."""
+        self._arrays.clear()
+
     def __getitem__(self, name: str) -> sp.csr_matrix | np.ndarray:
         if name not in self._arrays:
             if name in ("lap", "dx", "dy", "K"):
