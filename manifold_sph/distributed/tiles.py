@@ -92,15 +92,15 @@ class TileData:
         self.n = int(meta["summary"]["n_own"])
         self._arrays: dict = {}
 
+    def release(self) -> None:
+        """Forget the arrays read so far (their memory maps close once no other reference holds them)."""
+        self._arrays.clear()
+
     @overload
     def __getitem__(self, name: Literal["lap", "dx", "dy", "K"]) -> sp.csr_matrix: ...
 
     @overload
     def __getitem__(self, name: str) -> np.ndarray: ...
-
-    def release(self) -> None:
-        """Forget the arrays read so far (their memory maps close once no other reference holds them)."""
-        self._arrays.clear()
 
     def __getitem__(self, name: str) -> sp.csr_matrix | np.ndarray:
         if name not in self._arrays:
