@@ -388,3 +388,26 @@ def test_mpi_engine_iterations_independent_of_ranks(stable, cloud):
         its2 = stable.last_solve["iterations"]
         assert len(its1) == len(its2) and all(abs(i - j) <= max(1, 0.1 * i) for i, j in zip(its1, its2)), (problem, its1, its2)
         assert rel(b, a) < 1e-8
+
+
+@mpi_engine
+def test_mpi_engine_banded_geodesic(monkeypatch):
+    """Above GEODESIC_DIRECT_MAX_N both engines solve the geodesic's heat step in AMG-CG bands (no factor): they
+    agree with each other and with the exact distance as the direct solve does."""
+    import manifold_sph.distributed.solve as S
+
+    c = shapes.sphere(20000)
+    with TiledSurface(c.points, c.normals, tile_points=5000, scheduler="synchronous",
+                      keep=("stable", "derivatives")) as ts:
+        x = ts.gather(ts.points)
+        direct = ts.gather(ts.geodesic_distance(11, engine="local"))
+        monkeypatch.setattr(S, "GEODESIC_DIRECT_MAX_N", 1000)
+        loc = ts.gather(ts.geodesic_distance(11, engine="local"))
+        assert ts.last_solve["method"].startswith("amg") and len(ts.last_solve["iterations"]) >= 4
+        got = ts.gather(ts.geodesic_distance(11, engine="mpi", ranks=2))
+        assert len(ts.last_solve["iterations"]) >= 4  # bands, then the Poisson solve
+    exact = np.arccos(np.clip(x @ x[np.argmin(direct)], -1, 1))
+    e_direct = np.linalg.norm(direct - exact) / np.linalg.norm(exact)
+    for d in (loc, got):
+        assert np.linalg.norm(d - exact) / np.linalg.norm(exact) < 1.1 * e_direct
+    assert rel(got, loc) < 1e-4

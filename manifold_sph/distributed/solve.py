@@ -8,9 +8,8 @@ and, for geodesics, of the tangent-plane derivatives. Two engines solve with the
     manifold_sph.mpi JOB`` is started on this machine (or the same command is run by the
     user under ``srun``/``mpirun`` on a cluster); each rank reads its own tiles' rows from
     the cache directory and solves with CG preconditioned by PETSc's algebraic multigrid
-    (GAMG), the geodesic's heat step with a distributed Cholesky factorisation (MUMPS: its
-    solution decays exponentially away from the sources, below what CG resolves), eigenpairs
-    with SLEPc (Krylov-Schur, shift-invert through the same CG).
+    (GAMG), the geodesic's heat step as below, eigenpairs with SLEPc (Krylov-Schur,
+    shift-invert through the same CG).
 ``"local"``
     One process: ``K`` and ``M`` assembled from the tiles and solved with
     :mod:`manifold_sph.solvers` (sparse Cholesky or AMG-CG) and :mod:`manifold_sph.spectrum`.
@@ -25,7 +24,15 @@ Formulations (the same on both engines, so their results agree to the solver tol
 - geodesic distance (heat method, as :class:`manifold_sph.geometry.GeodesicSolver`):
   ``(M + t K) u = e_s`` with ``t = 4 mean(M)``, ``X = -grad u / |grad u|``, ``b_i = sum_j w_ij
   (X_i + X_j) / 2 . (x_i - x_j)``, then ``K phi = b`` with ``phi`` held at the Euclidean
-  distance within ``3 sqrt(mean M)`` of the sources;
+  distance within ``3 sqrt(mean M)`` of the sources. ``u`` decays like ``exp(-d / sqrt(t))``,
+  far below the residual tolerance of any iterative solve, and ``X`` needs its far field. Up to
+  :data:`GEODESIC_DIRECT_MAX_N` particles the heat step is a sparse Cholesky solve (CHOLMOD,
+  MUMPS on MPI), which keeps every entry's digits. Above, it is solved in bands with AMG-CG
+  (:func:`band_directions`): ``X`` is kept where ``u`` exceeds :data:`BAND_FLOOR` of its
+  largest value, the outer shell of that region (values up to :data:`BAND_SHELL` times the
+  floor) becomes the next right-hand side, scaled to 1, and so on outwards: each band's field
+  continues ``exp(-(d_shell + |x - x_shell|) / sqrt(t))``, whose directions are the geodesic's,
+  with one set-up of the multigrid and memory of AMG only;
 - eigenpairs of ``K v = lambda M v`` nearest a shift just below zero.
 """
 
@@ -49,12 +56,21 @@ from ..exceptions import ManifoldSPHWarning
 if TYPE_CHECKING:
     from .operators import TiledOperators
 
-__all__ = ["ENGINES", "GEODESIC_T", "SOURCE_RADIUS", "engine_available", "geodesic_from_matrices", "run"]
+__all__ = ["BAND_FLOOR", "BAND_SHELL", "ENGINES", "GEODESIC_DIRECT_MAX_N", "GEODESIC_T", "SOURCE_RADIUS", "band_directions",
+           "engine_available", "geodesic_from_matrices", "run"]
 
 ENGINES = ("auto", "mpi", "local")
 #: Geodesic heat time in units of the mean area element, and the held radius in units of the spacing.
 GEODESIC_T = 4.0
 SOURCE_RADIUS = 3.0
+#: Particles up to which the geodesic's heat step is a direct (Cholesky) solve on both engines; above, bands.
+GEODESIC_DIRECT_MAX_N = 2_000_000
+#: A band keeps the directions where the heat field exceeds this fraction of its largest value ...
+BAND_FLOOR = 1e-8
+#: ... and seeds the next band from the values between the floor and this many times it.
+BAND_SHELL = 1e3
+#: Relative residual of each band's CG solve.
+BAND_RTOL = 1e-12
 
 
 def engine_available() -> str | None:
@@ -155,10 +171,17 @@ def geodesic_from_matrices(K: sp.csr_matrix, m: np.ndarray, dx: sp.csr_matrix, d
     n = m.size
     rhs = np.zeros(n)
     rhs[src] = 1.0
-    # direct, whatever the size: u decays exponentially away from the sources, below what AMG-CG resolves
-    heat = spd_solver(sp.diags(m) + GEODESIC_T * m.mean() * K, method="cholesky" if cholesky_available() else "auto")
-    u = heat.solve(rhs)
-    X = -unit_rows((dx @ u)[:, None] * U + (dy @ u)[:, None] * V)  # u's far field is tiny: no squares of it
+    A = sp.diags(m) + GEODESIC_T * m.mean() * K
+
+    def directions(u):  # u's far field is tiny: no squares of it
+        return -unit_rows((dx @ u)[:, None] * U + (dy @ u)[:, None] * V)
+
+    if n <= GEODESIC_DIRECT_MAX_N and cholesky_available():
+        heat = spd_solver(A, method="cholesky")
+        X, heat_its = directions(heat.solve(rhs)), [0]
+    else:
+        heat = spd_solver(A, method="amg", rtol=BAND_RTOL)
+        X, heat_its = band_directions(heat, rhs, directions)
     b = geodesic_rhs(K, pts, X)
     held, r = held_particles(pts, src, m)
     free = ~held
@@ -166,7 +189,40 @@ def geodesic_from_matrices(K: sp.csr_matrix, m: np.ndarray, dx: sp.csr_matrix, d
     poisson = spd_solver(Kf[:, free])
     phi = r.copy()
     phi[free] = poisson.solve(b[free] - Kf[:, held] @ r[held])
-    return phi, {"iterations": [heat.info.iterations, poisson.info.iterations], "method": poisson.method}
+    return phi, {"iterations": heat_its + [poisson.info.iterations], "method": f"{heat.method} heat step, {poisson.method}"}
+
+
+def band_directions(heat: Any, rhs: np.ndarray, directions: Any,
+                    max_bands: int = 10_000) -> tuple[np.ndarray, list[int]]:
+    """The heat method's unit directions ``X`` (N, 3) from an iterative heat solver, band by band (module notes).
+
+    ``heat.solve(b)`` solves the heat step (its ``info.iterations`` read after each solve);
+    ``directions(u)`` gives ``-grad u / |grad u|`` (N, 3). Returns ``X`` and the iterations of
+    every band's solve. Particles the heat never reaches (another connected piece) keep ``X = 0``.
+    """
+    n = rhs.size
+    X = np.zeros((n, 3))
+    done = np.zeros(n, dtype=bool)
+    its: list[int] = []
+    w = heat.solve(rhs)
+    its.append(int(heat.info.iterations))
+    for _ in range(max_bands):
+        top = float(np.abs(w).max())
+        if not top > 0:
+            break
+        ok = (w > BAND_FLOOR * top) & ~done
+        if not ok.any():
+            break
+        X[ok] = directions(w)[ok]
+        done |= ok
+        shell = ok & (w <= BAND_SHELL * BAND_FLOOR * top)
+        if done.all() or not shell.any():
+            break
+        b = np.zeros(n)
+        b[shell] = w[shell] / w[shell].max()
+        w = heat.solve(b)
+        its.append(int(heat.info.iterations))
+    return X, its
 
 
 def _local_eigs(ts, k, sigma):
@@ -213,7 +269,7 @@ def run(ts: TiledOperators, problem: str, *, engine: str, ranks: int, **args: An
 def _run_mpi(ts, problem, ranks, args):
     work = tempfile.mkdtemp(prefix="msph-mpi-", dir=str(ts.cache_dir))
     try:
-        job = job_description(ts) | {"problem": problem, "work": work}
+        job = job_description(ts) | {"problem": problem, "work": work, "geodesic_direct_max_n": GEODESIC_DIRECT_MAX_N}
         for name, value in args.items():
             if isinstance(value, np.ndarray):
                 path = os.path.join(work, name + ".npy")

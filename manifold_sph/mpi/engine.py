@@ -28,7 +28,7 @@ __all__ = ["RTOL", "main", "rank_tiles"]
 #: Relative residual of every CG solve (equality with the single process's Cholesky to ~1e-10).
 RTOL = 1e-12
 #: What solves each problem (reported as ``info["method"]``).
-METHODS = {"heat": "petsc-cg-gamg", "poisson": "petsc-cg-gamg", "geodesic": "petsc-mumps-cholesky+cg-gamg",
+METHODS = {"heat": "petsc-cg-gamg", "poisson": "petsc-cg-gamg", "geodesic": "petsc-mumps-cholesky or cg-gamg bands, cg-gamg",
            "eigs": "slepc-krylovschur-sinvert-cg-gamg"}
 
 
@@ -190,7 +190,7 @@ def _poisson(job, R, its, secs):
 def _geodesic(job, R, its, secs):
     from scipy.spatial import cKDTree
 
-    from ..distributed.solve import GEODESIC_T, SOURCE_RADIUS
+    from ..distributed.solve import BAND_FLOOR, BAND_SHELL, GEODESIC_DIRECT_MAX_N, GEODESIC_T, SOURCE_RADIUS
     from ..frames import unit_rows
 
     src = np.asarray(_load(job, "sources"), dtype=np.int64)
@@ -198,20 +198,49 @@ def _geodesic(job, R, its, secs):
     A = R.K.duplicate(copy=True)
     A.scale(GEODESIC_T * R.mean_m)
     A.setDiagonal(R.M, addv=True)
-    rhs = np.zeros(R.hi - R.lo)
+    nloc = R.hi - R.lo
+    rhs = np.zeros(nloc)
     mine = src[(src >= R.lo) & (src < R.hi)]
     rhs[mine - R.lo] = 1.0
     x = R.vec()
-    # a direct solve: u decays like exp(-d / sqrt(t)) away from the sources, far below any residual tolerance
-    # of CG, which leaves the far field's gradient directions X (hence phi) wrong; a Cholesky factor of this
-    # M-matrix keeps every entry's digits, as the local engine's does (docs/distributed.md, "Global solves")
-    R.solve(R.cholesky(A), R.vec(rhs), x, its, secs)
-    u = R.allgather(x.getArray())
-    X = []
-    for d in R.tiles:  # -grad u / |grad u| on the own rows
-        uc = u[np.asarray(d["cols"])]
-        X.append(-unit_rows((d["dx"] @ uc)[:, None] * d["u"] + (d["dy"] @ uc)[:, None] * d["v"]))  # no squares of tiny u
-    X = R.allgather(np.concatenate(X) if X else np.zeros((0, 3)))
+
+    def own_directions(u):  # -grad u / |grad u| on the own rows, u whole (tile order); no squares of tiny u
+        parts = []
+        for d in R.tiles:
+            uc = u[np.asarray(d["cols"])]
+            parts.append(-unit_rows((d["dx"] @ uc)[:, None] * d["u"] + (d["dy"] @ uc)[:, None] * d["v"]))
+        return np.concatenate(parts) if parts else np.zeros((0, 3))
+
+    # u decays like exp(-d / sqrt(t)) away from the sources, far below CG's residual tolerance, and X needs
+    # its far field: a Cholesky factor (MUMPS) keeps every entry's digits; above the size where the local
+    # engine factorises, the same bands as its (manifold_sph.distributed.solve.band_directions) with CG + GAMG
+    if R.n <= int(job.get("geodesic_direct_max_n", GEODESIC_DIRECT_MAX_N)):
+        R.solve(R.cholesky(A), R.vec(rhs), x, its, secs)
+        X_own = own_directions(R.allgather(x.getArray()))
+    else:
+        from mpi4py import MPI
+
+        mpi = R.comm.tompi4py()
+        ksp = R.ksp(A)
+        X_own, done = np.zeros((nloc, 3)), np.zeros(nloc, dtype=bool)
+        b = R.vec(rhs)
+        while True:
+            R.solve(ksp, b, x, its, secs)
+            w = x.getArray().copy()
+            top = mpi.allreduce(float(np.abs(w).max()) if nloc else 0.0, op=MPI.MAX)
+            if not top > 0:
+                break
+            ok = (w > BAND_FLOOR * top) & ~done
+            if not mpi.allreduce(bool(ok.any()), op=MPI.LOR):
+                break
+            X_own[ok] = own_directions(R.allgather(w))[ok]
+            done |= ok
+            shell = ok & (w <= BAND_SHELL * BAND_FLOOR * top)
+            if mpi.allreduce(bool(done.all()), op=MPI.LAND) or not mpi.allreduce(bool(shell.any()), op=MPI.LOR):
+                break
+            smax = mpi.allreduce(float(w[shell].max()) if shell.any() else 0.0, op=MPI.MAX)
+            b.getArray()[:] = np.where(shell, w / smax, 0.0)
+    X = R.allgather(X_own)
     b_parts = []
     for d in R.tiles:  # sum_j w_ij (X_i + X_j) / 2 . (x_i - x_j), the own rows of K
         K, cols = d["K"].tocoo(), np.asarray(d["cols"])
