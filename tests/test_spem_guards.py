@@ -215,3 +215,28 @@ def test_tez_disk_refuses_supports_outside_its_range(capsys):
     assert r.h_ratio == 2.0
     assert main(["tez-disk", "--h-ratio", "2.0", "--json"]) == 2
     assert "h_ratio = 2 is outside" in capsys.readouterr().err
+
+
+def test_jittered_disk_carries_the_jittered_support_and_balanced_poisson_needs_mimetic():
+    from manifold_sph.spem import disk_layout
+
+    assert disk_layout((0.0, 0.0), A, A / 10, kind="jittered").h_ratio == JITTER_H_RATIO
+    r = run_cavity(n_radial=10, layout="jittered")
+    assert r.error < 1.2e-2 and r.certified  # measured 8.2e-3 (the lattice 1.2e-2)
+    with pytest.raises(ValueError, match=r"layout = 'poisson-balanced' is validated with coupling='mimetic' only"):
+        run_cavity(n_radial=10, layout="poisson-balanced")
+
+
+def test_cavity_refuses_supports_and_poisson_resolutions_outside_its_range(capsys):
+    from manifold_sph.spem.cases.cavity import CAVITY_H_RATIO_MAX, CAVITY_POISSON_N_RADIAL_MAX
+    from manifold_sph.spem.cli import main
+
+    # measured: lattice at h/dr 4.0 (10 per radius) 0.30, 25x; Poisson "sbp" at 80 per radius 5.2e-3, 16x
+    assert CAVITY_H_RATIO_MAX["yee"] == 2.0 and CAVITY_POISSON_N_RADIAL_MAX == 40
+    with pytest.raises(ValueError, match=r"h_ratio = 4 is outside the validated range of the cavity .* <= 2\.0"):
+        run_cavity(n_radial=10, h_ratio=4.0)
+    with pytest.raises(ValueError, match=r"n_radial = 80 is outside .* n_radial <= 40"):
+        run_cavity(n_radial=80, layout="poisson")
+    assert run_cavity(n_radial=6, h_ratio=4.0, support_check=False).error > 0  # asked for explicitly
+    assert main(["cavity", "--n-radial", "10", "--h-ratio", "5", "--json"]) == 2
+    assert "h_ratio = 5 is outside" in capsys.readouterr().err

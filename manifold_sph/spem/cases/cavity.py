@@ -38,6 +38,7 @@ from .common import check_every, field_history, fit_solver_dt, relative_error, t
 
 __all__ = ["cavity_exact", "cavity_frequency", "peak_frequency", "run_cavity", "tez_cavity_frequency", "run_tez_cavity",
            "TEZ_RECTANGLE_H_RATIO_MAX", "check_tez_rectangle_support", "TEZ_DISK_H_RATIO_MAX",
+           "CAVITY_H_RATIO_MAX", "CAVITY_POISSON_N_RADIAL_MAX", "check_cavity_support",
            "tez_disk_frequency", "tez_disk_mode", "run_tez_circular_cavity"]
 
 
@@ -74,6 +75,33 @@ def check_tez_rectangle_support(layout: str, h_ratio: float) -> None:
 #: 1.7e-1 / 3.5e-1 at 1.0 / 1.3 / 1.5 / 2.0 (14x at 2.0); Poisson 1.2e-1 / 1.8e-1 / 1.8e-1 / 3.6e-1 / 6.0e-1 at
 #: 1.0 / 1.2 / 1.3 / 1.5 / 2.0 (14x at 1.5). "poisson-shared" takes the Poisson value (not measured apart).
 TEZ_DISK_H_RATIO_MAX = {"yee": 1.5, "jittered": 1.5, "poisson": 1.3, "poisson-shared": 1.3}
+
+
+#: Largest ``h / dr`` validated for the TMz cavity (:func:`run_cavity`, couplings other than "mimetic"). Measured
+#: (error over the lattice's at the default support, the same spacing): lattice / jittered / Poisson at h/dr 2.0
+#: 3.4x / 3.0x / 3.7x at 10 spacings per radius, 6.8x / 6.7x / 7.6x at 20, 6.3x / 7.1x / 19x at 40; at 10 spacings
+#: per radius 5.6x / 5.5x / 5.1x at 2.5 and 25x / 24x / 20x at 4.0; Poisson (and joint) at 40: 8.5x / 7.4x / 11x
+#: at h/dr 1.2 / 1.3 / 1.5.
+CAVITY_H_RATIO_MAX = {"yee": 2.0, "staggered": 2.0, "jittered": 2.0, "poisson": 1.3, "poisson-joint": 1.3,
+                      "poisson-balanced": 1.3}
+#: Finest Poisson disk (spacings per radius) validated for the cavity with the "sbp", "adjoint" and "direct"
+#: couplings: "sbp" is not convergent on independently sampled sets (error over the lattice's 2.8x / 8.5x / 16x
+#: at 10 / 40 / 80 spacings per radius: 3.4e-2, 7.0e-3, 5.2e-3 against 1.2e-2, 8.2e-4, 3.3e-4).
+CAVITY_POISSON_N_RADIAL_MAX = 40
+
+
+def check_cavity_support(layout: str, n_radial: int, h_ratio: float | None) -> None:
+    """Refuse (ValueError) a TMz cavity outside :data:`CAVITY_H_RATIO_MAX` / :data:`CAVITY_POISSON_N_RADIAL_MAX`."""
+    top = CAVITY_H_RATIO_MAX[layout]
+    if h_ratio is not None and h_ratio > top * (1 + 1e-9):
+        raise ValueError(f"h_ratio = {h_ratio:.3g} is outside the validated range of the cavity on layout {layout!r} "
+                         f"(h_ratio <= {top}: beyond it the error exceeds 10x the lattice's); use h_ratio <= {top}, "
+                         f"coupling='mimetic', or support_check=False to run anyway")
+    if layout.startswith("poisson") and n_radial > CAVITY_POISSON_N_RADIAL_MAX:
+        raise ValueError(f"n_radial = {n_radial} is outside the validated range of the cavity on layout {layout!r} "
+                         f"(n_radial <= {CAVITY_POISSON_N_RADIAL_MAX}: the 'sbp' coupling is not convergent on Poisson "
+                         f"layouts, 16x the lattice at 80); use n_radial <= {CAVITY_POISSON_N_RADIAL_MAX}, "
+                         f"coupling='mimetic' (second order there), or support_check=False to run anyway")
 
 
 # ----------------------------------------------------------------------------- cavity
@@ -120,7 +148,7 @@ def run_cavity(*, r0: float = 0.1, eps_r: float = 10.0, n_radial: int = 40, peri
                h_ratio: float | None = None,
                courant: float = 0.9, coupling: str = DEFAULT_COUPLING, spectrum_periods: float = 0.0, every: int | None = None,
                sbp_layers: int | None = None, seed: int | np.random.Generator | None = 0,
-               progress: bool = False, mimetic_fast: bool = False) -> CavityResult:
+               progress: bool = False, mimetic_fast: bool = False, support_check: bool = True) -> CavityResult:
     """Circular PEC cavity ([2] sec. 4.3), ``Ez(0) = 1 - r^2/r0^2``, compared with the Bessel series.
 
     ``dr = r0 / n_radial``. The error is taken over every E particle after
@@ -132,14 +160,24 @@ def run_cavity(*, r0: float = 0.1, eps_r: float = 10.0, n_radial: int = 40, peri
     keeps converging where a local band stalls; :data:`.operators.SBP_LAYERS`). ``layout`` "jittered" and
     "poisson" are seeded random disks (:func:`.layouts.disk_layout`; "poisson-joint": the Poisson E set with
     its H set relaxed into the E gaps, for the "mimetic" coupling; "poisson-balanced": also H particles added
-    where E outnumbers H, no spurious localised modes measured); ``h_ratio`` defaults to the coupling's.
-    ``mimetic_fast``: as :class:`.TMzSolver` (``coupling="mimetic"`` only).
+    where E outnumbers H, no spurious localised modes measured; validated with the "mimetic" coupling only,
+    refused with the others: "sbp" measures 2.2e-2 at 40 spacings per radius, 27x the lattice's 8.2e-4);
+    ``h_ratio`` defaults to the coupling's.
+    ``mimetic_fast``: as :class:`.TMzSolver` (``coupling="mimetic"`` only). ``support_check``: refuse, with the
+    couplings other than "mimetic", a support or a Poisson resolution outside :data:`CAVITY_H_RATIO_MAX` and
+    :data:`CAVITY_POISSON_N_RADIAL_MAX` (:func:`check_cavity_support`).
     """
     every = check_every(every)
     r0 = check_positive("r0", r0)
     eps_r = check_positive("eps_r", eps_r)
     n_radial = check_int("n_radial", n_radial, minimum=4)
     check_in("layout", layout, ("yee", "staggered", "jittered", "poisson", "poisson-joint", "poisson-balanced"))
+    if support_check and coupling != "mimetic":
+        check_cavity_support(layout, n_radial, h_ratio)
+    if layout == "poisson-balanced" and coupling != "mimetic":
+        raise ValueError(f"layout = 'poisson-balanced' is validated with coupling='mimetic' only, got coupling = "
+                         f"{coupling!r} (the 'sbp' cavity on it: 2.2e-2 at 40 spacings per radius, 27x the lattice's "
+                         f"8.2e-4); use coupling='mimetic' or layout 'poisson' / 'poisson-joint'")
     dr = r0 / n_radial
     c = (r0, r0)
     lay = disk_layout(c, r0, dr, kind=layout, seed=seed)
