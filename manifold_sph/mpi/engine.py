@@ -53,6 +53,7 @@ class _Rows:
     def __init__(self, job, comm):
         from petsc4py import PETSc
 
+        from ..allocator import release_freed_memory
         from ..distributed.tiles import TileData
 
         self.comm = comm
@@ -85,6 +86,8 @@ class _Rows:
         self.m = np.concatenate(m_parts) if m_parts else np.zeros(0)
         self.K = PETSc.Mat().createAIJ(size=((nloc, self.n), (nloc, self.n)), csr=(indptr, indices, data), comm=comm)
         self.K.assemble()
+        del indptr, indices, data
+        release_freed_memory()  # the rows' temporaries: back to the system, not kept by malloc
         self.M = self.vec(self.m)
         self.mean_m = comm.tompi4py().allreduce(float(self.m.sum())) / self.n
 
