@@ -7,8 +7,10 @@ the tile cache directory with memory maps. Nothing is assembled on one rank.
 
 The formulations are those of :mod:`manifold_sph.distributed.solve`; results are written
 into ``.npy`` files in the job's work directory, each rank its own rows. Every solve is CG
-preconditioned by GAMG but the geodesic's heat step, a distributed Cholesky (MUMPS): its
-solution decays exponentially away from the sources, below what a residual tolerance resolves.
+preconditioned by GAMG but the geodesic's heat step: its solution decays exponentially away
+from the sources, below what a residual tolerance resolves, so up to the job's
+``geodesic_direct_max_n`` particles it is a distributed Cholesky (MUMPS) and above it the
+bands of :func:`manifold_sph.distributed.solve.band_directions` through CG + GAMG.
 """
 
 from __future__ import annotations
