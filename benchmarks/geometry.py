@@ -20,9 +20,10 @@ Tables (``python benchmarks/geometry.py [--only NAME[,NAME]] [--quick] [--big]``
 ``smooth``
     Noisy samples of the models (vertices plus Gaussian noise of 0.5 spacings per
     coordinate, seed 0): mean distance to the clean mesh before and after, ours (jet,
-    jet with features, flow) and CGAL's ``jet_smooth_point_set`` (k = 24; from the
-    ``cgal`` wheel), and on the rocker-arm the 95th percentile distance of the particles
-    within one spacing of a sharp edge (dihedral angle above 60 degrees), in spacings.
+    jet with features: the default, flow) and CGAL's ``jet_smooth_point_set`` (k = 24; from the
+    ``cgal`` wheel), the clean vertices smoothed the same way (the default: the smoothing's own
+    bias), and on the rocker-arm the 95th percentile distance of the vertices on a sharp edge
+    (dihedral angle above 60 degrees), in spacings.
 ``curvature``
     Model vertices, clean and with 0.3 and 0.9 spacings of noise: Spearman rank correlation of the
     mean curvature (pointwise, ``scale="auto"``, ``scale=r``) with the mesh's cotan mean
@@ -248,8 +249,8 @@ def smooth_table(quick):
         psp = None
         print("(CGAL is not installed: its column is skipped)")
     print("\nSmoothing noisy model vertices (0.5 spacings of noise): mean distance to the clean mesh, in spacings")
-    print(f"{'model':12s} {'noisy':>7s} {'jet':>7s} {'jet+feat':>8s} {'flow':>7s} {'CGAL jet':>8s} | edge p95: "
-          f"{'noisy':>6s} {'jet':>6s} {'jet+feat':>8s} {'CGAL':>6s}")
+    print(f"{'model':12s} {'noisy':>7s} {'jet':>7s} {'jet+feat':>8s} {'flow':>7s} {'CGAL jet':>8s} {'x less':>6s} "
+          f"{'clean':>6s} | edge p95: {'noisy':>6s} {'jet':>6s} {'jet+feat':>8s} {'CGAL':>6s}")
     for name in MODEL_NAMES if not quick else ("homer", "rocker-arm"):
         path = MODELS / f"{name}.obj"
         if not path.exists():
@@ -269,7 +270,8 @@ def smooth_table(quick):
         if psp is not None:
             outs["cgal"] = cgal_jet_smooth(noisy, 24)
         row = f"{name:12s} {dist(noisy).mean():7.3f} {dist(outs['jet']).mean():7.3f} {dist(outs['feat']).mean():8.3f} " \
-              f"{dist(outs['flow']).mean():7.3f} " + (f"{dist(outs['cgal']).mean():8.3f}" if "cgal" in outs else f"{'-':>8s}")
+              f"{dist(outs['flow']).mean():7.3f} " + (f"{dist(outs['cgal']).mean():8.3f}" if "cgal" in outs else f"{'-':>8s}") \
+            + f" {dist(noisy).mean() / dist(outs['feat']).mean():6.2f} {dist(quiet(smooth, U).points).mean():6.3f}"
         if name == "rocker-arm":
             fn = np.cross(U[F[:, 1]] - U[F[:, 0]], U[F[:, 2]] - U[F[:, 0]])
             fn /= np.linalg.norm(fn, axis=1)[:, None]

@@ -400,6 +400,51 @@ def test_smoothing_reduces_noise_and_keeps_sharp_edges():
     assert to_cube(kept.points).mean() < to_cube(cube).mean() / 2
 
 
+
+def thin_torus(n, seed, R=1.0, r=0.1, dense=10.0):
+    """Points on a torus, area-uniform times a density ``1 + dense (1 + cos theta) / 2`` around its axis
+    (eleven times denser on one side), by rejection sampling."""
+    rng = np.random.default_rng(seed)
+    t, p = rng.uniform(0, 2 * np.pi, (2, 40 * n))
+    keep = rng.uniform(0, 1, 40 * n) < (R + r * np.cos(p)) / (R + r) * (1 + dense * (1 + np.cos(t)) / 2) / (1 + dense)
+    t, p = t[keep][:n], p[keep][:n]
+    assert t.size == n
+    return np.stack([(R + r * np.cos(p)) * np.cos(t), (R + r * np.cos(p)) * np.sin(t), r * np.sin(p)], axis=1)
+
+
+def torus_distance(X, R=1.0, r=0.1):
+    return np.abs(np.hypot(np.hypot(X[:, 0], X[:, 1]) - R, X[:, 2]) - r)
+
+
+def test_smoothing_adapts_to_the_sampling_and_to_the_noise():
+    """A coarse, unevenly sampled thin torus (tube radius about 3 spacings): the fits' radius follows the
+    local spacing and the noise level. Measured over seeds 0-3: noisy 0.5 h reduced 3.32x on average
+    (3.20-3.47; fits over a fixed 4 h with residual-scaled robust weights: 3.06x, 3.00-3.15); the clean
+    points end at most 0.013 h from the torus (fixed 4 h: 0.052-0.055 h)."""
+    from scipy.spatial import cKDTree
+
+    reductions = []
+    for seed in range(4):
+        P = thin_torus(2500, seed)
+        h = cKDTree(P).query(P, k=7)[0][:, 1:].mean()
+        noisy = P + 0.5 * h * np.random.default_rng(10 + seed).standard_normal(P.shape)
+        reductions.append(torus_distance(noisy).mean() / torus_distance(geometry.smooth(noisy).points).mean())
+        assert torus_distance(geometry.smooth(P).points).mean() < 0.025 * h  # a clean cloud is barely moved
+    assert np.mean(reductions) > 3.2, reductions
+
+
+def test_smoothing_is_invariant_under_rotation_translation_and_scale():
+    P = thin_torus(1500, 2)
+    noisy = P + 0.02 * np.random.default_rng(3).standard_normal(P.shape)
+    out = geometry.smooth(noisy).points
+    Q, _ = np.linalg.qr(np.random.default_rng(4).standard_normal((3, 3)))
+    shift = np.array([3.0, -1.0, 2.0])
+    for s in (1e-80, 1.0, 1e50):  # translated and scaled: round-off (measured 1.5e-13; the torus's extent is 2.2)
+        assert np.abs(geometry.smooth(s * (noisy + shift)).points / s - shift - out).max() < 1e-11
+    # rotated: the same fits in rotated tangent frames, equal up to their 1e-10 Tikhonov term (measured 9.3e-8)
+    assert np.abs(geometry.smooth(noisy @ Q.T).points @ Q - out).max() < 1e-6
+
+
 # ----------------------------------------------------------------------------- command line
 def test_cli_geometry_commands(tmp_path, capsys):
     import json

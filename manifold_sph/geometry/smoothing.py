@@ -2,26 +2,41 @@
 
 ``method="jet"`` (default)
     Each particle moves along its normal onto the quadric fitted to the points around it
-    (:func:`~manifold_sph.geometry.jets.fit_jets`, Gaussian weights over ``scale``), and
-    the normal is refitted from the quadric's slope; ``iterations`` passes. Noise normal to
-    the surface is averaged over the fit's points, the surface's own shape is kept to the
-    quadric's order (the fit's bias grows like ``curvature' * scale^3``), and particles do not
-    drift along the surface. With ``features=True`` (the default) each fit is reweighted twice
-    with Cauchy weights of its residuals, so that at a sharp edge or corner it settles on the
-    particle's own face instead of rounding the edge, and across a thin part on its own sheet
-    (bilateral in the residual; measured on noisy model vertices: cheburashka's ears 0.19
-    spacings from the clean mesh against 0.34 without).
+    (:func:`jet_heights`, Gaussian weights ``exp(-(2 d / r)^2)`` within the radius ``r``), and
+    the normal is refitted from the quadric's slope; ``iterations`` passes. Noise normal to the
+    surface is averaged over the fit's points, the surface's own shape is kept to the
+    quadric's order, and particles do not drift along the surface.
+
+    *Radius.* With ``scale=None`` each particle fits over ``r_i = JET_WIDTH * s_i``, ``s_i`` the
+    geometric mean, over its 24 nearest points, of their distance to their own 24th nearest
+    point: every fit holds about the same number of points, so densely sampled parts (where
+    a model's detail is) get narrow fits and sparse flat parts wide ones. The radii shrink by
+    ``min(1, (sigma / (NOISE_REF h))^(1/3))`` on a cloud whose noise ``sigma`` (below) is under
+    ``NOISE_REF`` mean spacings ``h``: a quadric's misfit grows with its radius and the noise to
+    average falls, so a clean cloud is fitted narrowly and barely moves. A given ``scale`` is
+    the radius of every fit.
+
+    *Noise level.* Each pass first fits plain quadrics; ``sigma`` is the median of their
+    residuals' weighted RMS (at least ``0.02 h``): the noise normal to the surface on a noisy
+    cloud, the quadrics' misfit on a clean one.
+
+    *Features* (``features=True``, the default): the fit's weights are bilateral in the normal
+    direction, ``exp(-(z / (2 sigma))^2 / 2)`` of the height ``z`` of each point above the
+    particle's tangent plane, then twice ``exp(-(e / (2 sigma))^2 / 2)`` of the previous fit's
+    residuals ``e``. A point more than a few noise widths off the particle's own sheet (across
+    a sharp edge, the other side of a thin part) drops out of the fit, so edges stay sharp and
+    thin parts keep their thickness.
 ``method="flow"``
     Implicit mean-curvature flow on the stable Laplacian of a
     :class:`~manifold_sph.Surface`: ``Y = (M + tau K)^-1 M X`` with ``tau = scale^2 / 4``,
     its displacement ``d = (Y - X) . n`` along the normals (no tangential drift), less its own
     smoothed part ``(M + tau K)^-1 M d`` (the flow's shrinking of curved parts, about
     ``2 tau / R`` on a sphere of radius ``R``, is smooth; the noise is not: a Taubin-style
-    correction); ``iterations`` steps with the operator factorised once.
+    correction); ``iterations`` steps with the operator factorised once. ``scale`` defaults to ``2 h``.
 
-The spacing ``h`` is the mean distance to the 6 nearest points; ``scale`` defaults to
-``4 h`` (jet) or ``2 h`` (flow). Measured in ``benchmarks/geometry.py`` (mean distance to the
-clean mesh of noisy samples of the test models, beside CGAL's ``jet_smooth_point_set``).
+The spacing ``h`` is the mean distance to the 6 nearest points. Measured in
+``benchmarks/geometry.py`` (mean distance to the clean mesh of noisy samples of the test
+models, beside CGAL's ``jet_smooth_point_set``) and in docs/geometry.md.
 """
 
 from __future__ import annotations
@@ -36,16 +51,111 @@ from scipy.spatial import cKDTree
 from .._validation import check_bool, check_in, check_int, check_positive
 from ..exceptions import ManifoldSPHWarning
 from .common import SCALE_RANGE, as_cloud_points, check_scale, is_surface
-from .jets import fit_jets, mean_spacing, tangent_basis
+from .jets import mean_spacing, tangent_basis
 from .wavefront import pca_normals
 
 if TYPE_CHECKING:
     from ..pointcloud import PointCloud
     from ..surface import Surface
 
-__all__ = ["SMOOTH_METHODS", "smooth"]
+__all__ = ["JET_WIDTH", "NOISE_REF", "SMOOTH_METHODS", "jet_heights", "local_spacing", "smooth"]
 
 SMOOTH_METHODS = ("jet", "flow")
+#: Fit radius of ``smooth(scale=None)`` in units of the local spacing :func:`local_spacing`.
+JET_WIDTH = 1.7
+#: Noise level (in mean spacings) below which ``smooth(scale=None)`` narrows its fits.
+NOISE_REF = 0.4
+#: Nearest points that set the local spacing.
+_LOCAL_K = 24
+_ROWS = 2048  # particles a chunk
+_BILATERAL = 2.0  # width of the bilateral weights, in noise levels
+_PASSES = 2  # reweighted refits after the bilateral one
+
+
+def local_spacing(points: np.ndarray, tree: cKDTree | None = None, k: int = _LOCAL_K) -> np.ndarray:
+    """Local sampling length of each particle, shape (N,).
+
+    The geometric mean, over the particle's ``k`` nearest points (itself included), of their
+    distance to their own ``k``-th nearest point: about ``sqrt(k / (pi rho))`` for a surface
+    density ``rho``, averaged so that noise in the positions barely moves it.
+    """
+    tree = cKDTree(points) if tree is None else tree
+    k = min(int(k), points.shape[0] - 1)
+    d, idx = tree.query(points, k=k + 1, workers=-1)
+    tiny = np.finfo(float).tiny
+    return np.exp(np.log(np.maximum(d[:, -1], tiny))[idx].mean(axis=1))
+
+
+def jet_heights(
+    points: np.ndarray,
+    normals: np.ndarray,
+    radius: np.ndarray,
+    *,
+    count: int,
+    sigma: float | None = None,
+    tree: cKDTree | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Quadric fits of the heights of each particle's neighbours, in its frame ``(u, v, n)``.
+
+    The heights ``z = n_i . (x_j - x_i)`` of the ``count`` nearest points within ``radius[i]``
+    are fitted by weighted least squares as ``c0 + c1 y1 + c2 y2 + (c3 y1^2 + 2 c4 y1 y2 + c5 y2^2) / 2``
+    in the tangent coordinates ``y`` divided by the radius, with weights
+    ``exp(-(2 |x_j - x_i| / radius[i])^2)``; with ``sigma`` given, times bilateral weights in the
+    height and then in the residuals (module notes).
+
+    Parameters
+    ----------
+    points, normals : ndarray, shape (N, 3)
+        Unit normals.
+    radius : ndarray, shape (N,)
+        Fit radius of each particle.
+    count : int
+        Nearest points searched per particle.
+    sigma : float, optional
+        Noise level for the bilateral weights (plain fits without).
+    tree : cKDTree, optional
+        Of ``points``.
+
+    Returns
+    -------
+    height : ndarray, shape (N,)
+        ``c0``, the fitted surface's height above the particle.
+    slope : ndarray, shape (N, 2)
+        ``(c1, c2)`` per unit length, along ``u`` and ``v`` of :func:`~manifold_sph.geometry.jets.tangent_basis`.
+    rms : ndarray, shape (N,)
+        Weighted RMS of the fit's residuals (a length).
+    """
+    n = points.shape[0]
+    tree = cKDTree(points) if tree is None else tree
+    count = min(int(count), n)
+    u, v = tangent_basis(normals)
+    height, rms, slope = np.zeros(n), np.zeros(n), np.zeros((n, 2))
+    chunk = max(1, min(_ROWS, 2_000_000 // count))  # (chunk, count, 6) arrays of at most 100 MB
+    for lo in range(0, n, chunk):
+        rows = np.arange(lo, min(n, lo + chunk))
+        dist, idx = tree.query(points[rows], k=count, workers=-1)
+        dist, idx = dist.reshape(len(rows), count), idx.reshape(len(rows), count)
+        r = radius[rows][:, None]
+        off = points[idx] - points[rows][:, None, :]
+        y1 = np.einsum("rkd,rd->rk", off, u[rows]) / r
+        y2 = np.einsum("rkd,rd->rk", off, v[rows]) / r
+        z = np.einsum("rkd,rd->rk", off, normals[rows])
+        A = np.stack([np.ones_like(y1), y1, y2, 0.5 * y1 * y1, y1 * y2, 0.5 * y2 * y2], axis=-1)
+        w0 = np.exp(-((2.0 * dist / r) ** 2)) * (dist <= r)
+        res = z  # the bilateral weights of the first fit: the heights above the particle's tangent plane
+        for it in range(1 + (0 if sigma is None else _PASSES)):
+            w = w0 if sigma is None else w0 * np.exp(-0.5 * (res / (_BILATERAL * sigma)) ** 2)
+            AtW = A * w[..., None]
+            G = np.einsum("rki,rkj->rij", AtW, A)
+            G += (1e-10 * np.trace(G, axis1=1, axis2=2) + 1e-300)[:, None, None] * np.eye(6)
+            c = np.linalg.solve(G, np.einsum("rki,rk->ri", AtW, z)[..., None])[..., 0]
+            res = z - np.einsum("rki,ri->rk", A, c)
+        sw = w.sum(axis=1)
+        ok = (sw > 1e-6) & np.all(np.isfinite(c), axis=1)  # a fit with (almost) no weight leaves its particle in place
+        height[rows] = np.where(ok, c[:, 0], 0.0)
+        slope[rows] = np.where(ok[:, None], c[:, 1:3] / r, 0.0)
+        rms[rows] = np.where(ok, np.sqrt(np.einsum("rk,rk->r", w, res * res) / np.maximum(sw, 1e-300)), 0.0)
+    return height, slope, rms
 
 
 def _orient(new: np.ndarray, like: np.ndarray | None) -> np.ndarray:
@@ -69,12 +179,15 @@ def smooth(
     cloud : Surface, PointCloud or array_like of shape (N, 3)
     method : {"jet", "flow"}
     scale : float, optional
-        Length over which the surface is fitted (``"jet"``) or diffused (``"flow"``):
-        noise shorter than it is removed. Default ``4 h`` (jet), ``2 h`` (flow), ``h`` the mean spacing.
+        Length over which the surface is fitted (``"jet"``: the radius of every fit) or diffused
+        (``"flow"``): noise shorter than it is removed. Default: ``"jet"`` a radius per particle
+        from its local spacing and the cloud's noise level (module notes), ``"flow"`` ``2 h``,
+        ``h`` the mean spacing.
     iterations : int
         Passes (``"jet"``) or implicit steps (``"flow"``).
     features : bool
-        ``"jet"``: robust fits that keep sharp edges, corners and thin parts (default); ignored by ``"flow"``.
+        ``"jet"``: fits bilateral in the normal direction, which keep sharp edges, corners and thin
+        parts (default); ignored by ``"flow"``.
 
     Returns
     -------
@@ -111,17 +224,34 @@ def smooth(
     if method == "flow":
         out, nrm = _flow(cloud if is_surface(cloud) else None, P, normals, (2.0 * h if scale is None else scale / L), iterations)
     else:
-        r = 4.0 * h if scale is None else scale / L
-        nrm = normals if normals is not None else pca_normals(P, tree.query(P, k=min(16, P.shape[0]), workers=-1)[1])
-        out = P.copy()
-        for _ in range(iterations):
-            u, v = tangent_basis(nrm)
-            jets = fit_jets(out, nrm, r, u=u, v=v, spacing=h, robust=2 if features else 0)
-            c = jets.coef
-            out = out + c[:, :1] * nrm
-            new = nrm - c[:, 1:2] * u - c[:, 2:3] * v
-            nrm = _orient(new / np.linalg.norm(new, axis=1)[:, None], nrm)
+        out, nrm = _jets(P, normals, tree, h, None if scale is None else scale / L, iterations, features)
     return PointCloud(out * L + centre, _orient(nrm, normals) if normals is not None else None)
+
+
+def _jets(P, normals, tree, h, scale, iterations, features):
+    """``method="jet"`` on the cloud ``P`` of unit extent (module notes): moved points and normals."""
+    n = P.shape[0]
+    nrm = normals if normals is not None else pca_normals(P, tree.query(P, k=min(16, n), workers=-1)[1])
+    if scale is None:
+        radius = JET_WIDTH * local_spacing(P, tree)
+        count = int(min(n, np.ceil(1.6 * (_LOCAL_K + 1) * JET_WIDTH**2)))
+    else:
+        radius = np.full(n, scale)
+        count = int(min(n, max(12, np.ceil(1.2 * np.pi * scale * scale / (0.9 * h * h)))))
+    out = P.copy()
+    for it in range(iterations):
+        t = cKDTree(out)
+        sigma = None
+        if features or (it == 0 and scale is None):
+            sigma = max(float(np.median(jet_heights(out, nrm, radius, count=count, tree=t)[2])), 0.02 * h)
+            if it == 0 and scale is None:
+                radius = radius * min(1.0, (sigma / (NOISE_REF * h)) ** (1.0 / 3.0))
+        d, g, _ = jet_heights(out, nrm, radius, count=count, sigma=sigma if features else None, tree=t)
+        u, v = tangent_basis(nrm)
+        out = out + d[:, None] * nrm
+        new = nrm - g[:, :1] * u - g[:, 1:2] * v
+        nrm = _orient(new / np.linalg.norm(new, axis=1)[:, None], nrm)
+    return out, nrm
 
 
 def _flow(surface, P, normals, scale, iterations):
