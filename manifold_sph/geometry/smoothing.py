@@ -15,8 +15,7 @@
     ``NOISE_REF`` mean spacings ``h``: a quadric's misfit grows with its radius and the noise to
     average falls, so a clean cloud is fitted narrowly and barely moves. A given ``scale`` is
     the radius of every fit; with ``features=False`` it defaults to ``4 h`` (plain fits over
-    the narrow radii of densely sampled sharp edges round them: rocker-arm 0.25 spacings from
-    its mesh against 0.15 over ``4 h``).
+    the narrow radii of densely sampled sharp edges round them; measured in docs/geometry.md).
 
     *Noise level.* Each pass first fits plain quadrics; ``sigma`` is the median of their
     residuals' weighted RMS (at least ``0.02 h``): the noise normal to the surface on a noisy
