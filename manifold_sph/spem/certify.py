@@ -71,12 +71,14 @@ CERTIFIED_COUPLINGS = ("sbp", "adjoint")
 PML_REFLECTION_LIMIT_DB = -40.0
 
 #: Largest interior consistency residual (:meth:`.TMzSolver.interior_consistency_residual`) of a certified
-#: run. Measured on a 0.1 m PEC square at 20 spacings: round-off for "sbp", "mimetic" and "direct" on every
-#: layout (at most 1.4e-8, Poisson "sbp") and for "adjoint" on the lattices (2.2e-14); "adjoint" 5.0 on the
-#: jittered layout and 1.9 on the Poisson one, whose cavities measure 0.57 and 0.17 (47x and 14x the
-#: lattice's 1.2e-2). Next to walls "adjoint" is O(1) on the lattice too (7.0 on the circular cavity) and
-#: accurate there (9.0e-3), so the rows within two supports of a wall are not part of this certificate.
-CONSISTENCY_LIMIT = 1e-6
+#: run. Measured: round-off for "sbp", "mimetic" and "direct" on the square's layouts (at most 1.4e-8, a 0.1 m
+#: Poisson square at 20 spacings) and for "adjoint" on the lattices (2.2e-14); "sbp" on the staggered disk
+#: 1.4e-2 / 2.8e-2 / 8.3e-2 at 10 / 20 / 40 spacings per radius (h/dr 0.7; 4.6e-2 / 5.9e-2 / 8.0e-2 at 0.6) with
+#: errors 0.57-2.5x the Yee lattice's; "adjoint" 4.45 / 2.0 / 1.71 / 1.62 on the jittered / Poisson / joint /
+#: balanced disks, whose cavities measure 47x / 14x / 12x / 11x. The limit sits between the two groups. Next to
+#: walls "adjoint" is O(1) on the lattice too (7.0 on the circular cavity) and accurate there (9.0e-3), so the
+#: rows within two supports of a wall are not part of this certificate.
+CONSISTENCY_LIMIT = 0.5
 
 #: Largest ``|W(end) / W(0) - 1|`` of the discrete energy of a lossless, undriven certified run: leap-frog
 #: conserves it to round-off with the energy-conserving couplings (4.4e-16 over one period of the cavity).
