@@ -8,6 +8,7 @@ pytest.importorskip("distributed")
 
 from manifold_sph import Surface, pde  # noqa: E402
 from manifold_sph.distributed import TileBuildError, TiledSurface  # noqa: E402
+from manifold_sph.exceptions import ManifoldSPHWarning
 from manifold_sph.reference import shapes
 
 RTOL = 1e-12
@@ -411,3 +412,37 @@ def test_mpi_engine_banded_geodesic(monkeypatch):
     for d in (loc, got):
         assert np.linalg.norm(d - exact) / np.linalg.norm(exact) < 1.1 * e_direct
     assert rel(got, loc) < 1e-4
+
+
+def _two_spheres():
+    a, b = shapes.sphere(1500), shapes.sphere(1500)
+    return np.r_[a.points, b.points + [5.0, 0.0, 0.0]], np.r_[a.normals, b.normals]
+
+
+@pytest.mark.parametrize("bands", [False, True])
+def test_geodesic_on_a_cloud_of_two_pieces(monkeypatch, bands):
+    """The piece without a source gets inf and a warning (as GeodesicSolver); the other piece its distances."""
+    import manifold_sph.distributed.solve as S
+
+    if bands:
+        monkeypatch.setattr(S, "GEODESIC_DIRECT_MAX_N", 10)
+    P, N = _two_spheres()
+    with TiledSurface(P, N, tile_points=1000, scheduler="synchronous", keep=("stable", "derivatives")) as ts:
+        with pytest.warns(ManifoldSPHWarning, match="1500 particle"):
+            d = ts.gather(ts.geodesic_distance(0, engine="local"))
+        assert ts.last_solve["unreached"] == 1500
+    assert np.all(np.isinf(d[1500:]))
+    exact = np.arccos(np.clip(P[:1500] @ P[0], -1, 1))
+    assert np.linalg.norm(d[:1500] - exact) / np.linalg.norm(exact) < 1e-2
+
+
+@mpi_engine
+def test_mpi_engine_geodesic_on_a_cloud_of_two_pieces():
+    P, N = _two_spheres()
+    with TiledSurface(P, N, tile_points=1000, scheduler="synchronous", keep=("stable", "derivatives")) as ts:
+        with pytest.warns(ManifoldSPHWarning):
+            loc = ts.gather(ts.geodesic_distance(0, engine="local"))
+        with pytest.warns(ManifoldSPHWarning, match="1500 particle"):
+            got = ts.gather(ts.geodesic_distance(0, engine="mpi", ranks=2))
+        assert ts.last_solve["unreached"] == 1500
+    assert np.all(np.isinf(got[1500:])) and rel(got[:1500], loc[:1500]) < 1e-8

@@ -276,7 +276,8 @@ class TiledOperators:
 
         The formulation of :class:`manifold_sph.geometry.GeodesicSolver` (module notes of
         :mod:`manifold_sph.distributed.solve`); needs ``keep`` "stable" and "derivatives".
-        Returns a Dask array (N,) in tile order.
+        Returns a Dask array (N,) in tile order; ``inf`` in the pieces of the cloud that hold no
+        source (with a warning; ``last_solve["unreached"]`` counts them).
         """
         src = np.atleast_1d(np.asarray(sources))
         if src.size == 0 or not np.issubdtype(src.dtype, np.integer) or src.ndim != 1:
@@ -285,7 +286,16 @@ class TiledOperators:
             raise ValueError(f"sources must lie in [0, {self.n_points}), got {src[(src < 0) | (src >= self.n_points)][:5].tolist()}")
         where = np.empty(self.n_points, dtype=np.int64)
         where[self.order] = np.arange(self.n_points)
-        return self._as_dask(self._global("geodesic", engine, ranks, sources=np.unique(where[src])))
+        d = self._global("geodesic", engine, ranks, sources=np.unique(where[src]))
+        missing = int(self.last_solve.get("unreached", 0))
+        if missing:
+            import warnings
+
+            from ..exceptions import ManifoldSPHWarning
+
+            warnings.warn(f"{missing} particle(s) lie in pieces of the cloud that hold no source: their distance is inf",
+                          ManifoldSPHWarning, stacklevel=2)
+        return self._as_dask(d)
 
     def eigs(self, k: int = 50, *, sigma: float | None = None, engine: str = "auto",
              ranks: int = 2) -> tuple[np.ndarray, DaskArray]:

@@ -56,7 +56,7 @@ from ..exceptions import ManifoldSPHWarning
 if TYPE_CHECKING:
     from .operators import TiledOperators
 
-__all__ = ["BAND_FLOOR", "BAND_SHELL", "ENGINES", "GEODESIC_DIRECT_MAX_N", "GEODESIC_T", "SOURCE_RADIUS", "band_directions",
+__all__ = ["BAND_FLOOR", "BAND_SHELL", "DIRECT_FLOOR", "ENGINES", "GEODESIC_DIRECT_MAX_N", "GEODESIC_T", "SOURCE_RADIUS", "band_directions",
            "engine_available", "geodesic_from_matrices", "run"]
 
 ENGINES = ("auto", "mpi", "local")
@@ -71,6 +71,9 @@ BAND_FLOOR = 1e-8
 BAND_SHELL = 1e3
 #: Relative residual of each band's CG solve.
 BAND_RTOL = 1e-12
+#: The floor of a direct (Cholesky) heat step's bands: its entries keep their digits down to float64's range, so one
+#: band covers what does not underflow (more bands only on very elongated clouds).
+DIRECT_FLOOR = 1e-280
 
 
 def engine_available() -> str | None:
@@ -177,28 +180,31 @@ def geodesic_from_matrices(K: sp.csr_matrix, m: np.ndarray, dx: sp.csr_matrix, d
         return -unit_rows((dx @ u)[:, None] * U + (dy @ u)[:, None] * V)
 
     if n <= GEODESIC_DIRECT_MAX_N and cholesky_available():
-        heat = spd_solver(A, method="cholesky")
-        X, heat_its = directions(heat.solve(rhs)), [0]
+        heat, floor = spd_solver(A, method="cholesky"), DIRECT_FLOOR
     else:
-        heat = spd_solver(A, method="amg", rtol=BAND_RTOL)
-        X, heat_its = band_directions(heat, rhs, directions)
+        heat, floor = spd_solver(A, method="amg", rtol=BAND_RTOL), BAND_FLOOR
+    X, heat_its, reached = band_directions(heat, rhs, directions, floor=floor)
     b = geodesic_rhs(K, pts, X)
     held, r = held_particles(pts, src, m)
-    free = ~held
+    held &= reached  # a particle of another piece near a source is not reached
+    free = reached & ~held
     Kf = K[free]
     poisson = spd_solver(Kf[:, free])
-    phi = r.copy()
+    phi = np.where(reached, r, np.inf)  # the pieces holding no source: inf
     phi[free] = poisson.solve(b[free] - Kf[:, held] @ r[held])
-    return phi, {"iterations": heat_its + [poisson.info.iterations], "method": f"{heat.method} heat step, {poisson.method}"}
+    return phi, {"iterations": heat_its + [poisson.info.iterations], "method": f"{heat.method} heat step, {poisson.method}",
+                 "unreached": int(n - np.count_nonzero(reached))}
 
 
-def band_directions(heat: Any, rhs: np.ndarray, directions: Any,
-                    max_bands: int = 10_000) -> tuple[np.ndarray, list[int]]:
-    """The heat method's unit directions ``X`` (N, 3) from an iterative heat solver, band by band (module notes).
+def band_directions(heat: Any, rhs: np.ndarray, directions: Any, *, floor: float = BAND_FLOOR,
+                    max_bands: int = 10_000) -> tuple[np.ndarray, list[int], np.ndarray]:
+    """The heat method's unit directions ``X`` (N, 3), band by band (module notes).
 
     ``heat.solve(b)`` solves the heat step (its ``info.iterations`` read after each solve);
-    ``directions(u)`` gives ``-grad u / |grad u|`` (N, 3). Returns ``X`` and the iterations of
-    every band's solve. Particles the heat never reaches (another connected piece) keep ``X = 0``.
+    ``directions(u)`` gives ``-grad u / |grad u|`` (N, 3); a band keeps the values above
+    ``floor`` times its largest (:data:`BAND_FLOOR` for an iterative solve, :data:`DIRECT_FLOOR`
+    for a direct one). Returns ``X``, the iterations of every band's solve and the mask (N,) of
+    the particles reached: those the heat never reaches (pieces without a source) keep ``X = 0``.
     """
     n = rhs.size
     X = np.zeros((n, 3))
@@ -210,19 +216,19 @@ def band_directions(heat: Any, rhs: np.ndarray, directions: Any,
         top = float(np.abs(w).max())
         if not top > 0:
             break
-        ok = (w > BAND_FLOOR * top) & ~done
+        ok = (w > floor * top) & ~done
         if not ok.any():
             break
         X[ok] = directions(w)[ok]
         done |= ok
-        shell = ok & (w <= BAND_SHELL * BAND_FLOOR * top)
+        shell = ok & (w <= BAND_SHELL * floor * top)
         if done.all() or not shell.any():
             break
         b = np.zeros(n)
         b[shell] = w[shell] / w[shell].max()
         w = heat.solve(b)
         its.append(int(heat.info.iterations))
-    return X, its
+    return X, its, done
 
 
 def _local_eigs(ts, k, sigma):

@@ -92,6 +92,7 @@ class _Rows:
         release_freed_memory()  # the rows' temporaries: back to the system, not kept by malloc
         self.M = self.vec(self.m)
         self.mean_m = comm.tompi4py().allreduce(float(self.m.sum())) / self.n
+        self.unreached = 0  # the geodesic: particles in pieces that hold no source
 
     def release_tiles(self) -> None:
         """Drop the tiles' memory maps (their pages count in the rank's resident memory while mapped)."""
@@ -195,7 +196,7 @@ def _poisson(job, R, its, secs):
 def _geodesic(job, R, its, secs):
     from scipy.spatial import cKDTree
 
-    from ..distributed.solve import BAND_FLOOR, BAND_SHELL, GEODESIC_DIRECT_MAX_N, GEODESIC_T, SOURCE_RADIUS
+    from ..distributed.solve import BAND_FLOOR, BAND_SHELL, DIRECT_FLOOR, GEODESIC_DIRECT_MAX_N, GEODESIC_T, SOURCE_RADIUS
     from ..frames import unit_rows
 
     src = np.asarray(_load(job, "sources"), dtype=np.int64)
@@ -219,32 +220,32 @@ def _geodesic(job, R, its, secs):
     # u decays like exp(-d / sqrt(t)) away from the sources, far below CG's residual tolerance, and X needs
     # its far field: a Cholesky factor (MUMPS) keeps every entry's digits; above the size where the local
     # engine factorises, the same bands as its (manifold_sph.distributed.solve.band_directions) with CG + GAMG
-    if R.n <= int(job.get("geodesic_direct_max_n", GEODESIC_DIRECT_MAX_N)):
-        R.solve(R.cholesky(A), R.vec(rhs), x, its, secs)
-        X_own = own_directions(R.allgather(x.getArray()))
-    else:
-        from mpi4py import MPI
+    from mpi4py import MPI
 
-        mpi = R.comm.tompi4py()
-        ksp = R.ksp(A)
-        X_own, done = np.zeros((nloc, 3)), np.zeros(nloc, dtype=bool)
-        b = R.vec(rhs)
-        while True:
-            R.solve(ksp, b, x, its, secs)
-            w = x.getArray().copy()
-            top = mpi.allreduce(float(np.abs(w).max()) if nloc else 0.0, op=MPI.MAX)
-            if not top > 0:
-                break
-            ok = (w > BAND_FLOOR * top) & ~done
-            if not mpi.allreduce(bool(ok.any()), op=MPI.LOR):
-                break
-            X_own[ok] = own_directions(R.allgather(w))[ok]
-            done |= ok
-            shell = ok & (w <= BAND_SHELL * BAND_FLOOR * top)
-            if mpi.allreduce(bool(done.all()), op=MPI.LAND) or not mpi.allreduce(bool(shell.any()), op=MPI.LOR):
-                break
-            smax = mpi.allreduce(float(w[shell].max()) if shell.any() else 0.0, op=MPI.MAX)
-            b.getArray()[:] = np.where(shell, w / smax, 0.0)
+    mpi = R.comm.tompi4py()
+    if R.n <= int(job.get("geodesic_direct_max_n", GEODESIC_DIRECT_MAX_N)):
+        ksp, floor = R.cholesky(A), DIRECT_FLOOR
+    else:
+        ksp, floor = R.ksp(A), BAND_FLOOR
+    X_own, done = np.zeros((nloc, 3)), np.zeros(nloc, dtype=bool)
+    b = R.vec(rhs)
+    while True:
+        R.solve(ksp, b, x, its, secs)
+        w = x.getArray().copy()
+        top = mpi.allreduce(float(np.abs(w).max()) if nloc else 0.0, op=MPI.MAX)
+        if not top > 0:
+            break
+        ok = (w > floor * top) & ~done
+        if not mpi.allreduce(bool(ok.any()), op=MPI.LOR):
+            break
+        X_own[ok] = own_directions(R.allgather(w))[ok]
+        done |= ok
+        shell = ok & (w <= BAND_SHELL * floor * top)
+        if mpi.allreduce(bool(done.all()), op=MPI.LAND) or not mpi.allreduce(bool(shell.any()), op=MPI.LOR):
+            break
+        smax = mpi.allreduce(float(w[shell].max()) if shell.any() else 0.0, op=MPI.MAX)
+        b.getArray()[:] = np.where(shell, w / smax, 0.0)
+    R.unreached = int(mpi.allreduce(int(np.count_nonzero(~done)), op=MPI.SUM))
     X = R.allgather(X_own)
     b_parts = []
     for d in R.tiles:  # sum_j w_ij (X_i + X_j) / 2 . (x_i - x_j), the own rows of K
@@ -259,15 +260,19 @@ def _geodesic(job, R, its, secs):
     r = cKDTree(np.asarray(pts[np.sort(src)])).query(own)[0]
     held = r <= SOURCE_RADIUS * np.sqrt(R.mean_m)
     held[mine - R.lo] = True
+    held &= done  # a particle of another piece near a source is not reached
     from petsc4py import PETSc
 
-    rows = (np.flatnonzero(held) + R.lo).astype(PETSc.IntType)
+    pinned = held | ~done  # the pieces holding no source: pinned at 0, then inf
+    rows = (np.flatnonzero(pinned) + R.lo).astype(PETSc.IntType)
     xv, bv = R.vec(np.where(held, r, 0.0)), R.vec(b)
     K = R.K.duplicate(copy=True)
     K.zeroRowsColumns(rows, diag=1.0, x=xv, b=bv)
     phi = R.vec()
     R.solve(R.ksp(K), bv, phi, its, secs)
-    return phi.getArray().copy()
+    out = phi.getArray().copy()
+    out[~done] = np.inf
+    return out
 
 
 def _eigs(job, R, its, secs):
@@ -347,6 +352,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     if comm.getRank() == 0:
         info = {"iterations": its, "solve_seconds": secs, "read_seconds": t_read, "peak_gb_per_rank": max(peak),
                 "method": METHODS[problem]}
+        if problem == "geodesic":
+            info["unreached"] = R.unreached
         with open(os.path.join(job["work"], "info.json"), "w") as f:
             json.dump(info, f)
     comm.barrier()
