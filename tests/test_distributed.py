@@ -446,3 +446,15 @@ def test_mpi_engine_geodesic_on_a_cloud_of_two_pieces():
             got = ts.gather(ts.geodesic_distance(0, engine="mpi", ranks=2))
         assert ts.last_solve["unreached"] == 1500
     assert np.all(np.isinf(got[1500:])) and rel(got[:1500], loc[:1500]) < 1e-8
+
+
+def test_local_poisson_on_a_cloud_of_two_pieces():
+    """Zero mean on every piece, one value held a piece: -Lap u = z on two unit spheres gives u = z / 2 on each
+    (the whole cloud's single constant null space made the factorisation fail)."""
+    P, N = _two_spheres()
+    with TiledSurface(P, N, tile_points=1000, scheduler="synchronous", keep=("stable",)) as ts:
+        u = ts.gather(ts.poisson(P[:, 2], engine="local"))
+        assert ts.last_solve["pieces"] == 2
+    for sl in (slice(0, 1500), slice(1500, 3000)):
+        assert abs(u[sl].mean()) < 1e-2 * np.abs(u[sl]).max()
+        assert rel(u[sl], P[sl, 2] / 2) < 2e-2

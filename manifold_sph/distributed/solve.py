@@ -20,7 +20,8 @@ and, for geodesics, of the tangent-plane derivatives. Two engines solve with the
 Formulations (the same on both engines, so their results agree to the solver tolerance):
 
 - implicit Euler heat: ``(M + a dt K) u' = M u``;
-- Poisson ``-Lap u = f`` on a closed surface: ``K u = M (f - mean_M f)``, the solution of zero mean;
+- Poisson ``-Lap u = f`` on a closed surface: ``K u = M (f - mean_M f)``, the solution of zero mean
+  (on a cloud of several pieces, the means are each piece's, on the local engine);
 - geodesic distance (heat method, as :class:`manifold_sph.geometry.GeodesicSolver`):
   ``(M + t K) u = e_s`` with ``t = 4 mean(M)``, ``X = -grad u / |grad u|``, ``b_i = sum_j w_ij
   (X_i + X_j) / 2 . (x_i - x_j)``, then ``K phi = b`` with ``phi`` held at the Euclidean
@@ -121,17 +122,21 @@ def _local_heat(ts, u, a_dt, steps):
 
 
 def _local_poisson(ts, f):
+    from scipy.sparse.csgraph import connected_components
+
     from ..solvers import spd_solver
 
     K, m = assemble(ts, "K"), tile_vector(ts, "M")
-    b = m * (f - np.dot(m, f) / m.sum())
+    pieces, labels = connected_components(K, directed=False)
+    area = np.bincount(labels, weights=m, minlength=pieces)
+    b = m * (f - (np.bincount(labels, weights=m * f, minlength=pieces) / area)[labels])  # zero mean on every piece
     free = np.ones(m.size, dtype=bool)
-    free[0] = False  # one value held; the zero-mean shift below gives the unique solution
+    free[np.unique(labels, return_index=True)[1]] = False  # one value held a piece; the zero-mean shift makes it unique
     solver = spd_solver(K[free][:, free])
     u = np.zeros(m.size)
     u[free] = solver.solve(b[free])
-    u -= np.dot(m, u) / m.sum()
-    return u, {"iterations": [solver.info.iterations], "method": solver.method}
+    u -= (np.bincount(labels, weights=m * u, minlength=pieces) / area)[labels]
+    return u, {"iterations": [solver.info.iterations], "method": solver.method, "pieces": int(pieces)}
 
 
 def geodesic_rhs(K: sp.spmatrix | sp.sparray, pts: np.ndarray, X: np.ndarray) -> np.ndarray:
