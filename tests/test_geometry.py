@@ -580,3 +580,30 @@ def test_automatic_scale_stays_on_a_height_function():
     s = quiet(c.points + 0.5 * h * np.random.default_rng(0).standard_normal(c.points.shape))
     rho = spearmanr(s.mean_curvature(scale="auto"), 0.5 * c.geometry.mean_curvature(c.points))[0]
     assert rho > 0.8, rho
+
+
+def test_smoothing_building_blocks_reject_bad_input():
+    from manifold_sph.geometry.smoothing import jet_heights, local_spacing
+
+    c = shapes.sphere(300)
+    bad = c.points.copy()
+    bad[3, 0] = np.nan
+    r = np.full(300, 0.3)
+    with pytest.raises(ValueError, match="points"):
+        local_spacing(bad)
+    with pytest.raises(ValueError, match="points"):
+        local_spacing(c.points[:, :2])
+    with pytest.raises((TypeError, ValueError), match="k"):
+        local_spacing(c.points, k=0)
+    with pytest.raises(ValueError, match="normals"):
+        jet_heights(c.points, c.normals[:10], r, count=20)
+    with pytest.raises(ValueError, match="radius"):
+        jet_heights(c.points, c.normals, -r, count=20)
+    with pytest.raises(ValueError, match="radius"):
+        jet_heights(c.points, c.normals, np.where(np.arange(300) == 5, np.nan, r), count=20)
+    with pytest.raises((TypeError, ValueError), match="count"):
+        jet_heights(c.points, c.normals, r, count=0)
+    with pytest.raises(ValueError, match="sigma"):
+        jet_heights(c.points, c.normals, r, count=20, sigma=-1.0)
+    h, slope, rms = jet_heights(c.points, c.normals, r, count=20)
+    assert np.abs(h).max() < 1e-2 and slope.shape == (300, 2) and np.isfinite(rms).all()

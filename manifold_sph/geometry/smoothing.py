@@ -49,7 +49,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 
-from .._validation import check_bool, check_in, check_int, check_positive
+from .._validation import as_field, as_points, check_bool, check_in, check_int, check_positive
 from ..exceptions import ManifoldSPHWarning
 from .common import SCALE_RANGE, as_cloud_points, check_scale, is_surface
 from .jets import mean_spacing, tangent_basis
@@ -80,8 +80,9 @@ def local_spacing(points: np.ndarray, tree: cKDTree | None = None, k: int = _LOC
     distance to their own ``k``-th nearest point: about ``sqrt(k / (pi rho))`` for a surface
     density ``rho``, averaged so that noise in the positions barely moves it.
     """
+    points = as_points("points", points)
+    k = min(check_int("k", k, minimum=1), points.shape[0] - 1)
     tree = cKDTree(points) if tree is None else tree
-    k = min(int(k), points.shape[0] - 1)
     d, idx = tree.query(points, k=k + 1, workers=-1)
     tiny = np.finfo(float).tiny
     return np.exp(np.log(np.maximum(d[:, -1], tiny))[idx].mean(axis=1))
@@ -126,9 +127,16 @@ def jet_heights(
     rms : ndarray, shape (N,)
         Weighted RMS of the fit's residuals (a length).
     """
+    points = as_points("points", points)
     n = points.shape[0]
+    normals = as_field("normals", normals, n, 3)
+    radius = as_field("radius", radius, n)
+    if np.any(radius <= 0):
+        raise ValueError(f"radius must be positive, got minimum {radius.min():g}")
+    count = min(check_int("count", count, minimum=1), n)
+    if sigma is not None:
+        sigma = check_positive("sigma", sigma)
     tree = cKDTree(points) if tree is None else tree
-    count = min(int(count), n)
     u, v = tangent_basis(normals)
     height, rms, slope = np.zeros(n), np.zeros(n), np.zeros((n, 2))
     chunk = max(1, min(_ROWS, 2_000_000 // count))  # (chunk, count, 6) arrays of at most 100 MB
