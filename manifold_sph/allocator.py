@@ -1,15 +1,14 @@
-"""The C allocator of the process (glibc's malloc): give freed memory back, and tune it for a build.
+"""The C allocator (glibc's malloc): give freed memory back, and tune it for a build.
 
 Large temporary arrays dominate an operator build. glibc serves an allocation above its mmap
 threshold with a fresh ``mmap`` (zeroed pages, a page fault per 4 KiB on first touch) and
 otherwise from its heap, where freed blocks are reused. By default the threshold grows with
 the sizes a program frees, so a build's repeated temporaries come from the heap. Setting
 ``MALLOC_TRIM_THRESHOLD_`` freezes that threshold at 128 KiB, and Dask's nanny sets it for
-every worker process: there, every temporary array of a build is a fresh mapping, and a
-tile build cost 1.5x the same build in a plain process (1.88 against 1.21 CPU s on a
-250,000-point tile, measured by ``benchmarks/distributed.py --throughput``'s set-up).
-:func:`build_heap` restores heap reuse for the length of a build and gives the memory back
-after it. Where the C library is not glibc both are no-ops.
+every worker process: there, every temporary array of a build is a fresh mapping
+(docs/distributed.md, "Throughput and scaling", gives the cost). :func:`build_heap` restores
+heap reuse for the length of a build and gives the memory back after it. Where the C library
+is not glibc both are no-ops.
 """
 
 from __future__ import annotations
@@ -21,8 +20,8 @@ from typing import Any
 
 __all__ = ["TRIM_MIN_POINTS", "build_heap", "release_freed_memory"]
 
-#: Builds of fewer points skip :func:`release_freed_memory`: at N = 131072 a call took 3-13 ms (two a
-#: build, serial) to return some 15-25 MB.
+#: Builds of fewer points skip :func:`release_freed_memory`: below it a call costs more than the little
+#: memory it returns is worth.
 TRIM_MIN_POINTS = 400_000
 
 #: glibc's ``mallopt`` parameters.
@@ -53,9 +52,9 @@ def _libc() -> Any:
 def release_freed_memory(n_points: int | None = None) -> None:
     """Give the memory freed by a build step back to the system (glibc's ``malloc_trim``; nothing elsewhere).
 
-    Buffers allocated and freed on worker threads stay in their threads' malloc arenas, resident: the
-    grid search's chunk buffers and the area solve's vectors left 100-200 MB per million points
-    resident under the assembly's peak (measured with ``ru_maxrss``). ``n_points``: the build's size;
+    Buffers allocated and freed on worker threads stay in their threads' malloc arenas, resident
+    (the grid search's chunk buffers, the area solve's vectors), under the assembly's peak.
+    ``n_points``: the build's size;
     below :data:`TRIM_MIN_POINTS` nothing is done.
 
     Examples

@@ -49,10 +49,6 @@ GEODESIC_METHODS = ("wavefront", "heat")
 PAIRWISE_MAX_BYTES = 2 << 30
 
 
-def _unit(g: np.ndarray) -> np.ndarray:
-    return unit_rows(g)  # the heat step's far field is tiny: its squares would underflow
-
-
 def straight_line(P: np.ndarray, src: np.ndarray) -> np.ndarray:
     """Distance in space from every point of ``P`` (N, 3) to the nearest of the points ``P[src]``, shape (N,)."""
     if src.size <= 16:  # a few sources: direct (a KD-tree's set-up and threads cost more at small N)
@@ -132,7 +128,7 @@ class _Heat:
                 ManifoldSPHWarning,
                 stacklevel=3,
             )
-        return self.integrate(-_unit(s.gradient(u)), src)
+        return self.integrate(-unit_rows(s.gradient(u)), src)
 
     def integrate(self, X, src):
         """The Poisson step: ``K phi = -M div X`` for the unit field ``X`` (N, 3), particles near ``src`` held."""
@@ -376,7 +372,7 @@ class GeodesicSolver:
         X = np.asarray(directions, dtype=np.float64)
         if X.shape != (self.n_points, 3) or not np.all(np.isfinite(X)):
             raise ValueError(f"directions must be finite with shape ({self.n_points}, 3), got shape {X.shape}")
-        return self._engine.integrate(_unit(X), src)
+        return self._engine.integrate(unit_rows(X), src)
 
     def pairwise(self, indices: ArrayLike | None = None) -> np.ndarray:
         """Geodesic distances between all pairs of ``indices`` (default: every particle), shape (M, M).
