@@ -51,3 +51,16 @@ def test_banded_heat_step_matches_the_direct_one(monkeypatch):
     e_band = np.linalg.norm(banded - exact) / np.linalg.norm(exact)
     assert e_direct < 1e-3 and e_band < 1.1 * e_direct
     assert np.abs(banded - direct).max() < 2e-3 * 2.0
+
+
+def test_band_directions_rejects_bad_input():
+    import pytest
+
+    from manifold_sph.distributed.solve import band_directions
+
+    with pytest.raises(ValueError, match="rhs"):
+        band_directions(None, np.array([1.0, np.nan]), None)
+    with pytest.raises(ValueError, match="rhs"):
+        band_directions(None, np.zeros(4), None)
+    with pytest.raises(ValueError, match="floor"):
+        band_directions(None, np.ones(4), None, floor=2.0)

@@ -211,6 +211,13 @@ def band_directions(heat: Any, rhs: np.ndarray, directions: Any, *, floor: float
     for a direct one). Returns ``X``, the iterations of every band's solve and the mask (N,) of
     the particles reached: those the heat never reaches (pieces without a source) keep ``X = 0``.
     """
+    from .._validation import check_finite
+
+    rhs = check_finite("rhs", np.asarray(rhs, dtype=np.float64))
+    if rhs.ndim != 1 or not np.any(rhs):
+        raise ValueError(f"rhs must be a nonzero vector (N,), got shape {rhs.shape}")
+    if not (isinstance(floor, (int, float)) and 0.0 < floor < 1.0):
+        raise ValueError(f"floor must lie in (0, 1), got {floor!r}")
     n = rhs.size
     X = np.zeros((n, 3))
     done = np.zeros(n, dtype=bool)
