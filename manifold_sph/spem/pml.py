@@ -92,6 +92,14 @@ class PML:
             sy += self._profile(p[:, 1] - y1)
         return sx, sy
 
+    def calm_bounds(self) -> tuple[float, float, float, float]:
+        """The interior with the sides that carry no layer open (infinite): where a jittered layout may
+        move its particles (:func:`.layouts.jitter`'s ``calm``)."""
+        x0, x1, y0, y1 = self.interior
+        inf = math.inf
+        return (x0 if "left" in self.sides else -inf, x1 if "right" in self.sides else inf,
+                y0 if "bottom" in self.sides else -inf, y1 if "top" in self.sides else inf)
+
     def outer_bounds(self) -> tuple[float, float, float, float]:
         """The interior grown by the thickness on the PML sides."""
         x0, x1, y0, y1 = self.interior

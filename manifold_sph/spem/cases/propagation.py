@@ -173,11 +173,15 @@ def run_planewave(*, size: float = 0.5, freq: float = 3.6e9, ppw: float = 40.0, 
                   progress: bool = False) -> PlanewaveResult:
     """Free-space plane wave in a ``size`` square with PML on all sides ([2] sec. 4.5).
 
-    A hard line source (a ramped sinusoid) on the band of E particles within
-    dr/2 of ``y = dr`` (each set to the exact plane wave at its own ``y``, so
-    irregular layouts work too) spans the whole width including the side
-    layers (``source_span="full"``) or, as in the source, only the interior
-    (``"interior"``, whose ends diffract); the wave travels +y. The error is taken over the interior E particles above the
+    A hard source (a ramped sinusoid) drives the E particles within dr/2 of
+    the line ``y = dr`` and every E particle behind it (the incident region),
+    each with the exact plane wave at its own ``y``: on irregular layouts the
+    supports reach across a one-row source, and the H rows straddling it
+    would see the kink of the two-sided field there (docs/spem.md). It spans
+    the whole width including the side layers (``source_span="full"``) or, as
+    in the source, only the interior (``"interior"``, whose ends diffract);
+    the wave travels +y. A jittered layout keeps the layers' particles on the
+    lattice (:func:`.layouts.jitter` with ``calm``). The error is taken over the interior E particles above the
     source at the time the front has crossed ``travel`` of the square.
     ``error_centre`` leaves out the 10 % of the width next to each side
     layer (the PEC walls behind them perturb the grazing wave, and no PML
@@ -200,11 +204,11 @@ def run_planewave(*, size: float = 0.5, freq: float = 3.6e9, ppw: float = 40.0, 
     dr = size / n
     interior = (0.0, size, 0.0, size)
     pml, outer = _with_pml(interior, pml_cells, dr)
-    lay = make_layout(layout, outer, dr, seed=seed)
+    lay = make_layout(layout, outer, dr, seed=seed, calm=pml.calm_bounds())
     ys = dr  # one spacing inside the interior
     wave = Sinusoid(freq, ramp=ramp)
     e = lay.e
-    band = (np.abs(e[:, 1] - ys) <= 0.5 * dr) & ~lay.e_fixed
+    band = (e[:, 1] <= ys + 0.5 * dr) & ~lay.e_fixed  # the source line and the incident field behind it
     if source_span == "interior":
         band &= (e[:, 0] > 0) & (e[:, 0] < size)
     idx = np.flatnonzero(band)
@@ -267,7 +271,7 @@ def run_waveguide(*, width: float = 0.5, length: float = 0.4, pml_thickness: flo
     npml = max(1, int(round(pml_thickness / dr)))
     interior = (0.0, width, 0.0, length)
     pml = PML(npml * dr, order=3, reflection=1e-6, interior=interior, sides=("top",))
-    lay = make_layout(layout, pml.outer_bounds(), dr)
+    lay = make_layout(layout, pml.outer_bounds(), dr, calm=pml.calm_bounds())
     # PEC only on the plates and the far end; the source row carries the signal
     e = lay.e
     tol = 1e-6 * dr
@@ -330,7 +334,7 @@ def run_pml(*, cells: int = 60, pml_cells: int = 10, order: int = 3, reflection:
     dr = check_positive("dr", dr)
     pml, probes_xy, c, t_end, ref_bounds = pulse_problem(cells, pml_cells, dr, order, reflection, layout)
     wave, _ = pulse(dr)
-    lay = make_layout(layout, ref_bounds, dr, seed=seed)
+    lay = make_layout(layout, ref_bounds, dr, seed=seed, calm=pml.calm_bounds())
     if pml_check:  # the layer's validated support (the reference has no layer: checked here, before its set-up)
         check_in("coupling", coupling, COUPLINGS)
         support = MIMETIC_H_RATIO if coupling == "mimetic" else (lay.h_ratio or DEFAULT_H_RATIO)

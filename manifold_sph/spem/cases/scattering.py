@@ -77,7 +77,7 @@ def _ring(radius, dr):
 
 def scattering_layout(kind: str, radius: float, dr: float, half_width: float, *, core_radius: float | None = None,
                       amplitude: float = 0.0, seed: int | None = 0, wall_spacing: float = 0.5,
-                      wall_margin: float = 0.3) -> Layout:
+                      wall_margin: float = 0.3, calm: float | None = None) -> Layout:
     """Yee-style particles on ``[-L, L]^2`` (``L = half_width``, the cylinder at the origin), optionally jittered.
 
     For "pec" (and the core of "coated") the E particles within
@@ -90,7 +90,10 @@ def scattering_layout(kind: str, radius: float, dr: float, half_width: float, *,
     margin ``0.5 dr``), and a 2-4x larger stable step. The E particles on the
     outer box are flagged as well (PEC behind the PML). ``amplitude`` > 0
     jitters every free particle by up to ``amplitude * dr`` per coordinate
-    before the conductor is cut out; the wall particles are not moved.
+    before the conductor is cut out; the wall particles are not moved; with
+    ``calm`` only those with ``max(|x|, |y|) < calm`` (the interior inside the
+    PML; :func:`.layouts.jitter`: the layer stays on the lattice, where the
+    split-field PML absorbs).
 
     Examples
     --------
@@ -108,7 +111,7 @@ def scattering_layout(kind: str, radius: float, dr: float, half_width: float, *,
     L = dr * math.ceil(half_width / dr - 1e-9)
     lay = yee_layout((-L, L, -L, L), dr)
     if amplitude:
-        lay = jitter(lay, amplitude, seed)
+        lay = jitter(lay, amplitude, seed, calm=None if calm is None else (-calm, calm, -calm, calm))
     wall_r = {"pec": radius, "coated": core_radius}.get(kind)
     if wall_r is None:
         return Layout(lay.e, lay.hx, lay.hy, dr, f"cylinder-{lay.name}", lay.e_fixed, lay.bounds, lay.h_ratio)
@@ -451,7 +454,7 @@ def run_scattering(kind: str = "dielectric", *, n_radial: int = 8, radius: float
         raise ValueError(f"dft_periods must be at most periods - ramp = {periods - ramp:g}, got {dft_periods}")
     freq, dr, inner, outer = scattering_domain(radius, ka, n_radial, margin, pml_thickness)
     lay = scattering_layout(kind, radius, dr, outer, core_radius=core_radius,
-                            amplitude=amplitude if layout == "jittered" else 0.0, seed=seed)
+                            amplitude=amplitude if layout == "jittered" else 0.0, seed=seed, calm=inner)
     e = lay.e
     r_e = np.hypot(e[:, 0], e[:, 1])
     eps = np.ones(len(e))
