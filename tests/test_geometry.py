@@ -325,9 +325,9 @@ def test_transport_and_log_map_on_the_sphere(sphere16k):
     v = P - (P @ P[0])[:, None] * P[0]
     lv = np.arccos(np.clip(P @ P[0], -1, 1))[:, None] * v / np.maximum(np.linalg.norm(v, axis=1), 1e-300)[:, None]
     exL = np.stack([lv @ s.u[0], lv @ s.v[0]], axis=1)
-    assert rel(L[far], exL[far]) < 1.5e-3  # measured 9.5e-4
+    assert rel(L[far], exL[far]) < 7e-4  # measured 4.5e-4 (with the straight line held and the diffused angle: 9.5e-4)
     r = np.linalg.norm(L, axis=1)
-    assert rel(r[far], np.arccos(np.clip(P[far] @ P[0], -1, 1))) < 1e-3  # the radius alone
+    assert rel(r[far], np.arccos(np.clip(P[far] @ P[0], -1, 1))) < 4.5e-4  # the radius alone: measured 2.9e-4 (6.8e-4)
     assert np.all(r >= np.linalg.norm(P - P[0], axis=1) * (1 - 1e-12))  # never below the straight line
 
 
@@ -341,7 +341,11 @@ def exact_log_map(P, s, i):
 
 def test_log_map_on_uniformly_random_points():
     """Uniformly random points on the unit sphere (seed 0), against the exact log map away from the antipode:
-    the error falls with N (40,000 points: 1.2e-3 in benchmarks/geometry.py --only vector)."""
+    the error falls with N (40,000 points: 8.1e-4 in benchmarks/geometry.py --only vector). Towards the cut
+    locus the diffused vector cancels and the angle is carried along the geodesics instead (the band 0.1-0.5
+    from the antipode: 1.6e-3 at 16,000 points, 5.7e-3 with the diffused vector's own angle); near the source
+    the radius is integrated against the wavefront distance held over 10 spacings (radius 4.0e-4, 9.1e-4 with
+    the straight line held over 3)."""
     errors = []
     for n in (4000, 16000):
         x = np.random.default_rng(0).standard_normal((n, 3))
@@ -354,9 +358,34 @@ def test_log_map_on_uniformly_random_points():
         far = th < np.pi - 0.1
         errors.append(rel(L[far], exL[far]))
         r = np.linalg.norm(L, axis=1)
-        assert rel(r[far], th[far]) < (4e-3 if n == 4000 else 1.3e-3)  # measured 2.7e-3, 9.1e-4
-    assert errors[1] < 3.5e-3  # measured 2.6e-3 (the gradient of the heat-method distance: 7.9e-3)
-    assert np.log(errors[0] / errors[1]) / np.log(2.0) > 1.0  # fitted order in h: measured 1.7
+        assert rel(r[far], th[far]) < (2e-3 if n == 4000 else 6e-4)  # measured 1.4e-3, 4.0e-4
+        band = far & (th > np.pi - 0.5)
+        if n == 16000:
+            assert rel(L[band], exL[band]) < 2.5e-3  # measured 1.6e-3
+    assert errors[0] < 4e-3 and errors[1] < 1.4e-3  # measured 2.9e-3, 1.08e-3 (the diffused vector's angle: 8.6e-3, 2.6e-3)
+    assert np.log(errors[0] / errors[1]) / np.log(2.0) > 1.0  # fitted order in h: measured 1.4
+
+
+def test_integrate_holds_given_distances_near_the_source():
+    """The Poisson step with the exact radial directions of the unit sphere (4,000 points): the steep divergence
+    ``1 / r`` next to the source leaves the integrated distance short by a constant; holding the exact distance
+    over 10 spacings instead of the straight line over 3 removes most of it (mean -2.6e-3 -> -9.0e-4)."""
+    P = shapes.sphere(4000).points
+    s = Surface(P, P.copy())
+    g = GeodesicSolver(s, method="heat")
+    th = np.arccos(np.clip(P @ P[0], -1, 1))
+    X = (P @ P[0])[:, None] * P - P[0]  # the unit sphere's radial field, away from the source and its antipode
+    far = th < np.pi - 0.1
+    X[0], X[~far] = s.u[0], s.u[~far]
+    straight = g.integrate(X, 0)
+    held = g.integrate(X, 0, near=th, radius=10)
+    inside = np.linalg.norm(P - P[0], axis=1) <= 10 * np.sqrt(s.mass_matrix().diagonal().mean())
+    assert inside.sum() > 200 and np.array_equal(held[inside], th[inside])
+    assert abs(np.mean((held - th)[far])) < 0.5 * abs(np.mean((straight - th)[far]))
+    with pytest.raises(ValueError, match="near must have shape"):
+        g.integrate(X, 0, near=th[:-1])
+    with pytest.raises(ValueError, match="near must be finite"):
+        g.integrate(X, 0, near=np.where(inside, np.nan, th), radius=10)
 
 
 def test_karcher_mean_of_a_symmetric_set(sphere16k):

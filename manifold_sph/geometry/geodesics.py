@@ -130,8 +130,9 @@ class _Heat:
             )
         return self.integrate(-unit_rows(s.gradient(u)), src)
 
-    def integrate(self, X, src):
-        """The Poisson step: ``K phi = -M div X`` for the unit field ``X`` (N, 3), particles near ``src`` held."""
+    def integrate(self, X, src, held=None, radius=None):
+        """The Poisson step: ``K phi = -M div X`` for the unit field ``X`` (N, 3), particles near ``src`` held
+        (within ``radius``, default ``self.radius``, at ``held``, default their straight-line distance)."""
         from ..solvers import spd_solver
 
         s, P, N = self.s, self.s.points, self.s.n_points
@@ -141,17 +142,20 @@ class _Heat:
             i, j, w = self._pairs
             b = np.bincount(i, weights=w * np.einsum("pd,pd->p", 0.5 * (X[i] + X[j]), P[i] - P[j]), minlength=N)
         r = straight_line(P, src)
+        radius = self.radius if radius is None else radius
         reached = np.isin(self.labels, self.labels[src])
-        near = ((r <= self.radius) | np.isin(np.arange(N), src)) & reached
+        near = ((r <= radius) | np.isin(np.arange(N), src)) & reached
         free = ~near & reached
-        key = src.tobytes()
+        key = src.tobytes() + np.float64(radius).tobytes()
         if self._poisson_key != key:  # the held particles changed: set up again
             self._poisson = spd_solver(self.K[free][:, free].tocsr()) if free.any() else None
             self._poisson_key = key
+        if held is not None and not np.all(np.isfinite(held[near]) & (held[near] >= 0)):
+            raise ValueError("near must be finite and non-negative at the particles it holds (within radius of the sources)")
         phi = np.full(N, np.inf)
-        phi[near] = r[near]
+        phi[near] = r[near] if held is None else held[near]
         if self._poisson is not None:  # built above exactly when some particles are free
-            phi[free] = self._poisson.solve(b[free] - self.K[free][:, near] @ r[near])
+            phi[free] = self._poisson.solve(b[free] - self.K[free][:, near] @ phi[near])
         return np.maximum(phi, r)
 
 
@@ -351,13 +355,16 @@ class GeodesicSolver:
 
     __call__ = distance
 
-    def integrate(self, directions: ArrayLike, sources: ArrayLike) -> np.ndarray:
+    def integrate(self, directions: ArrayLike, sources: ArrayLike, *, near: ArrayLike | None = None,
+                  radius: float | None = None) -> np.ndarray:
         """The distance whose gradient best fits a field of unit directions (the heat method's Poisson step).
 
         Solves ``K phi = -M div X`` on the stable Laplacian for ``X`` the unit vectors of
-        ``directions`` (N, 3), with the particles within ``source_radius * h`` of ``sources``
-        held at their straight-line distance; ``method="heat"`` only. :meth:`distance` calls
-        it with ``X`` the direction of the heat step's decrease; the log map
+        ``directions`` (N, 3), with the particles within ``radius * h`` (default
+        ``source_radius``) of ``sources`` held at their straight-line distance, or at the
+        distances ``near`` (N,) when given (e.g. the wavefront's, accurate near the sources
+        over a wider disk than the straight line); ``method="heat"`` only. :meth:`distance`
+        calls it with ``X`` the direction of the heat step's decrease; the log map
         (:mod:`~manifold_sph.geometry.vector_heat`) with its own directions.
 
         Returns
@@ -372,7 +379,13 @@ class GeodesicSolver:
         X = np.asarray(directions, dtype=np.float64)
         if X.shape != (self.n_points, 3) or not np.all(np.isfinite(X)):
             raise ValueError(f"directions must be finite with shape ({self.n_points}, 3), got shape {X.shape}")
-        return self._engine.integrate(unit_rows(X), src)
+        held = None
+        if near is not None:
+            held = np.asarray(near, dtype=np.float64)
+            if held.shape != (self.n_points,):
+                raise ValueError(f"near must have shape ({self.n_points},), got shape {held.shape}")
+        rad = None if radius is None else check_positive("radius", radius) * np.sqrt(self._engine.h2)
+        return self._engine.integrate(unit_rows(X), src, held, rad)
 
     def pairwise(self, indices: ArrayLike | None = None) -> np.ndarray:
         """Geodesic distances between all pairs of ``indices`` (default: every particle), shape (M, M).

@@ -24,7 +24,14 @@ Tangent vectors at particle ``i`` are complex numbers in its frame ``(u_i, v_i)`
   spans many decades, and the wide fits average the irregular cloud's noise. ``r`` is the
   distance whose gradient best fits those directions
   (:meth:`~manifold_sph.geometry.GeodesicSolver.integrate`, the heat method's Poisson
-  step), or the wavefront distance (``geodesics="wavefront"``).
+  step, with the wavefront distance held within ``LOG_MAP_HELD`` spacings of the source,
+  where the radial field's divergence ``1 / r`` is too steep for the Poisson step), or the
+  wavefront distance (``geodesics="wavefront"``).
+  Where the diffused vector keeps less than ``ANGLE_TRUST`` of the scalar heat
+  (``|Y| < ANGLE_TRUST |X| u``: paths of the diffusion cancel, towards the cut locus, and the
+  direction of the small remainder is mostly discretisation error), the angle is instead carried
+  outwards along the geodesics from the particles nearer to the source: the angle of a
+  geodesic's initial direction is the same all along it.
 - **Karcher mean** (:func:`karcher_mean`): the particle ``p`` where the weighted mean of
   ``log_p`` of the given particles vanishes, by the fixed-point iteration
   ``p <- exp_p(mean log_p)`` (the particle nearest to that tangent point in the log map).
@@ -40,7 +47,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike
+from scipy.spatial import cKDTree
 
+from .._jit.compile import ENABLED, njit
 from .._validation import as_field, check_in, check_int, check_positive
 from ..exceptions import ManifoldSPHWarning
 from .common import SCALE_RANGE, check_scale, check_surface
@@ -56,6 +65,88 @@ __all__ = ["VectorHeatSolver", "connection_laplacian", "karcher_mean", "log_map"
 VECTOR_HEAT_TIME = 64.0
 #: Nearest points of the quadric fits that give the log map's radial directions.
 LOG_MAP_NEIGHBORS = 96
+#: The log map's radius is integrated from its directions with the wavefront distance held within this many
+#: spacings of the source.
+LOG_MAP_HELD = 10.0
+#: The log map's angle is read from the diffused vector where it keeps at least this share of the scalar heat
+#: (``|Y| >= ANGLE_TRUST |X| u``); elsewhere paths of the diffusion cancel and the angle is carried along the geodesics.
+ANGLE_TRUST = 0.5
+#: Nearest points searched for the upwind particles of the angle's propagation.
+ANGLE_NEIGHBORS = 32
+
+
+def _carry_angles(order, known, theta, slot, nbr, dist, P, radial, lateral, r):
+    """Carry the log map's angle ``theta`` along the radial geodesics into the particles not ``known``.
+
+    Particles are visited by increasing distance ``r``. The angle of a geodesic's initial
+    direction is constant along it, so a particle takes, from its neighbours nearer to the
+    source that already have an angle, the value at its own position of the weighted fit
+    ``theta = c0 + c1 l + c2 a l + c3 l^2`` (``a``, ``l`` the offsets along its radial and
+    lateral directions: no term in ``a`` alone, the angle does not change along the geodesic);
+    the mean when fewer than six neighbours qualify. Angles are unwrapped about the first one.
+    Row ``slot[i]`` of ``nbr`` and ``dist`` holds particle ``i``'s nearest points (itself first).
+    """
+    n = P.shape[0]
+    k = nbr.shape[1]
+    done = known.copy()
+    out = theta.copy()
+    A = np.zeros((4, 4))
+    b = np.zeros(4)
+    row = np.zeros(4)
+    for q in range(n):
+        i = order[q]
+        if done[i]:
+            continue
+        s = slot[i]
+        width = 1.25 * dist[s, min(8, k - 1)] + 1e-300
+        A[:, :] = 0.0
+        b[:] = 0.0
+        ref = 0.0
+        count = 0
+        wsum = 0.0
+        msum = 0.0
+        for jj in range(1, k):
+            j = nbr[s, jj]
+            if not done[j] or not r[j] < r[i]:
+                continue
+            a = 0.0
+            lat = 0.0
+            d2 = 0.0
+            for c in range(3):
+                e = P[j, c] - P[i, c]
+                a += e * radial[i, c]
+                lat += e * lateral[i, c]
+                d2 += e * e
+            if count == 0:
+                ref = out[j]
+            t = (out[j] - ref + np.pi) % (2.0 * np.pi) - np.pi
+            w = np.exp(-d2 / (width * width))
+            a /= width
+            lat /= width
+            row[0] = 1.0
+            row[1] = lat
+            row[2] = a * lat
+            row[3] = lat * lat
+            for x in range(4):
+                b[x] += w * row[x] * t
+                for y in range(4):
+                    A[x, y] += w * row[x] * row[y]
+            count += 1
+            wsum += w
+            msum += w * t
+        if count == 0:
+            continue  # no upwind neighbour with an angle: the diffused vector's stays
+        if count >= 6 and wsum > 0.0:
+            for x in range(4):
+                A[x, x] += 1e-9 * A[0, 0]
+            out[i] = ref + np.linalg.solve(A, b)[0]
+        elif wsum > 0.0:
+            out[i] = ref + msum / wsum
+        done[i] = True
+    return (out + np.pi) % (2.0 * np.pi) - np.pi
+
+
+_carry_angles = njit(_carry_angles) if ENABLED else _carry_angles
 
 
 def _frame_rotations(n: np.ndarray, u: np.ndarray, v: np.ndarray, i: np.ndarray, j: np.ndarray) -> np.ndarray:
@@ -143,7 +234,9 @@ class VectorHeatSolver:
         self._m = m / self._h2
         self._solve = spd_solver(sp.bmat([[Ar, -Ai], [Ai, Ar]], format="csr")).solve
         self._distance: GeodesicSolver | None = None
+        self._wavefront: Any = None
         self._heat: Any = None  # the scalar heat step of the log map, set up at its first call
+        self._tree: cKDTree | None = None
 
     def _source(self, source) -> int:
         n = self.surface.n_points
@@ -196,17 +289,22 @@ class VectorHeatSolver:
             A = (sp.diags(self._m) + (self.t / self._h2) * s.stiffness_matrix()).tocsr()
             self._heat = spd_solver(A, method="cholesky" if cholesky_available() else "auto")
         if self._distance is None:
-            self._distance = GeodesicSolver(s, method=self.geodesics)
+            self._wavefront = GeodesicSolver(s)
+            self._distance = GeodesicSolver(s, method="heat") if self.geodesics == "heat" else self._wavefront
         b = np.zeros(n)
         b[i] = 1.0
         u = self._heat.solve(b)
         ok = u > 1e-300 * u.max()
         logu = np.full(n, np.nan)
         logu[ok] = np.log(u[ok] / u.max())
-        g = -field_gradient(s.points, s.u, s.v, logu, neighbors=LOG_MAP_NEIGHBORS)
+        if self._tree is None:
+            self._tree = cKDTree(s.points)
+        g = -field_gradient(s.points, s.u, s.v, logu, neighbors=LOG_MAP_NEIGHBORS, tree=self._tree)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ManifoldSPHWarning)
-            r = self._distance.integrate(g, i) if self.geodesics == "heat" else self._distance.distance(i)
+            r = self._wavefront.distance(i)
+            if self.geodesics == "heat":
+                r = self._distance.integrate(g, i, near=r, radius=LOG_MAP_HELD)
         lost = np.isfinite(r) & ~ok
         if lost.any():
             warnings.warn(f"log_map: the heat step's solution is below the solver's accuracy or float64's range at "
@@ -215,6 +313,13 @@ class VectorHeatSolver:
         radial = np.einsum("nd,nd->n", g, s.u) + 1j * np.einsum("nd,nd->n", g, s.v)
         Y = self.diffuse(i, s.u[i])
         theta = np.angle(radial * np.conj(Y))
+        known = ~(np.abs(Y) < ANGLE_TRUST * np.abs(_to_complex(s, i, s.u[i])) * u) | ~np.isfinite(r)
+        if not known.all():  # paths of the diffusion cancel: carry the angle along the geodesics
+            slot = np.cumsum(~known) - 1
+            dist, nbr = self._tree.query(s.points[~known], k=min(ANGLE_NEIGHBORS, n), workers=-1)
+            e_r = g / np.maximum(np.linalg.norm(g, axis=1), 1e-300)[:, None]
+            theta = _carry_angles(np.argsort(r, kind="stable"), known, theta, slot, nbr.astype(np.int64), dist,
+                                  s.points, e_r, np.cross(s.normals, e_r), r)
         out = np.stack([r * np.cos(theta), r * np.sin(theta)], axis=1)
         out[i] = 0.0
         out[~np.isfinite(r)] = np.nan
