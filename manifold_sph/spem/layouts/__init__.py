@@ -13,6 +13,7 @@ from .tmz import (
     BALANCE_RADIUS,
     BALANCE_RELAX,
     BALANCE_ROUNDS,
+    CALM_INSET,
     CALM_RAMP,
     JITTER_H_RATIO,
     JOINT_COVER,
@@ -42,4 +43,5 @@ __all__ = ["LAYOUTS", "Layout", "staggered_layout", "yee_layout", "poisson_layou
            "disk_layout", "line_layout", "joint_poisson_layout", "relax_h", "balance_h", "balanced_poisson_layout",
            "balanced_disk_layout", "supported", "BALANCE_EXCESS", "BALANCE_RADIUS", "BALANCE_RELAX", "BALANCE_ROUNDS",
            "JOINT_COVER", "JOINT_EH", "JOINT_HH", "JOINT_ITERATIONS", "JOINT_WALL_MARGIN", "JITTER_H_RATIO", "POISSON_SBP_H_RATIO",
-           "TEZ_LAYOUT_KINDS", "POISSON_H_RATIO", "TEzLayout", "tez_layout", "tez_disk_layout", "wall_closure_layout", "CALM_RAMP"]
+           "TEZ_LAYOUT_KINDS", "POISSON_H_RATIO", "TEzLayout", "tez_layout", "tez_disk_layout", "wall_closure_layout", "CALM_INSET",
+           "CALM_RAMP"]
