@@ -92,8 +92,8 @@ def scattering_layout(kind: str, radius: float, dr: float, half_width: float, *,
     jitters every free particle by up to ``amplitude * dr`` per coordinate
     before the conductor is cut out; the wall particles are not moved; with
     ``calm`` only those with ``max(|x|, |y|) < calm`` (the interior inside the
-    PML; :func:`.layouts.jitter`: the layer stays on the lattice, where the
-    split-field PML absorbs).
+    PML, all of it; :func:`.layouts.jitter`: the layer stays on the lattice,
+    where the split-field PML absorbs).
 
     Examples
     --------
@@ -111,7 +111,10 @@ def scattering_layout(kind: str, radius: float, dr: float, half_width: float, *,
     L = dr * math.ceil(half_width / dr - 1e-9)
     lay = yee_layout((-L, L, -L, L), dr)
     if amplitude:
-        lay = jitter(lay, amplitude, seed, calm=None if calm is None else (-calm, calm, -calm, calm))
+        # the layer on the lattice, the whole interior jittered (no inset, no ramp: at 4 spacings per radius
+        # the default inset and ramp would leave the full jitter only inside the cylinder)
+        box = None if calm is None else (-calm, calm, -calm, calm)
+        lay = jitter(lay, amplitude, seed, calm=box, inset=0.0, ramp=0.0)
     wall_r = {"pec": radius, "coated": core_radius}.get(kind)
     if wall_r is None:
         return Layout(lay.e, lay.hx, lay.hy, dr, f"cylinder-{lay.name}", lay.e_fixed, lay.bounds, lay.h_ratio)
