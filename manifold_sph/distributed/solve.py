@@ -20,8 +20,9 @@ and, for geodesics, of the tangent-plane derivatives. Two engines solve with the
 Formulations (the same on both engines, so their results agree to the solver tolerance):
 
 - implicit Euler heat: ``(M + a dt K) u' = M u``;
-- Poisson ``-Lap u = f`` on a closed surface: ``K u = M (f - mean_M f)``, the solution of zero mean
-  (on a cloud of several pieces, the means are each piece's, on the local engine);
+- Poisson ``-Lap u = f`` on a closed surface: ``K u = M (f - mean_M f)``, the solution of zero mean;
+  on a cloud of several pieces (:func:`piece_labels`) the means are each piece's and one value a
+  piece is held while solving (``K`` is singular once a piece);
 - geodesic distance (heat method, as :class:`manifold_sph.geometry.GeodesicSolver`):
   ``(M + t K) u = e_s`` with ``t = 4 mean(M)``, ``X = -grad u / |grad u|``, ``b_i = sum_j w_ij
   (X_i + X_j) / 2 . (x_i - x_j)``, then ``K phi = b`` with ``phi`` held at the Euclidean
@@ -58,7 +59,7 @@ if TYPE_CHECKING:
     from .operators import TiledOperators
 
 __all__ = ["BAND_FLOOR", "BAND_SHELL", "DIRECT_FLOOR", "ENGINES", "GEODESIC_DIRECT_MAX_N", "GEODESIC_T", "SOURCE_RADIUS", "band_directions",
-           "engine_available", "geodesic_from_matrices", "run"]
+           "engine_available", "geodesic_from_matrices", "piece_labels", "run"]
 
 ENGINES = ("auto", "mpi", "local")
 #: Geodesic heat time in units of the mean area element, and the held radius in units of the spacing.
@@ -121,13 +122,51 @@ def _local_heat(ts, u, a_dt, steps):
     return u, {"iterations": its, "method": solver.method}
 
 
-def _local_poisson(ts, f):
+def piece_labels(ts: TiledOperators) -> tuple[int, np.ndarray]:
+    """``(pieces, labels (N,))``: the connected pieces of ``K``'s graph, tile order, read tile by tile.
+
+    Each tile labels the components of its own rows' graph (own and halo particles); a halo
+    particle joins its tile's component to the one its own tile gave it, and the components
+    of those joins are the pieces. Memory: one label a particle plus one join a halo particle,
+    never the whole matrix.
+    """
     from scipy.sparse.csgraph import connected_components
 
+    from .tiles import TileData
+
+    n = int(ts.n_points)
+    own = np.empty(n, dtype=np.int64)  # the global component id each particle's own tile gave it
+    halo_ids, halo_cols = [], []
+    offset = 0
+    for t in range(len(ts.chunks)):
+        lo, hi = int(ts.bounds[t]), int(ts.bounds[t + 1])
+        if hi == lo:
+            continue
+        d = TileData(ts._tile_path(t))
+        K, cols = d["K"], np.asarray(d["cols"])
+        ptr = np.asarray(K.indptr)
+        ptr = np.r_[ptr, np.full(cols.size - (hi - lo), ptr[-1])]  # own rows first; the halo's rows are empty
+        graph = sp.csr_matrix((np.ones(K.indices.size, dtype=np.int8), np.asarray(K.indices), ptr),
+                              shape=(cols.size, cols.size))
+        count, lab = connected_components(graph, directed=False)
+        own[lo:hi] = lab[: hi - lo] + offset
+        halo_ids.append(lab[hi - lo :] + offset)
+        halo_cols.append(cols[hi - lo :])
+        offset += count
+        d.release()
+    a = np.concatenate(halo_ids) if halo_ids else np.zeros(0, dtype=np.int64)
+    b = own[np.concatenate(halo_cols)] if halo_cols else np.zeros(0, dtype=np.int64)
+    joins = sp.csr_matrix((np.ones(a.size, dtype=np.int8), (a, b)), shape=(offset, offset))
+    pieces, merged = connected_components(joins, directed=False)
+    _, labels = np.unique(merged[own], return_inverse=True)  # pieces numbered 0, 1, ... by first appearance order
+    return int(labels.max()) + 1 if n else 0, labels.astype(np.int64)
+
+
+def _local_poisson(ts, f):
     from ..solvers import spd_solver
 
     K, m = assemble(ts, "K"), tile_vector(ts, "M")
-    pieces, labels = connected_components(K, directed=False)
+    pieces, labels = piece_labels(ts)
     area = np.bincount(labels, weights=m, minlength=pieces)
     b = m * (f - (np.bincount(labels, weights=m * f, minlength=pieces) / area)[labels])  # zero mean on every piece
     free = np.ones(m.size, dtype=bool)
@@ -270,7 +309,13 @@ def run(ts: TiledOperators, problem: str, *, engine: str, ranks: int, **args: An
                               "scipy/pyamg/cholespy instead", ManifoldSPHWarning, stacklevel=3)
     t0 = time.perf_counter()
     if engine == "mpi":
+        if problem == "poisson":  # the ranks see their own rows only: the pieces are labelled here
+            pieces, labels = piece_labels(ts)
+            args = args | {"pieces": pieces, "labels": labels.astype(np.int32 if pieces < 2**31 else np.int64),
+                           "pinned": np.unique(labels, return_index=True)[1].astype(np.int64)}
         out, info = _run_mpi(ts, problem, ranks, args)
+        if problem == "poisson":
+            info["pieces"] = int(args["pieces"])
     elif problem == "heat":
         out, info = _local_heat(ts, args["u0"], args["a_dt"], args["steps"])
     elif problem == "poisson":

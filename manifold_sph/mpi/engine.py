@@ -183,14 +183,30 @@ def _poisson(job, R, its, secs):
     f = _load(job, "f")
     mpi = R.comm.tompi4py()
     fl = np.asarray(f[R.lo : R.hi])
-    mean = mpi.allreduce(float(np.dot(R.m, fl))) / mpi.allreduce(float(R.m.sum()))
-    R.K.setNullSpace(PETSc.NullSpace().create(constant=True, comm=R.comm))
-    b = R.vec(R.m * (fl - mean))
+    pieces = int(job.get("pieces", 1))
+    if pieces == 1:
+        lab = np.zeros(R.hi - R.lo, dtype=np.int64)
+    else:
+        lab = np.asarray(_load(job, "labels")[R.lo : R.hi], dtype=np.int64)
+
+    def piece_means(v):  # the M-weighted mean of v on each piece, every rank the same (pieces,)
+        sums = np.array([np.bincount(lab, weights=R.m * v, minlength=pieces), np.bincount(lab, weights=R.m, minlength=pieces)])
+        sums = mpi.allreduce(sums)
+        return sums[0] / sums[1]
+
+    b = R.vec(R.m * (fl - piece_means(fl)[lab]))
     x = R.vec()
-    R.solve(R.ksp(R.K), b, x, its, secs)
+    if pieces == 1:  # the constants: K's null space
+        R.K.setNullSpace(PETSc.NullSpace().create(constant=True, comm=R.comm))
+        A = R.K
+    else:  # a null space a piece: one value held on each (its row and column made the identity's), then the means
+        pinned = np.asarray(_load(job, "pinned"), dtype=np.int64)
+        rows = pinned[(pinned >= R.lo) & (pinned < R.hi)].astype(PETSc.IntType)
+        A = R.K
+        A.zeroRowsColumns(rows, diag=1.0, x=x, b=b)
+    R.solve(R.ksp(A), b, x, its, secs)
     u = x.getArray().copy()
-    u -= mpi.allreduce(float(np.dot(R.m, u))) / mpi.allreduce(float(R.m.sum()))
-    return u
+    return u - piece_means(u)[lab]
 
 
 def _geodesic(job, R, its, secs):
