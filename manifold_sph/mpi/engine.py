@@ -64,31 +64,32 @@ class _Rows:
         self.lo, self.hi = int(job["bounds"][t0]), int(job["bounds"][t1])
         self.n = int(job["n_points"])
         nloc = self.hi - self.lo
-        indptr_parts: list[np.ndarray] = [np.zeros(1, dtype=np.int64)]
-        index_parts: list[np.ndarray] = []
-        data_parts: list[np.ndarray] = []
-        m_parts: list[np.ndarray] = []
-        off = 0
-        for d in self.tiles:  # tile by tile: the temporaries stay a tile's size
-            K = d["K"]
-            cols = np.asarray(d["cols"])
-            kptr = np.asarray(K.indptr)
-            indptr_parts.append(kptr[1:].astype(np.int64) + off)
-            off += int(kptr[-1])
-            gcol = cols[np.asarray(K.indices)]
-            o = np.lexsort((gcol, np.repeat(np.arange(d.n), np.diff(kptr))))  # PETSc wants each row's columns ascending
-            index_parts.append(gcol[o].astype(PETSc.IntType))
-            data_parts.append(np.asarray(K.data)[o])
+        # PETSc's storage is allocated once from the rows' counts, then filled tile by tile: the transient
+        # memory is one tile's rows, never a second copy of the rank's matrix
+        d_nnz, o_nnz, m_parts = [], [], []
+        for d in self.tiles:
+            K, gcol = d["K"], np.asarray(d["cols"])
+            inside = (gcol >= self.lo) & (gcol < self.hi)
+            rows = np.repeat(np.arange(d.n), np.diff(np.asarray(K.indptr)))
+            d_nnz.append(np.bincount(rows, weights=inside[np.asarray(K.indices)], minlength=d.n).astype(PETSc.IntType))
+            o_nnz.append((np.diff(np.asarray(K.indptr)) - d_nnz[-1]).astype(PETSc.IntType))
             m_parts.append(np.array(d["M"]))
-            del K, cols, gcol, o
-        indptr = np.concatenate(indptr_parts).astype(PETSc.IntType)
-        indices = np.concatenate(index_parts) if index_parts else np.zeros(0, PETSc.IntType)
-        data = np.concatenate(data_parts) if data_parts else np.zeros(0)
-        del index_parts, data_parts
-        self.m = np.concatenate(m_parts) if m_parts else np.zeros(0)
-        self.K = PETSc.Mat().createAIJ(size=((nloc, self.n), (nloc, self.n)), csr=(indptr, indices, data), comm=comm)
+            del K, gcol, inside, rows
+        nnz = tuple(np.concatenate(c) if c else np.zeros(0, PETSc.IntType) for c in (d_nnz, o_nnz))
+        self.K = PETSc.Mat().createAIJ(size=((nloc, self.n), (nloc, self.n)), nnz=nnz, comm=comm)
+        del d_nnz, o_nnz, nnz
+        self.K.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
+        lo = self.lo
+        for d in self.tiles:
+            K, gcol = d["K"], np.asarray(d["cols"])
+            self.K.setValuesIJV(np.asarray(K.indptr).astype(PETSc.IntType), gcol[np.asarray(K.indices)].astype(PETSc.IntType),
+                                np.asarray(K.data), rowmap=np.arange(lo, lo + d.n, dtype=PETSc.IntType))
+            lo += d.n
+            del K, gcol
+            d.release()
         self.K.assemble()
-        del indptr, indices, data
+        self.m = np.concatenate(m_parts) if m_parts else np.zeros(0)
+        del m_parts
         release_freed_memory()  # the rows' temporaries: back to the system, not kept by malloc
         self.M = self.vec(self.m)
         self.mean_m = comm.tompi4py().allreduce(float(self.m.sum())) / self.n
