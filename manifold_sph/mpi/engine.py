@@ -146,11 +146,31 @@ class _Rows:
         its.append(0 if ksp.getType() == "preonly" else int(ksp.getIterationNumber()))
         secs.append(time.perf_counter() - t)
 
-    def allgather(self, local):
-        """The whole vector (tile order) on every rank."""
-        mpi = self.comm.tompi4py()
-        parts = mpi.allgather(np.ascontiguousarray(local))
-        return np.concatenate(parts, axis=0)
+    def halo(self, values):
+        """``values`` (own rows, (nloc,) or (nloc, c)) at every particle the own rows' columns name, in the order of
+        :attr:`needed` (sorted tile-order indices): a PETSc scatter of what the rows use, never the whole vector."""
+        from petsc4py import PETSc
+
+        if not hasattr(self, "_scatter"):
+            self.needed = np.unique(np.concatenate([np.asarray(d["cols"]) for d in self.tiles])) if self.tiles \
+                else np.zeros(0, dtype=np.int64)
+            self._target = PETSc.Vec().createSeq(self.needed.size, comm=PETSc.COMM_SELF)
+            index = PETSc.IS().createGeneral(self.needed.astype(PETSc.IntType), comm=PETSc.COMM_SELF)
+            self._source = self.vec()
+            self._scatter = PETSc.Scatter().create(self._source, index, self._target, None)
+        values = np.asarray(values)
+        cols = values.reshape(values.shape[0], -1)
+        out = np.empty((self.needed.size, cols.shape[1]))
+        for c in range(cols.shape[1]):
+            self._source.getArray()[:] = cols[:, c]
+            self._scatter.scatter(self._source, self._target, addv=PETSc.InsertMode.INSERT,
+                                  mode=PETSc.ScatterMode.FORWARD)
+            out[:, c] = self._target.getArray()
+        return out.reshape((self.needed.size,) + values.shape[1:])
+
+    def at(self, cols):
+        """Positions of the tile-order indices ``cols`` in :attr:`needed`."""
+        return np.searchsorted(self.needed, cols)
 
 
 def _write(job, name, shape, lo, hi, values, comm):
@@ -211,6 +231,8 @@ def _poisson(job, R, its, secs):
 
 
 def _geodesic(job, R, its, secs):
+    from mpi4py import MPI
+    from petsc4py import PETSc
     from scipy.spatial import cKDTree
 
     from ..distributed.solve import BAND_FLOOR, BAND_SHELL, DIRECT_FLOOR, GEODESIC_DIRECT_MAX_N, GEODESIC_T, SOURCE_RADIUS
@@ -218,28 +240,30 @@ def _geodesic(job, R, its, secs):
 
     src = np.asarray(_load(job, "sources"), dtype=np.int64)
     pts = np.load(job["points"], mmap_mode="r")
-    A = R.K.duplicate(copy=True)
-    A.scale(GEODESIC_T * R.mean_m)
-    A.setDiagonal(R.M, addv=True)
+    mpi = R.comm.tompi4py()
     nloc = R.hi - R.lo
+    # the heat operator M + t K is K itself scaled and shifted in place (undone before the Poisson step): a rank
+    # holds one matrix; the fields other rows need arrive by a scatter of the halo only (R.halo)
+    c = GEODESIC_T * R.mean_m
+    A = R.K
+    A.scale(c)
+    A.setDiagonal(R.M, addv=True)
     rhs = np.zeros(nloc)
     mine = src[(src >= R.lo) & (src < R.hi)]
     rhs[mine - R.lo] = 1.0
     x = R.vec()
 
-    def own_directions(u):  # -grad u / |grad u| on the own rows, u whole (tile order); no squares of tiny u
+    def own_directions(w):  # -grad u / |grad u| on the own rows; no squares of tiny u
+        wh = R.halo(w)
         parts = []
         for d in R.tiles:
-            uc = u[np.asarray(d["cols"])]
+            uc = wh[R.at(np.asarray(d["cols"]))]
             parts.append(-unit_rows((d["dx"] @ uc)[:, None] * d["u"] + (d["dy"] @ uc)[:, None] * d["v"]))
         return np.concatenate(parts) if parts else np.zeros((0, 3))
 
     # u decays like exp(-d / sqrt(t)) away from the sources, far below CG's residual tolerance, and X needs
     # its far field: a Cholesky factor (MUMPS) keeps every entry's digits; above the size where the local
     # engine factorises, the same bands as its (manifold_sph.distributed.solve.band_directions) with CG + GAMG
-    from mpi4py import MPI
-
-    mpi = R.comm.tompi4py()
     if R.n <= int(job.get("geodesic_direct_max_n", GEODESIC_DIRECT_MAX_N)):
         ksp, floor = R.cholesky(A), DIRECT_FLOOR
     else:
@@ -255,41 +279,53 @@ def _geodesic(job, R, its, secs):
         ok = (w > floor * top) & ~done
         if not mpi.allreduce(bool(ok.any()), op=MPI.LOR):
             break
-        X_own[ok] = own_directions(R.allgather(w))[ok]
+        X_own[ok] = own_directions(w)[ok]
         done |= ok
         shell = ok & (w <= BAND_SHELL * floor * top)
         if mpi.allreduce(bool(done.all()), op=MPI.LAND) or not mpi.allreduce(bool(shell.any()), op=MPI.LOR):
             break
         smax = mpi.allreduce(float(w[shell].max()) if shell.any() else 0.0, op=MPI.MAX)
         b.getArray()[:] = np.where(shell, w / smax, 0.0)
+    ksp.destroy()
+    del ksp, b, w
     R.unreached = int(mpi.allreduce(int(np.count_nonzero(~done)), op=MPI.SUM))
-    X = R.allgather(X_own)
+    Xh = R.halo(X_own)
     b_parts = []
     for d in R.tiles:  # sum_j w_ij (X_i + X_j) / 2 . (x_i - x_j), the own rows of K
-        K, cols = d["K"].tocoo(), np.asarray(d["cols"])
-        off = K.row != K.col
-        gi, gj, w = cols[K.row[off]], cols[K.col[off]], -K.data[off]
+        Kt, cols = d["K"].tocoo(), np.asarray(d["cols"])
+        off = Kt.row != Kt.col
+        gi, gj, wt = cols[Kt.row[off]], cols[Kt.col[off]], -Kt.data[off]
         Pi, Pj = np.asarray(pts[gi]), np.asarray(pts[gj])
-        b_parts.append(np.bincount(K.row[off], weights=w * np.einsum("pd,pd->p", 0.5 * (X[gi] + X[gj]), Pi - Pj),
+        Xi, Xj = X_own[gi - R.lo], Xh[R.at(gj)]
+        b_parts.append(np.bincount(Kt.row[off], weights=wt * np.einsum("pd,pd->p", 0.5 * (Xi + Xj), Pi - Pj),
                                    minlength=d.n))
-    b = np.concatenate(b_parts) if b_parts else np.zeros(0)
+        del Kt, gi, gj, wt, Pi, Pj, Xi, Xj
+    del Xh
+    bb = np.concatenate(b_parts) if b_parts else np.zeros(0)
     own = np.asarray(pts[R.lo : R.hi])
     r = cKDTree(np.asarray(pts[np.sort(src)])).query(own)[0]
     held = r <= SOURCE_RADIUS * np.sqrt(R.mean_m)
     held[mine - R.lo] = True
     held &= done  # a particle of another piece near a source is not reached
-    from petsc4py import PETSc
-
     pinned = held | ~done  # the pieces holding no source: pinned at 0, then inf
     rows = (np.flatnonzero(pinned) + R.lo).astype(PETSc.IntType)
-    xv, bv = R.vec(np.where(held, r, 0.0)), R.vec(b)
-    K = R.K.duplicate(copy=True)
+    xv, bv = R.vec(np.where(held, r, 0.0)), R.vec(bb)
+    K = _heat_to_stiffness(A, R.M, c)
     K.zeroRowsColumns(rows, diag=1.0, x=xv, b=bv)
     phi = R.vec()
     R.solve(R.ksp(K), bv, phi, its, secs)
     out = phi.getArray().copy()
     out[~done] = np.inf
     return out
+
+
+def _heat_to_stiffness(A, M, c):
+    """``K = (A - M) / c`` in place: the heat operator ``M + c K`` back to the stiffness matrix."""
+    minus = M.copy()
+    minus.scale(-1.0)
+    A.setDiagonal(minus, addv=True)
+    A.scale(1.0 / c)
+    return A
 
 
 def _eigs(job, R, its, secs):
