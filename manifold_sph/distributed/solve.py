@@ -29,12 +29,9 @@ Formulations (the same on both engines, so their results agree to the solver tol
   distance within ``3 sqrt(mean M)`` of the sources. ``u`` decays like ``exp(-d / sqrt(t))``,
   far below the residual tolerance of any iterative solve, and ``X`` needs its far field. Up to
   :data:`GEODESIC_DIRECT_MAX_N` particles the heat step is a sparse Cholesky solve (CHOLMOD,
-  MUMPS on MPI), which keeps every entry's digits. Above, it is solved in bands with AMG-CG
-  (:func:`band_directions`): ``X`` is kept where ``u`` exceeds :data:`BAND_FLOOR` of its
-  largest value, the outer shell of that region (values up to :data:`BAND_SHELL` times the
-  floor) becomes the next right-hand side, scaled to 1, and so on outwards: each band's field
-  continues ``exp(-(d_shell + |x - x_shell|) / sqrt(t))``, whose directions are the geodesic's,
-  with one set-up of the multigrid and memory of AMG only;
+  MUMPS on MPI), which keeps every entry's digits. Above, it is solved in bands
+  (:mod:`manifold_sph.distributed.bands`), each band with Jacobi-CG on a window around its seed,
+  so a band costs its window's work and no factor or multigrid is held;
 - eigenpairs of ``K v = lambda M v`` nearest a shift just below zero.
 """
 
@@ -54,11 +51,12 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..exceptions import ManifoldSPHWarning
+from .bands import BAND_FLOOR, BAND_RTOL, DIRECT_FLOOR, WindowedHeat, band_directions
 
 if TYPE_CHECKING:
     from .operators import TiledOperators
 
-__all__ = ["BAND_FLOOR", "BAND_SHELL", "DIRECT_FLOOR", "ENGINES", "GEODESIC_DIRECT_MAX_N", "GEODESIC_T", "SOURCE_RADIUS", "band_directions",
+__all__ = ["ENGINES", "GEODESIC_DIRECT_MAX_N", "GEODESIC_T", "SOURCE_RADIUS",
            "engine_available", "geodesic_from_matrices", "piece_labels", "run"]
 
 ENGINES = ("auto", "mpi", "local")
@@ -67,15 +65,6 @@ GEODESIC_T = 4.0
 SOURCE_RADIUS = 3.0
 #: Particles up to which the geodesic's heat step is a direct (Cholesky) solve on both engines; above, bands.
 GEODESIC_DIRECT_MAX_N = 2_000_000
-#: A band keeps the directions where the heat field exceeds this fraction of its largest value ...
-BAND_FLOOR = 1e-8
-#: ... and seeds the next band from the values between the floor and this many times it.
-BAND_SHELL = 1e3
-#: Relative residual of each band's CG solve.
-BAND_RTOL = 1e-12
-#: The floor of a direct (Cholesky) heat step's bands: its entries keep their digits down to float64's range, so one
-#: band covers what does not underflow (more bands only on very elongated clouds).
-DIRECT_FLOOR = 1e-280
 
 
 def engine_available() -> str | None:
@@ -223,10 +212,11 @@ def geodesic_from_matrices(K: sp.csr_matrix, m: np.ndarray, dx: sp.csr_matrix, d
     def directions(u):  # u's far field is tiny: no squares of it
         return -unit_rows((dx @ u)[:, None] * U + (dy @ u)[:, None] * V)
 
+    heat: Any
     if n <= GEODESIC_DIRECT_MAX_N and cholesky_available():
         heat, floor = spd_solver(A, method="cholesky"), DIRECT_FLOOR
     else:
-        heat, floor = spd_solver(A, method="amg", rtol=BAND_RTOL), BAND_FLOOR
+        heat, floor = WindowedHeat(A, pts, GEODESIC_T * m.mean(), rtol=BAND_RTOL), BAND_FLOOR
     X, heat_its, reached = band_directions(heat, rhs, directions, floor=floor)
     b = geodesic_rhs(K, pts, X)
     held, r = held_particles(pts, src, m)
@@ -238,48 +228,6 @@ def geodesic_from_matrices(K: sp.csr_matrix, m: np.ndarray, dx: sp.csr_matrix, d
     phi[free] = poisson.solve(b[free] - Kf[:, held] @ r[held])
     return phi, {"iterations": heat_its + [poisson.info.iterations], "method": f"{heat.method} heat step, {poisson.method}",
                  "unreached": int(n - np.count_nonzero(reached))}
-
-
-def band_directions(heat: Any, rhs: np.ndarray, directions: Any, *, floor: float = BAND_FLOOR,
-                    max_bands: int = 10_000) -> tuple[np.ndarray, list[int], np.ndarray]:
-    """The heat method's unit directions ``X`` (N, 3), band by band (module notes).
-
-    ``heat.solve(b)`` solves the heat step (its ``info.iterations`` read after each solve);
-    ``directions(u)`` gives ``-grad u / |grad u|`` (N, 3); a band keeps the values above
-    ``floor`` times its largest (:data:`BAND_FLOOR` for an iterative solve, :data:`DIRECT_FLOOR`
-    for a direct one). Returns ``X``, the iterations of every band's solve and the mask (N,) of
-    the particles reached: those the heat never reaches (pieces without a source) keep ``X = 0``.
-    """
-    from .._validation import check_finite
-
-    rhs = check_finite("rhs", np.asarray(rhs, dtype=np.float64))
-    if rhs.ndim != 1 or not np.any(rhs):
-        raise ValueError(f"rhs must be a nonzero vector (N,), got shape {rhs.shape}")
-    if not (isinstance(floor, (int, float)) and 0.0 < floor < 1.0):
-        raise ValueError(f"floor must lie in (0, 1), got {floor!r}")
-    n = rhs.size
-    X = np.zeros((n, 3))
-    done = np.zeros(n, dtype=bool)
-    its: list[int] = []
-    w = heat.solve(rhs)
-    its.append(int(heat.info.iterations))
-    for _ in range(max_bands):
-        top = float(np.abs(w).max())
-        if not top > 0:
-            break
-        ok = (w > floor * top) & ~done
-        if not ok.any():
-            break
-        X[ok] = directions(w)[ok]
-        done |= ok
-        shell = ok & (w <= BAND_SHELL * floor * top)
-        if done.all() or not shell.any():
-            break
-        b = np.zeros(n)
-        b[shell] = w[shell] / w[shell].max()
-        w = heat.solve(b)
-        its.append(int(heat.info.iterations))
-    return X, its, done
 
 
 def _local_eigs(ts, k, sigma):

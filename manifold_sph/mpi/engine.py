@@ -10,7 +10,7 @@ into ``.npy`` files in the job's work directory, each rank its own rows. Every s
 preconditioned by GAMG but the geodesic's heat step: its solution decays exponentially away
 from the sources, below what a residual tolerance resolves, so up to the job's
 ``geodesic_direct_max_n`` particles it is a distributed Cholesky (MUMPS) and above it the
-bands of :func:`manifold_sph.distributed.solve.band_directions` through CG + GAMG.
+windowed bands of :mod:`manifold_sph.distributed.bands` (Jacobi-CG on each band's window).
 """
 
 from __future__ import annotations
@@ -30,7 +30,8 @@ __all__ = ["RTOL", "main", "rank_tiles"]
 #: Relative residual of every CG solve (equality with the single process's Cholesky to ~1e-10).
 RTOL = 1e-12
 #: What solves each problem (reported as ``info["method"]``).
-METHODS = {"heat": "petsc-cg-gamg", "poisson": "petsc-cg-gamg", "geodesic": "petsc-mumps-cholesky or cg-gamg bands, cg-gamg",
+METHODS = {"heat": "petsc-cg-gamg", "poisson": "petsc-cg-gamg",
+           "geodesic": "petsc-mumps-cholesky or jacobi-cg windowed bands, cg-gamg",
            "eigs": "slepc-krylovschur-sinvert-cg-gamg"}
 
 
@@ -235,7 +236,8 @@ def _geodesic(job, R, its, secs):
     from petsc4py import PETSc
     from scipy.spatial import cKDTree
 
-    from ..distributed.solve import BAND_FLOOR, BAND_SHELL, DIRECT_FLOOR, GEODESIC_DIRECT_MAX_N, GEODESIC_T, SOURCE_RADIUS
+    from ..distributed.bands import BAND_FLOOR, BAND_SHELL, DIRECT_FLOOR
+    from ..distributed.solve import GEODESIC_DIRECT_MAX_N, GEODESIC_T, SOURCE_RADIUS
     from ..frames import unit_rows
 
     src = np.asarray(_load(job, "sources"), dtype=np.int64)
@@ -263,16 +265,21 @@ def _geodesic(job, R, its, secs):
 
     # u decays like exp(-d / sqrt(t)) away from the sources, far below CG's residual tolerance, and X needs
     # its far field: a Cholesky factor (MUMPS) keeps every entry's digits; above the size where the local
-    # engine factorises, the same bands as its (manifold_sph.distributed.solve.band_directions) with CG + GAMG
+    # engine factorises, the same windowed bands as its (manifold_sph.distributed.bands)
     if R.n <= int(job.get("geodesic_direct_max_n", GEODESIC_DIRECT_MAX_N)):
-        ksp, floor = R.cholesky(A), DIRECT_FLOOR
+        direct = R.cholesky(A)
+
+        def heat(b):
+            R.solve(direct, b, x, its, secs)
+            return x.getArray().copy()
+
+        floor = DIRECT_FLOOR
     else:
-        ksp, floor = R.ksp(A), BAND_FLOOR
+        heat, floor = _WindowedHeat(R, A, np.asarray(pts[R.lo : R.hi]), c, its, secs), BAND_FLOOR
     X_own, done = np.zeros((nloc, 3)), np.zeros(nloc, dtype=bool)
     b = R.vec(rhs)
     while True:
-        R.solve(ksp, b, x, its, secs)
-        w = x.getArray().copy()
+        w = heat(b)
         top = mpi.allreduce(float(np.abs(w).max()) if nloc else 0.0, op=MPI.MAX)
         if not top > 0:
             break
@@ -286,8 +293,7 @@ def _geodesic(job, R, its, secs):
             break
         smax = mpi.allreduce(float(w[shell].max()) if shell.any() else 0.0, op=MPI.MAX)
         b.getArray()[:] = np.where(shell, w / smax, 0.0)
-    ksp.destroy()
-    del ksp, b, w
+    del heat, b, w
     R.unreached = int(mpi.allreduce(int(np.count_nonzero(~done)), op=MPI.SUM))
     Xh = R.halo(X_own)
     b_parts = []
@@ -317,6 +323,57 @@ def _geodesic(job, R, its, secs):
     out = phi.getArray().copy()
     out[~done] = np.inf
     return out
+
+
+class _WindowedHeat:
+    """A band's heat step on the window around its seed only (:class:`manifold_sph.distributed.bands.WindowedHeat`
+    across the ranks): each rank hashes its own particles into the voxels, the seeds' voxels are gathered, and CG
+    with a Jacobi preconditioner (options prefix ``band_``) solves the sub-matrix of the window's rows."""
+
+    def __init__(self, R, A, own_points, t, its, secs):
+        from mpi4py import MPI
+
+        from ..distributed.bands import BAND_WINDOW, VoxelWindows
+
+        mpi = R.comm.tompi4py()
+        lo = own_points.min(axis=0) if own_points.size else np.full(3, np.inf)
+        origin = np.array([mpi.allreduce(float(v), op=MPI.MIN) for v in lo])
+        self.windows = VoxelWindows(own_points, BAND_WINDOW * float(np.sqrt(t)), origin=origin)
+        self.R, self.A, self.its, self.secs = R, A, its, secs
+
+    def __call__(self, b):
+        from petsc4py import PETSc
+
+        from ..distributed.bands import BAND_RTOL
+
+        R, w = self.R, np.zeros(self.R.hi - self.R.lo)
+        t = time.perf_counter()
+        mpi = R.comm.tompi4py()
+        local = b.getArray()
+        seeds = np.unique(np.concatenate(mpi.allgather(np.unique(self.windows.keys[local != 0]))))
+        rows = self.windows.rows(self.windows.around(seeds))
+        index = PETSc.IS().createGeneral((rows + R.lo).astype(PETSc.IntType), comm=R.comm)
+        sub = self.A.createSubMatrix(index, index)
+        ksp = PETSc.KSP().create(comm=R.comm)
+        ksp.setOptionsPrefix("band_")
+        ksp.setOperators(sub)
+        ksp.setType("cg")
+        ksp.getPC().setType("jacobi")
+        ksp.setTolerances(rtol=BAND_RTOL, atol=0.0, max_it=5000)
+        ksp.setFromOptions()
+        rhs = b.getSubVector(index)
+        xs = sub.createVecRight()
+        ksp.solve(rhs, xs)
+        b.restoreSubVector(index, rhs)
+        if ksp.getConvergedReason() < 0:
+            raise RuntimeError(f"a band's Jacobi-CG did not converge (reason {ksp.getConvergedReason()}, "
+                               f"{ksp.getIterationNumber()} iterations)")
+        w[rows] = xs.getArray()
+        self.its.append(int(ksp.getIterationNumber()))
+        self.secs.append(time.perf_counter() - t)
+        for o in (ksp, sub, xs, index):
+            o.destroy()
+        return w
 
 
 def _heat_to_stiffness(A, M, c):
