@@ -1,4 +1,4 @@
-"""The MPI engine of the global solves: PETSc (CG + GAMG, MUMPS) and SLEPc on the tiles' rows of ``K`` and ``M``.
+"""The MPI engine of the global solves: PETSc (CG + algebraic multigrid, MUMPS) and SLEPc on the tiles' rows of ``K`` and ``M``.
 
 Run by ``mpirun -n R python -m manifold_sph.mpi JOB.json`` (``TiledSurface`` writes the job
 and starts it; on a cluster the same command runs under ``srun``). Each rank owns whole
@@ -7,7 +7,8 @@ the tile cache directory with memory maps. Nothing is assembled on one rank.
 
 The formulations are those of :mod:`manifold_sph.distributed.solve`; results are written
 into ``.npy`` files in the job's work directory, each rank its own rows. Every solve is CG
-preconditioned by GAMG but the geodesic's heat step: its solution decays exponentially away
+preconditioned by algebraic multigrid (:func:`multigrid`: hypre's BoomerAMG, or GAMG) but the
+geodesic's heat step: its solution decays exponentially away
 from the sources, below what a residual tolerance resolves, so up to the job's
 ``geodesic_direct_max_n`` particles it is a distributed Cholesky (MUMPS) and above it the
 windowed bands of :mod:`manifold_sph.distributed.bands` (Jacobi-CG on each band's window).
@@ -25,14 +26,33 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike
 
-__all__ = ["RTOL", "main", "rank_tiles"]
+__all__ = ["HYPRE_OPTIONS", "RTOL", "main", "multigrid", "rank_tiles"]
 
 #: Relative residual of every CG solve (equality with the single process's Cholesky to ~1e-10).
 RTOL = 1e-12
 #: What solves each problem (reported as ``info["method"]``).
-METHODS = {"heat": "petsc-cg-gamg", "poisson": "petsc-cg-gamg",
-           "geodesic": "petsc-mumps-cholesky or jacobi-cg windowed bands, cg-gamg",
-           "eigs": "slepc-krylovschur-sinvert-cg-gamg"}
+#: The multigrid of the CG solves where PETSc has hypre: BoomerAMG with aggressive coarsening on the finest
+#: level and truncated interpolation (each a PETSc option a user's PETSC_OPTIONS may override). Its hierarchy
+#: takes about 0.2 KB a row against GAMG's 0.35-0.55 KB, at the same iterations: at 20M points on 2 ranks a
+#: heat step's peak is 3.8 GB a rank against 6.8 GB (docs/distributed.md).
+HYPRE_OPTIONS = {"pc_hypre_type": "boomeramg", "pc_hypre_boomeramg_agg_nl": "1", "pc_hypre_boomeramg_coarsen_type": "HMIS",
+                 "pc_hypre_boomeramg_interp_type": "ext+i", "pc_hypre_boomeramg_P_max": "2"}
+
+
+def multigrid(pc) -> str:
+    """Make ``pc`` the engine's multigrid: hypre's BoomerAMG with :data:`HYPRE_OPTIONS` where PETSc has hypre,
+    GAMG otherwise; returns its name."""
+    from petsc4py import PETSc
+
+    if PETSc.Sys.hasExternalPackage("hypre"):
+        opts = PETSc.Options()
+        for name, value in HYPRE_OPTIONS.items():
+            if not opts.hasName(name):
+                opts[name] = value
+        pc.setType("hypre")
+        return "hypre"
+    pc.setType("gamg")
+    return "gamg"
 
 
 def rank_tiles(bounds: ArrayLike, size: int, rank: int) -> tuple[int, int]:
@@ -95,6 +115,7 @@ class _Rows:
         self.M = self.vec(self.m)
         self.mean_m = comm.tompi4py().allreduce(float(self.m.sum())) / self.n
         self.unreached = 0  # the geodesic: particles in pieces that hold no source
+        self.methods: list[str] = []  # what solved each system, in order
 
     def release_tiles(self) -> None:
         """Drop the tiles' memory maps (their pages count in the rank's resident memory while mapped)."""
@@ -110,12 +131,13 @@ class _Rows:
         return v
 
     def ksp(self, A):
+        """CG preconditioned by :func:`multigrid`, to :data:`RTOL`; PETSC_OPTIONS apply (no prefix)."""
         from petsc4py import PETSc
 
         ksp = PETSc.KSP().create(comm=self.comm)
         ksp.setOperators(A)
         ksp.setType("cg")
-        ksp.getPC().setType("gamg")
+        multigrid(ksp.getPC())
         ksp.setTolerances(rtol=RTOL, atol=0.0, max_it=2000)
         ksp.setFromOptions()
         return ksp
@@ -130,6 +152,7 @@ class _Rows:
         A.setOption(PETSc.Mat.Option.SYMMETRIC, True)
         A.setOption(PETSc.Mat.Option.SPD, True)
         ksp = PETSc.KSP().create(comm=self.comm)
+        ksp.setOptionsPrefix("direct_")  # a PETSC_OPTIONS -pc_type meant for the CG solves must not replace the factor
         ksp.setOperators(A)
         ksp.setType("preonly")
         ksp.getPC().setType("cholesky")
@@ -145,6 +168,8 @@ class _Rows:
             raise RuntimeError(f"{ksp.getType()} + {ksp.getPC().getType()} did not converge (reason {ksp.getConvergedReason()}, "
                                f"{ksp.getIterationNumber()} iterations, residual {ksp.getResidualNorm():.3g})")
         its.append(0 if ksp.getType() == "preonly" else int(ksp.getIterationNumber()))
+        self.methods.append(ksp.getPC().getFactorSolverType() if ksp.getType() == "preonly"
+                            else f"{ksp.getType()}-{ksp.getPC().getType()}")
         secs.append(time.perf_counter() - t)
 
     def halo(self, values):
@@ -261,6 +286,7 @@ def _geodesic(job, R, its, secs):
         for d in R.tiles:
             uc = wh[R.at(np.asarray(d["cols"]))]
             parts.append(-unit_rows((d["dx"] @ uc)[:, None] * d["u"] + (d["dy"] @ uc)[:, None] * d["v"]))
+            d.release()  # a tile's derivative rows are mapped while used, not for the whole run
         return np.concatenate(parts) if parts else np.zeros((0, 3))
 
     # u decays like exp(-d / sqrt(t)) away from the sources, far below CG's residual tolerance, and X needs
@@ -306,10 +332,12 @@ def _geodesic(job, R, its, secs):
         b_parts.append(np.bincount(Kt.row[off], weights=wt * np.einsum("pd,pd->p", 0.5 * (Xi + Xj), Pi - Pj),
                                    minlength=d.n))
         del Kt, gi, gj, wt, Pi, Pj, Xi, Xj
-    del Xh
+        d.release()
+    del Xh, X_own
     bb = np.concatenate(b_parts) if b_parts else np.zeros(0)
-    own = np.asarray(pts[R.lo : R.hi])
-    r = cKDTree(np.asarray(pts[np.sort(src)])).query(own)[0]
+    del b_parts
+    r = cKDTree(np.asarray(pts[np.sort(src)])).query(np.asarray(pts[R.lo : R.hi]))[0]
+    del pts
     held = r <= SOURCE_RADIUS * np.sqrt(R.mean_m)
     held[mine - R.lo] = True
     held &= done  # a particle of another piece near a source is not reached
@@ -371,6 +399,8 @@ class _WindowedHeat:
         w[rows] = xs.getArray()
         self.its.append(int(ksp.getIterationNumber()))
         self.secs.append(time.perf_counter() - t)
+        if not R.methods or R.methods[-1] != "cg-jacobi windows":
+            R.methods.append("cg-jacobi windows")
         for o in (ksp, sub, xs, index):
             o.destroy()
         return w
@@ -408,11 +438,12 @@ def _eigs(job, R, its, secs):
     st.setType("sinvert")
     ksp = st.getKSP()
     ksp.setType("cg")
-    ksp.getPC().setType("gamg")
+    multigrid(ksp.getPC())
     ksp.setTolerances(rtol=RTOL, atol=0.0, max_it=2000)
     eps.setFromOptions()
     t = time.perf_counter()
     eps.solve()
+    R.methods.append(f"cg-{ksp.getPC().getType()}")
     secs.append(time.perf_counter() - t)
     its.append(int(eps.getIterationNumber()))
     nconv = eps.getConverged()
@@ -461,7 +492,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     peak = comm.tompi4py().gather(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20, root=0)
     if comm.getRank() == 0:
         info = {"iterations": its, "solve_seconds": secs, "read_seconds": t_read, "peak_gb_per_rank": max(peak),
-                "method": METHODS[problem]}
+                "method": ("slepc-krylovschur-sinvert-" if problem == "eigs" else "petsc-")
+                + ", ".join(dict.fromkeys(R.methods)) if R.methods else problem}
         if problem == "geodesic":
             info["unreached"] = R.unreached
         with open(os.path.join(job["work"], "info.json"), "w") as f:
