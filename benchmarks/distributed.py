@@ -8,6 +8,8 @@
     python benchmarks/distributed.py --solves 262144      # global solves: single process, local engine, MPI at 1 and 2 ranks
     python benchmarks/distributed.py --solves 1048576 --problems heat,poisson,geodesic --tiled-only   # engines only, no eigs
     python benchmarks/distributed.py --scale 10000000 --memory-limit 5GB   # 10M points: build K, M rows, implicit step
+    python benchmarks/distributed.py --scale 20000000 --tile-points 625000 --memory-limit 6GB --engine mpi \
+        --problems heat,geodesic --out /tmp/s20m    # 20M points: heat step and geodesic on 2 MPI ranks (tiles kept)
 
 Equality table. Each case is built once in a fresh process (``Surface`` with the same
 local options: ``area="shepard"``, and the scan settings ``h="adaptive"`` on the scan,
@@ -337,8 +339,9 @@ def _difference(got, ref, eigenvalues):
     return float(np.abs(got - ref).max() / np.abs(ref).max())
 
 
-def scale(n, tile_points, memory_limit, steps=1):
-    """One machine to N points: a tiled build keeping K and M rows, then implicit heat steps on one process."""
+def scale(n, tile_points, memory_limit, steps=1, engine="local", ranks=2, problems=("heat",), out=None):
+    """One machine to N points: a tiled build keeping K and M rows (and the derivatives for a geodesic), then implicit
+    heat steps (and a geodesic) on ``engine``; ``out`` keeps the tiles for the next run (reused when they match)."""
     from manifold_sph.distributed import TiledSurface
     from manifold_sph.reference import shapes
 
@@ -347,31 +350,52 @@ def scale(n, tile_points, memory_limit, steps=1):
     x = cloud.points
     print(f"{n}-point Fibonacci sphere: sampled in {time.perf_counter() - t0:.1f} s", flush=True)
     client, cluster = local_client(2, memory_limit)
-    tmp = tempfile.mkdtemp(prefix="msph-scale-")
+    tmp = str(out) if out else tempfile.mkdtemp(prefix="msph-scale-")
+    keep = ("stable", "derivatives") if "geodesic" in problems else ("stable",)
     try:
         t0, c0 = time.perf_counter(), time.process_time()
-        ts = TiledSurface(x, cloud.normals, tile_points=tile_points, client=client, cache_dir=tmp, keep=("stable",),
+        ts = TiledSurface(x, cloud.normals, tile_points=tile_points, client=client, cache_dir=tmp, keep=keep,
                           area="shepard")
         tb = time.perf_counter() - t0
         cpu = sum(r["cpu_seconds"] for r in ts.report)
         peak = max(r["peak_rss_mb"] for r in ts.report) / 1024
         disk = sum(f.stat().st_size for f in Path(tmp).rglob("*") if f.is_file()) / 2**30
-        print(f"  build: {len(ts.chunks)} tiles on 2 workers ({memory_limit} each): {tb:.1f} s wall, tiles {cpu:.1f} CPU s, "
-              f"driver {time.process_time() - c0:.1f} CPU s, peak worker {peak:.2f} GB, tiles on disk {disk:.2f} GB",
-              flush=True)
+        reused = sum(bool(r.get("reused")) for r in ts.report)
+        print(f"  build ({', '.join(keep)}): {len(ts.chunks)} tiles on 2 workers ({memory_limit} each), {reused} reused from "
+              f"{tmp}: {tb:.1f} s wall, tiles {cpu:.1f} CPU s, driver {time.process_time() - c0:.1f} CPU s, "
+              f"peak worker {peak:.2f} GB, tiles on disk {disk:.2f} GB", flush=True)
+        client.close()
+        cluster.close()  # the workers' memory back before the solves
         u0 = np.exp(-10 * ((x - [0, 0, 1]) ** 2).sum(axis=1))
-        del cloud, x
-        t0 = time.perf_counter()
-        u = ts.gather(ts.heat(u0, 1e-4, steps, method="implicit", engine="local"))
-        info = ts.last_solve
-        print(f"  implicit heat, {steps} step(s), local engine ({info['method']}): {time.perf_counter() - t0:.1f} s "
-              f"(solve {info['seconds']:.1f} s, iterations {info['iterations']}), max u {u.max():.4f}, "
-              f"driver peak {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20:.2f} GB", flush=True)
+        del cloud
+        on = f"{engine} engine" + (f", {ranks} ranks" if engine == "mpi" else "")
+        if "heat" in problems:
+            t0 = time.perf_counter()
+            u = ts.gather(ts.heat(u0, 1e-4, steps, method="implicit", engine=engine, ranks=ranks))
+            info = ts.last_solve
+            print(f"  implicit heat, {steps} step(s), {on} ({info['method']}): {time.perf_counter() - t0:.1f} s "
+                  f"(solve {info['seconds']:.1f} s, iterations {info['iterations']}), max u {u.max():.4f}, "
+                  + (f"peak per rank {info['peak_gb_per_rank']:.2f} GB" if engine == "mpi" else
+                     f"driver peak {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20:.2f} GB"), flush=True)
+            del u
+        if "geodesic" in problems:
+            t0 = time.perf_counter()
+            d = ts.gather(ts.geodesic_distance(0, engine=engine, ranks=ranks))
+            info = ts.last_solve
+            its = info["iterations"]
+            exact = np.arccos(np.clip(x @ x[0], -1, 1))
+            err = np.linalg.norm(d - exact) / np.linalg.norm(exact)
+            print(f"  geodesic from one source, {on} ({info['method']}): {time.perf_counter() - t0:.1f} s "
+                  f"(solve {info['seconds']:.1f} s; {len(its) - 1} heat solves, {sum(its[:-1])} iterations, Poisson "
+                  f"{its[-1]}), relative L2 error {err:.2e}, "
+                  + (f"peak per rank {info['peak_gb_per_rank']:.2f} GB" if engine == "mpi" else
+                     f"driver peak {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20:.2f} GB"), flush=True)
         ts.close()
     finally:
         client.close()
         cluster.close()
-        shutil.rmtree(tmp, ignore_errors=True)
+        if not out:
+            shutil.rmtree(tmp, ignore_errors=True)
 
 
 def terrain(path: Path, n: int, seed=0):
@@ -452,11 +476,15 @@ def main():
     ap.add_argument("--scale", type=int, default=None, metavar="N", help="build K, M rows of N points on 2 workers, "
                     "then an implicit heat step on one process")
     ap.add_argument("--single-only", action="store_true", help="--solves: the single-process rows only")
+    ap.add_argument("--engine", default="local", choices=("local", "mpi"), help="--scale: the engine of the solves")
+    ap.add_argument("--ranks", type=int, default=2, help="--scale: MPI ranks")
     ap.add_argument("--tiled-only", action="store_true", help="--solves: the TiledSurface engines' rows only")
     ap.add_argument("--problems", default=",".join(SOLVES), help="--solves: comma-separated, of " + ", ".join(SOLVES))
     args = ap.parse_args()
     if args.scale:
-        scale(args.scale, args.tile_points, args.memory_limit)
+        scale(args.scale, args.tile_points, args.memory_limit, engine=args.engine, ranks=args.ranks,
+              problems=tuple(p for p in args.problems.split(",") if p) if args.problems != ",".join(SOLVES) else ("heat",),
+              out=args.out)
         return
     if args.solves:
         problems = [p for p in args.problems.split(",") if p]
