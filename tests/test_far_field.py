@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from manifold_sph import Surface
 from manifold_sph.frames import unit_rows
@@ -64,3 +65,49 @@ def test_band_directions_rejects_bad_input():
         band_directions(None, np.zeros(4), None)
     with pytest.raises(ValueError, match="floor"):
         band_directions(None, np.ones(4), None, floor=2.0)
+
+
+def test_voxel_windows_hold_every_particle_near_a_seed():
+    """The 27 voxels around a seed's hold every particle within one voxel side of it (brute force), and no more
+    than those voxels' particles."""
+    from manifold_sph.distributed.bands import VoxelWindows
+
+    rng = np.random.default_rng(5)
+    pts = rng.uniform(-1, 1, size=(4000, 3)) * [3.0, 1.0, 0.5]
+    cell = 0.37
+    vw = VoxelWindows(pts, cell)
+    for seeds in (np.array([0]), rng.choice(4000, 25, replace=False)):
+        rows = vw.rows(vw.around(vw.keys[seeds]))
+        near = np.flatnonzero(np.linalg.norm(pts[:, None] - pts[seeds][None], axis=2).min(axis=1) <= cell)
+        assert np.isin(near, rows).all() and np.all(np.diff(rows) > 0)
+        # nothing beyond the 27 voxels: every row's voxel is within one voxel of a seed's on each axis
+        q = np.floor((pts - pts.min(axis=0)) / cell).astype(int)
+        assert (np.abs(q[rows][:, None] - q[seeds][None]).max(axis=2).min(axis=1) <= 1).all()
+    with pytest.raises(ValueError, match="voxels"):
+        VoxelWindows(np.array([[0.0, 0, 0], [1e9, 0, 0]]), 1e-3)
+
+
+def test_windowed_heat_step_equals_the_whole_cloud_solve():
+    """A band's solve on the window around its seed gives the whole cloud's solution where the bands use it (values
+    above 1e-8 of the largest) to 1e-9 relatively, and zero outside the window."""
+    import scipy.sparse as sp
+    from scipy.sparse.linalg import spsolve
+
+    from manifold_sph.distributed.bands import WindowedHeat
+
+    rng = np.random.default_rng(2)
+    g = np.stack(np.meshgrid(np.arange(240.0), np.arange(240.0)), axis=-1).reshape(-1, 2)
+    P = np.c_[g + rng.uniform(-0.3, 0.3, g.shape), np.zeros(len(g))]  # a jittered square of 240 spacings
+    s = Surface(P, np.tile([0.0, 0.0, 1.0], (len(P), 1)), area="shepard")
+    K, m = s.stiffness_matrix(), s.mass_matrix().diagonal()
+    t = 4 * m.mean()
+    A = (sp.diags(m) + t * K).tocsc()
+    heat = WindowedHeat(A, P, t)
+    b = np.zeros(m.size)
+    b[np.argmin(np.linalg.norm(P - [120.0, 120.0, 0.0], axis=1))] = 1.0  # the middle: the window is 192 spacings wide
+    w = heat.solve(b)
+    assert 0 < heat.info.rows < 0.7 * m.size and heat.info.iterations > 0  # a window, not the cloud
+    assert not w[np.linalg.norm(P - P[b > 0], axis=1) > 2 * 64 * np.sqrt(3)].any()
+    full = spsolve(A, b)
+    kept = full > 1e-8 * full.max()
+    assert np.all(np.abs(w[kept] - full[kept]) <= 1e-9 * full[kept] + 1e-13 * full.max())
