@@ -243,14 +243,13 @@ def _poisson(job, R, its, secs):
 
     b = R.vec(R.m * (fl - piece_means(fl)[lab]))
     x = R.vec()
-    if pieces == 1:  # the constants: K's null space
-        R.K.setNullSpace(PETSc.NullSpace().create(constant=True, comm=R.comm))
-        A = R.K
-    else:  # a null space a piece: one value held on each (its row and column made the identity's), then the means
-        pinned = np.asarray(_load(job, "pinned"), dtype=np.int64)
-        rows = pinned[(pinned >= R.lo) & (pinned < R.hi)].astype(PETSc.IntType)
-        A = R.K
-        A.zeroRowsColumns(rows, diag=1.0, x=x, b=b)
+    # K has one null vector a piece: one value held on each (its row and column made the identity's) makes the
+    # system definite, as on the local engine (BoomerAMG on the singular K gave an indefinite preconditioner at
+    # 1M points), then each piece's mean is taken off
+    pinned = np.asarray(_load(job, "pinned"), dtype=np.int64) if pieces > 1 else np.zeros(1, dtype=np.int64)
+    rows = pinned[(pinned >= R.lo) & (pinned < R.hi)].astype(PETSc.IntType)
+    A = R.K
+    A.zeroRowsColumns(rows, diag=1.0, x=x, b=b)
     R.solve(R.ksp(A), b, x, its, secs)
     u = x.getArray().copy()
     return u - piece_means(u)[lab]
