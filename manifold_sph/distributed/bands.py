@@ -61,11 +61,15 @@ class VoxelWindows:
     def __init__(self, points: np.ndarray, cell: float, origin: np.ndarray | None = None) -> None:
         points = np.asarray(points, dtype=np.float64)
         lo = points.min(axis=0) if origin is None else np.asarray(origin, dtype=np.float64)
-        q = np.floor((points - lo) / cell).astype(np.int64) + 1  # one empty voxel layer below: no wrap-around
         self.dims = (2**20, 2**20, 2**20)
-        if q.size and (q.min() < 1 or q.max() >= self.dims[0] - 1):
-            raise ValueError(f"the cloud spans more than {self.dims[0] - 2} voxels of side {cell:.3g} on an axis")
-        self.keys = self.key(q)
+        self.keys = np.zeros(len(points), dtype=np.int64)
+        for a in range(3):  # axis by axis: temporaries of one column
+            q = np.floor((points[:, a] - lo[a]) / cell).astype(np.int64) + 1  # one empty voxel layer below: no wrap
+            if q.size and (q.min() < 1 or q.max() >= self.dims[a] - 1):
+                raise ValueError(f"the cloud spans more than {self.dims[a] - 2} voxels of side {cell:.3g} on an axis")
+            self.keys *= self.dims[a]
+            self.keys += q
+        del q
         self.order = np.argsort(self.keys, kind="stable")
         self._sorted = self.keys[self.order]
         self.offsets = np.array([self.key(np.array(o)) - self.key(np.zeros(3, dtype=np.int64))

@@ -194,6 +194,13 @@ class _Rows:
             out[:, c] = self._target.getArray()
         return out.reshape((self.needed.size,) + values.shape[1:])
 
+    def drop_halo(self) -> None:
+        """Free what :meth:`halo` set up (it is set up again when next used)."""
+        if hasattr(self, "_scatter"):
+            for o in (self._scatter, self._source, self._target):
+                o.destroy()
+            del self._scatter, self._source, self._target, self.needed
+
     def at(self, cols):
         """Positions of the tile-order indices ``cols`` in :attr:`needed`."""
         return np.searchsorted(self.needed, cols)
@@ -279,14 +286,17 @@ def _geodesic(job, R, its, secs):
     rhs[mine - R.lo] = 1.0
     x = R.vec()
 
-    def own_directions(w):  # -grad u / |grad u| on the own rows; no squares of tiny u
+    def set_directions(w, ok, X):  # X[ok] = -grad u / |grad u|, tile by tile, only where ok; no squares of tiny u
         wh = R.halo(w)
-        parts = []
+        lo = 0
         for d in R.tiles:
-            uc = wh[R.at(np.asarray(d["cols"]))]
-            parts.append(-unit_rows((d["dx"] @ uc)[:, None] * d["u"] + (d["dy"] @ uc)[:, None] * d["v"]))
-            d.release()  # a tile's derivative rows are mapped while used, not for the whole run
-        return np.concatenate(parts) if parts else np.zeros((0, 3))
+            sel = np.flatnonzero(ok[lo : lo + d.n])
+            if sel.size:
+                uc = wh[R.at(np.asarray(d["cols"]))]
+                g = (d["dx"][sel] @ uc)[:, None] * d["u"][sel] + (d["dy"][sel] @ uc)[:, None] * d["v"][sel]
+                X[lo + sel] = -unit_rows(g)
+                d.release()  # a tile's derivative rows are mapped while used, not for the whole run
+            lo += d.n
 
     # u decays like exp(-d / sqrt(t)) away from the sources, far below CG's residual tolerance, and X needs
     # its far field: a Cholesky factor (MUMPS) keeps every entry's digits; above the size where the local
@@ -303,6 +313,7 @@ def _geodesic(job, R, its, secs):
         heat, floor = _WindowedHeat(R, A, np.asarray(pts[R.lo : R.hi]), c, its, secs), BAND_FLOOR
     X_own, done = np.zeros((nloc, 3)), np.zeros(nloc, dtype=bool)
     b = R.vec(rhs)
+    del rhs
     while True:
         w = heat(b)
         top = mpi.allreduce(float(np.abs(w).max()) if nloc else 0.0, op=MPI.MAX)
@@ -311,7 +322,7 @@ def _geodesic(job, R, its, secs):
         ok = (w > floor * top) & ~done
         if not mpi.allreduce(bool(ok.any()), op=MPI.LOR):
             break
-        X_own[ok] = own_directions(w)[ok]
+        set_directions(w, ok, X_own)
         done |= ok
         shell = ok & (w <= BAND_SHELL * floor * top)
         if mpi.allreduce(bool(done.all()), op=MPI.LAND) or not mpi.allreduce(bool(shell.any()), op=MPI.LOR):
@@ -333,6 +344,7 @@ def _geodesic(job, R, its, secs):
         del Kt, gi, gj, wt, Pi, Pj, Xi, Xj
         d.release()
     del Xh, X_own
+    R.drop_halo()  # the scatter's vectors and indices: not held through the Poisson step
     bb = np.concatenate(b_parts) if b_parts else np.zeros(0)
     del b_parts
     r = cKDTree(np.asarray(pts[np.sort(src)])).query(np.asarray(pts[R.lo : R.hi]))[0]
