@@ -299,6 +299,8 @@ def _run_mpi(ts, problem, ranks, args):
             cmd += ["--allow-run-as-root", "--oversubscribe"]
         cmd += [sys.executable, "-m", "manifold_sph.mpi", path]
         env = dict(os.environ, OMPI_MCA_rmaps_base_oversubscribe="1")
+        for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):  # one thread a rank unless told
+            env.setdefault(name, "1")
         proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
         if proc.returncode != 0:
             raise RuntimeError(f"the MPI engine failed (exit {proc.returncode}): {' '.join(cmd)}\n{proc.stderr[-3000:]}")
