@@ -22,6 +22,7 @@ import resource
 import sys
 import time
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -39,7 +40,7 @@ HYPRE_OPTIONS = {"pc_hypre_type": "boomeramg", "pc_hypre_boomeramg_agg_nl": "1",
                  "pc_hypre_boomeramg_interp_type": "ext+i", "pc_hypre_boomeramg_P_max": "2"}
 
 
-def multigrid(pc) -> str:
+def multigrid(pc: Any) -> str:
     """Make ``pc`` the engine's multigrid: hypre's BoomerAMG with :data:`HYPRE_OPTIONS` where PETSc has hypre,
     GAMG otherwise; returns its name."""
     from petsc4py import PETSc
