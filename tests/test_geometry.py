@@ -325,7 +325,7 @@ def test_transport_and_log_map_on_the_sphere(sphere16k):
     v = P - (P @ P[0])[:, None] * P[0]
     lv = np.arccos(np.clip(P @ P[0], -1, 1))[:, None] * v / np.maximum(np.linalg.norm(v, axis=1), 1e-300)[:, None]
     exL = np.stack([lv @ s.u[0], lv @ s.v[0]], axis=1)
-    assert rel(L[far], exL[far]) < 7e-4  # measured 4.5e-4 (with the straight line held and the diffused angle: 9.5e-4)
+    assert rel(L[far], exL[far]) < 7e-4  # measured 4.4e-4 (with the straight line held and the diffused angle: 9.5e-4)
     r = np.linalg.norm(L, axis=1)
     assert rel(r[far], np.arccos(np.clip(P[far] @ P[0], -1, 1))) < 4.5e-4  # the radius alone: measured 2.9e-4 (6.8e-4)
     assert np.all(r >= np.linalg.norm(P - P[0], axis=1) * (1 - 1e-12))  # never below the straight line
@@ -341,9 +341,9 @@ def exact_log_map(P, s, i):
 
 def test_log_map_on_uniformly_random_points():
     """Uniformly random points on the unit sphere (seed 0), against the exact log map away from the antipode:
-    the error falls with N (40,000 points: 8.1e-4 in benchmarks/geometry.py --only vector). Towards the cut
+    the error falls with N (40,000 points: 7.0e-4 in benchmarks/geometry.py --only vector). Towards the cut
     locus the diffused vector cancels and the angle is carried along the geodesics instead (the band 0.1-0.5
-    from the antipode: 1.6e-3 at 16,000 points, 5.7e-3 with the diffused vector's own angle); near the source
+    from the antipode: 1.5e-3 at 16,000 points, 5.7e-3 with the diffused vector's own angle); near the source
     the radius is integrated against the wavefront distance held over 10 spacings (radius 4.0e-4, 9.1e-4 with
     the straight line held over 3)."""
     errors = []
@@ -358,12 +358,37 @@ def test_log_map_on_uniformly_random_points():
         far = th < np.pi - 0.1
         errors.append(rel(L[far], exL[far]))
         r = np.linalg.norm(L, axis=1)
-        assert rel(r[far], th[far]) < (2e-3 if n == 4000 else 6e-4)  # measured 1.4e-3, 4.0e-4
+        assert rel(r[far], th[far]) < (2.5e-3 if n == 4000 else 6e-4)  # measured 1.7e-3, 4.0e-4
         band = far & (th > np.pi - 0.5)
         if n == 16000:
-            assert rel(L[band], exL[band]) < 2.5e-3  # measured 1.6e-3
-    assert errors[0] < 4e-3 and errors[1] < 1.4e-3  # measured 2.9e-3, 1.08e-3 (the diffused vector's angle: 8.6e-3, 2.6e-3)
-    assert np.log(errors[0] / errors[1]) / np.log(2.0) > 1.0  # fitted order in h: measured 1.4
+            assert rel(L[band], exL[band]) < 2.5e-3  # measured 1.5e-3
+    assert errors[0] < 5e-3 and errors[1] < 1.4e-3  # measured 4.1e-3, 9.6e-4 (the diffused vector's angle: 8.6e-3, 2.6e-3)
+    assert np.log(errors[0] / errors[1]) / np.log(2.0) > 1.0  # fitted order in h: measured 2.1
+
+
+def test_log_map_on_a_cylinder_is_the_unrolled_plane():
+    """A cylinder (radius 0.2, 8,000 uniformly random points) is developable: its log map is the plane's, unrolled.
+    Heat reaches the far side by both routes around it, so there ``log u`` and the diffused vector mix two
+    directions: the radius stays within 0.5 % of the wavefront distance, and where ``|grad log u|`` falls below
+    0.9 of ``1 / sqrt(t)`` the angle is carried along the geodesics (relative L2 4.1e-2 and radius 4.1e-3; with
+    neither 0.15 and 1.9e-2)."""
+    rng = np.random.default_rng(0)
+    n, rho, height = 8000, 0.2, 1.5
+    phi, z = rng.uniform(0, 2 * np.pi, n), rng.uniform(0, height, n)
+    P = np.stack([rho * np.cos(phi), rho * np.sin(phi), z], axis=1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ManifoldSPHWarning)  # near-duplicate random points
+        s = Surface(P, np.stack([np.cos(phi), np.sin(phi), np.zeros(n)], axis=1))
+    i = int(np.argmin(np.abs(z - height / 2) + np.abs(phi - 1)))
+    L = s.log_map(i)
+    dphi = np.angle(np.exp(1j * (phi - phi[i])))
+    V = (rho * dphi)[:, None] * np.array([-np.sin(phi[i]), np.cos(phi[i]), 0.0]) + (z - z[i])[:, None] * np.array([0, 0, 1.0])
+    exL = np.stack([V @ s.u[i], V @ s.v[i]], axis=1)
+    ex = np.linalg.norm(exL, axis=1)
+    keep = (ex > 0.03) & (np.abs(np.abs(dphi) - np.pi) > 0.2) & (z > 0.1) & (z < height - 0.1)  # off the cut line and rims
+    r = np.linalg.norm(L, axis=1)
+    assert np.mean(np.abs(r[keep] - ex[keep]) / ex[keep]) < 6e-3  # measured 4.1e-3
+    assert rel(L[keep], exL[keep]) < 6e-2  # measured 4.1e-2
 
 
 def test_integrate_holds_given_distances_near_the_source():

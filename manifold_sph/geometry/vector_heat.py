@@ -68,9 +68,13 @@ LOG_MAP_NEIGHBORS = 96
 #: The log map's radius is integrated from its directions with the wavefront distance held within this many
 #: spacings of the source.
 LOG_MAP_HELD = 10.0
+#: The integrated radius is kept within this relative distance of the wavefront distance.
+LOG_MAP_SPREAD = 0.005
 #: The log map's angle is read from the diffused vector where it keeps at least this share of the scalar heat
 #: (``|Y| >= ANGLE_TRUST |X| u``); elsewhere paths of the diffusion cancel and the angle is carried along the geodesics.
 ANGLE_TRUST = 0.5
+#: ... and where ``|grad log u|`` keeps at least this share of Varadhan's ``r / 2t`` (less: heat from several routes).
+RADIAL_TRUST = 0.9
 #: Nearest points searched for the upwind particles of the angle's propagation.
 ANGLE_NEIGHBORS = 32
 
@@ -303,8 +307,11 @@ class VectorHeatSolver:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ManifoldSPHWarning)
             r = self._wavefront.distance(i)
-            if self.geodesics == "heat":
-                r = self._distance.integrate(g, i, near=r, radius=LOG_MAP_HELD)
+            if self.geodesics == "heat":  # within LOG_MAP_SPREAD of the wavefront, never below the straight line
+                wf = r
+                r = self._distance.integrate(g, i, near=wf, radius=LOG_MAP_HELD)
+                r = np.maximum(np.clip(r, (1.0 - LOG_MAP_SPREAD) * wf, (1.0 + LOG_MAP_SPREAD) * wf),
+                               np.linalg.norm(s.points - s.points[i], axis=1))
         lost = np.isfinite(r) & ~ok
         if lost.any():
             warnings.warn(f"log_map: the heat step's solution is below the solver's accuracy or float64's range at "
@@ -314,6 +321,7 @@ class VectorHeatSolver:
         Y = self.diffuse(i, s.u[i])
         theta = np.angle(radial * np.conj(Y))
         known = ~(np.abs(Y) < ANGLE_TRUST * np.abs(_to_complex(s, i, s.u[i])) * u) | ~np.isfinite(r)
+        known &= ~(np.linalg.norm(g, axis=1) * np.sqrt(self.t) < RADIAL_TRUST)
         if not known.all():  # paths of the diffusion cancel: carry the angle along the geodesics
             slot = np.cumsum(~known) - 1
             dist, nbr = self._tree.query(s.points[~known], k=min(ANGLE_NEIGHBORS, n), workers=-1)
