@@ -29,6 +29,8 @@ from numpy.typing import ArrayLike
 
 __all__ = ["HYPRE_OPTIONS", "RTOL", "main", "multigrid", "rank_tiles"]
 
+#: Rows of K a rank treats at once where it forms pair arrays (the geodesic's right-hand side).
+BLOCK_ROWS = 131_072
 #: Relative residual of every CG solve (equality with the single process's Cholesky to ~1e-10).
 RTOL = 1e-12
 #: What solves each problem (reported as ``info["method"]``).
@@ -268,6 +270,7 @@ def _geodesic(job, R, its, secs):
     from petsc4py import PETSc
     from scipy.spatial import cKDTree
 
+    from ..allocator import release_freed_memory
     from ..distributed.bands import BAND_FLOOR, BAND_SHELL, DIRECT_FLOOR
     from ..distributed.solve import GEODESIC_DIRECT_MAX_N, GEODESIC_T, SOURCE_RADIUS
     from ..frames import unit_rows
@@ -333,21 +336,23 @@ def _geodesic(job, R, its, secs):
     del heat, b, w
     R.unreached = int(mpi.allreduce(int(np.count_nonzero(~done)), op=MPI.SUM))
     Xh = R.halo(X_own)
-    b_parts = []
-    for d in R.tiles:  # sum_j w_ij (X_i + X_j) / 2 . (x_i - x_j), the own rows of K
-        Kt, cols = d["K"].tocoo(), np.asarray(d["cols"])
-        off = Kt.row != Kt.col
-        gi, gj, wt = cols[Kt.row[off]], cols[Kt.col[off]], -Kt.data[off]
-        Pi, Pj = np.asarray(pts[gi]), np.asarray(pts[gj])
-        Xi, Xj = X_own[gi - R.lo], Xh[R.at(gj)]
-        b_parts.append(np.bincount(Kt.row[off], weights=wt * np.einsum("pd,pd->p", 0.5 * (Xi + Xj), Pi - Pj),
-                                   minlength=d.n))
-        del Kt, gi, gj, wt, Pi, Pj, Xi, Xj
+    bb = np.zeros(nloc)
+    lo = 0
+    for d in R.tiles:  # sum_j w_ij (X_i + X_j) / 2 . (x_i - x_j), the own rows of K, in blocks of rows
+        K_t, cols = d["K"], np.asarray(d["cols"])
+        for r0 in range(0, d.n, BLOCK_ROWS):
+            Kt = K_t[r0 : r0 + BLOCK_ROWS].tocoo()
+            off = Kt.row != Kt.col
+            gi, gj, wt = cols[Kt.row[off] + r0], cols[Kt.col[off]], -Kt.data[off]
+            dot = np.einsum("pd,pd->p", 0.5 * (X_own[gi - R.lo] + Xh[R.at(gj)]), np.asarray(pts[gi]) - np.asarray(pts[gj]))
+            bb[lo + r0 : lo + r0 + Kt.shape[0]] = np.bincount(Kt.row[off], weights=wt * dot, minlength=Kt.shape[0])
+            del Kt, off, gi, gj, wt, dot
+        lo += d.n
+        del K_t
         d.release()
     del Xh, X_own
     R.drop_halo()  # the scatter's vectors and indices: not held through the Poisson step
-    bb = np.concatenate(b_parts) if b_parts else np.zeros(0)
-    del b_parts
+    release_freed_memory()  # the bands' and the right-hand side's temporaries, before the Poisson step's multigrid
     r = cKDTree(np.asarray(pts[np.sort(src)])).query(np.asarray(pts[R.lo : R.hi]))[0]
     del pts
     held = r <= SOURCE_RADIUS * np.sqrt(R.mean_m)
