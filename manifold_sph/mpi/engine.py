@@ -29,7 +29,7 @@ from numpy.typing import ArrayLike
 
 __all__ = ["HYPRE_OPTIONS", "RTOL", "main", "multigrid", "rank_tiles"]
 
-#: Rows of K a rank treats at once where it forms pair arrays (the geodesic's right-hand side).
+#: Rows of K a rank treats at once where it forms pair arrays (the geodesic's right-hand side; a job's "block_rows").
 BLOCK_ROWS = 131_072
 #: Relative residual of every CG solve (equality with the single process's Cholesky to ~1e-10).
 RTOL = 1e-12
@@ -337,12 +337,12 @@ def _geodesic(job, R, its, secs):
     R.unreached = int(mpi.allreduce(int(np.count_nonzero(~done)), op=MPI.SUM))
     Xh = R.halo(X_own)
     bb = np.zeros(nloc)
-    lo = 0
+    lo, block = 0, int(job.get("block_rows", BLOCK_ROWS))
     for d in R.tiles:  # sum_j w_ij (X_i + X_j) / 2 . (x_i - x_j), the own rows of K, in blocks of rows
         K_t, cols = d["K"], np.asarray(d["cols"])
-        for r0 in range(0, d.n, BLOCK_ROWS):
-            Kt = K_t[r0 : r0 + BLOCK_ROWS].tocoo()
-            off = Kt.row != Kt.col
+        for r0 in range(0, d.n, block):
+            Kt = K_t[r0 : r0 + block].tocoo()
+            off = Kt.row + r0 != Kt.col  # the diagonal: column (tile + halo index) = the own row
             gi, gj, wt = cols[Kt.row[off] + r0], cols[Kt.col[off]], -Kt.data[off]
             dot = np.einsum("pd,pd->p", 0.5 * (X_own[gi - R.lo] + Xh[R.at(gj)]), np.asarray(pts[gi]) - np.asarray(pts[gj]))
             bb[lo + r0 : lo + r0 + Kt.shape[0]] = np.bincount(Kt.row[off], weights=wt * dot, minlength=Kt.shape[0])
