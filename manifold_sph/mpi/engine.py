@@ -116,6 +116,7 @@ class _Rows:
         del m_parts
         release_freed_memory()  # the rows' temporaries: back to the system, not kept by malloc
         self.M = self.vec(self.m)
+        self.m = self.M.getArray()  # M's own storage: one copy of the masses a rank
         self.mean_m = comm.tompi4py().allreduce(float(self.m.sum())) / self.n
         self.unreached = 0  # the geodesic: particles in pieces that hold no source
         self.methods: list[str] = []  # what solved each system, in order
@@ -334,6 +335,7 @@ def _geodesic(job, R, its, secs):
         smax = mpi.allreduce(float(w[shell].max()) if shell.any() else 0.0, op=MPI.MAX)
         b.getArray()[:] = np.where(shell, w / smax, 0.0)
     del heat, b, w
+    x.destroy()  # the heat step's solution vector
     R.unreached = int(mpi.allreduce(int(np.count_nonzero(~done)), op=MPI.SUM))
     Xh = R.halo(X_own)
     bb = np.zeros(nloc)
@@ -361,8 +363,12 @@ def _geodesic(job, R, its, secs):
     pinned = held | ~done  # the pieces holding no source: pinned at 0, then inf
     rows = (np.flatnonzero(pinned) + R.lo).astype(PETSc.IntType)
     xv, bv = R.vec(np.where(held, r, 0.0)), R.vec(bb)
+    del r, bb, held, pinned
     K = _heat_to_stiffness(A, R.M, c)
     K.zeroRowsColumns(rows, diag=1.0, x=xv, b=bv)
+    xv.destroy()
+    del xv, rows
+    release_freed_memory()  # what the Poisson step's multigrid set-up can reuse
     phi = R.vec()
     R.solve(R.ksp(K), bv, phi, its, secs)
     out = phi.getArray().copy()
