@@ -10,10 +10,10 @@ field continues ``exp(-(d_shell + |x - x_shell|) / sqrt(t))``, whose directions 
 geodesic's.
 
 A band's field is negligible more than :data:`BAND_WINDOW` ``sqrt(t)`` from its seed
-(``exp(-32)`` ~ 1e-14 of the seed's values; the directions it keeps lie within about 18
+(``exp(-32)`` ~ 1e-14 of its values at the seed; the directions it keeps lie within about 18
 ``sqrt(t)``, and a zero held at the window's edge changes them by about ``exp(-2 (32 - 18))``
 ~ 1e-12 relatively). :class:`WindowedHeat` therefore solves each band only on the particles
-of the voxels (side ``BAND_WINDOW sqrt(t)``) around the seed's voxels, with Jacobi-preconditioned
+of the voxels (side ``BAND_WINDOW sqrt(t)``) around those of its seed, with Jacobi-preconditioned
 CG: ``M + t K`` with ``t`` a few mean cells has a condition number of a few dozen whatever the
 cloud's size, so CG needs 60-130 iterations and no multigrid set-up, and the work of a band is
 that of its window, not of the cloud.
