@@ -111,3 +111,38 @@ def test_windowed_heat_step_equals_the_whole_cloud_solve():
     full = spsolve(A, b)
     kept = full > 1e-8 * full.max()
     assert np.all(np.abs(w[kept] - full[kept]) <= 1e-9 * full[kept] + 1e-13 * full.max())
+
+
+def test_band_solvers_reject_bad_input():
+    import scipy.sparse as sp
+
+    from manifold_sph.distributed.bands import VoxelWindows, WindowedHeat, jacobi_cg
+
+    P = np.random.default_rng(0).uniform(size=(20, 3))
+    A = sp.identity(20, format="csr")
+    with pytest.raises(ValueError, match="points"):
+        VoxelWindows(np.r_[P[:-1], [[np.nan, 0, 0]]], 0.5)
+    with pytest.raises(ValueError, match="points"):
+        VoxelWindows(P[:, :2], 0.5)
+    with pytest.raises(ValueError, match="cell"):
+        VoxelWindows(P, 0.0)
+    with pytest.raises(ValueError, match="origin"):
+        VoxelWindows(P, 0.5, origin=[0.0, 0.0])
+    with pytest.raises(ValueError, match="t must"):
+        WindowedHeat(A, P, -1.0)
+    with pytest.raises(ValueError, match="one row per row of A"):
+        WindowedHeat(A, P[:10], 1.0)
+    with pytest.raises(ValueError, match="square"):
+        WindowedHeat(sp.random(20, 10, format="csr"), P, 1.0)
+    with pytest.raises(ValueError, match="b must"):
+        WindowedHeat(A, P, 1.0).solve(np.ones(5))
+    with pytest.raises(ValueError, match="b"):
+        jacobi_cg(A, np.full(20, np.inf), 1e-12, 10)
+    with pytest.raises(ValueError, match="rtol"):
+        jacobi_cg(A, np.ones(20), 2.0, 10)
+    with pytest.raises(ValueError, match="maxiter"):
+        jacobi_cg(A, np.ones(20), 1e-12, 0)
+    with pytest.raises(ValueError, match="positive diagonal"):
+        jacobi_cg(-A, np.ones(20), 1e-12, 10)
+    x, its = jacobi_cg(2 * A, np.ones(20), 1e-12, 10)  # the identity's multiple: one iteration
+    assert its == 1 and np.allclose(x, 0.5)

@@ -59,8 +59,13 @@ class VoxelWindows:
     """
 
     def __init__(self, points: np.ndarray, cell: float, origin: np.ndarray | None = None) -> None:
-        points = np.asarray(points, dtype=np.float64)
-        lo = points.min(axis=0) if origin is None else np.asarray(origin, dtype=np.float64)
+        from .._validation import as_field, as_points, check_positive
+
+        points = as_points("points", points)
+        cell = check_positive("cell", cell)
+        if origin is None and not len(points):
+            raise ValueError("points is empty: give the voxel grid's origin")
+        lo = points.min(axis=0) if origin is None else as_field("origin", origin, 3)
         self.dims = (2**20, 2**20, 2**20)
         self.keys = np.zeros(len(points), dtype=np.int64)
         for a in range(3):  # axis by axis: temporaries of one column
@@ -96,13 +101,31 @@ class VoxelWindows:
 
 
 def _dot(a: np.ndarray, b: np.ndarray) -> float:
-    # not BLAS's ddot: its threads spin against each other when the cores are shared (50x slower measured)
+    # not BLAS's ddot: its threads spin against each other when the cores are shared
     return float(np.einsum("i,i", a, b))
 
 
+def _square(name: str, A: Any) -> sp.csr_matrix:
+    if not sp.issparse(A) or A.ndim != 2 or A.shape[0] != A.shape[1]:
+        raise ValueError(f"{name} must be a square sparse matrix, got {type(A).__name__} of shape {np.shape(A)}")
+    return sp.csr_matrix(A)
+
+
 def jacobi_cg(A: sp.csr_matrix, b: np.ndarray, rtol: float, maxiter: int) -> tuple[np.ndarray, int]:
-    """CG preconditioned by ``A``'s diagonal, from zero, to ``|b - A x| <= rtol |b|``; ``(x, iterations)``."""
+    """CG preconditioned by ``A``'s diagonal, from zero, to ``|b - A x| <= rtol |b|``; ``(x, iterations)``.
+
+    ``A`` (n, n) sparse SPD with a positive diagonal; ``b`` (n,); ``rtol`` in (0, 1); ``maxiter`` >= 1.
+    """
+    from .._validation import as_field, check_int
     from ..solvers import SolverConvergenceError
+
+    A = _square("A", A)
+    b = as_field("b", b, A.shape[0])
+    if not (isinstance(rtol, (int, float)) and 0.0 < rtol < 1.0):
+        raise ValueError(f"rtol must lie in (0, 1), got {rtol!r}")
+    maxiter = check_int("maxiter", maxiter, minimum=1)
+    if not np.all(A.diagonal() > 0):
+        raise ValueError("A must have a positive diagonal (an SPD matrix), got a zero or negative diagonal entry")
 
     dinv = 1.0 / A.diagonal()
     x = np.zeros_like(b)
@@ -148,13 +171,21 @@ class WindowedHeat:
     method = "jacobi-cg windows"
 
     def __init__(self, A: Any, points: np.ndarray, t: float, *, rtol: float = BAND_RTOL, maxiter: int = 5000) -> None:
-        self.A = sp.csr_matrix(A)
-        self.windows = VoxelWindows(points, BAND_WINDOW * float(np.sqrt(t)))
+        from .._validation import as_points, check_positive
+
+        self.A = _square("A", A)
+        points = as_points("points", points)
+        if len(points) != self.A.shape[0]:
+            raise ValueError(f"points must have one row per row of A ({self.A.shape[0]}), got {len(points)}")
+        self.windows = VoxelWindows(points, BAND_WINDOW * float(np.sqrt(check_positive("t", t))))
         self.rtol, self.maxiter = rtol, maxiter
         self.info = _Info()
 
     def solve(self, b: np.ndarray) -> np.ndarray:
-        b = np.asarray(b, dtype=np.float64)
+        """``w`` (N,): the solution on the window around ``b``'s nonzero entries, zero outside."""
+        from .._validation import as_field
+
+        b = as_field("b", b, self.A.shape[0])
         win = self.windows.rows(self.windows.around(self.windows.keys[b != 0]))
         x, its = jacobi_cg(self.A[win][:, win], b[win], self.rtol, self.maxiter)
         self.info.iterations, self.info.rows = its, win.size

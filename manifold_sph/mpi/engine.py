@@ -33,11 +33,9 @@ __all__ = ["HYPRE_OPTIONS", "RTOL", "main", "multigrid", "rank_tiles"]
 BLOCK_ROWS = 131_072
 #: Relative residual of every CG solve (equality with the single process's Cholesky to ~1e-10).
 RTOL = 1e-12
-#: What solves each problem (reported as ``info["method"]``).
 #: The multigrid of the CG solves where PETSc has hypre: BoomerAMG with aggressive coarsening on the finest
-#: level and truncated interpolation (each a PETSc option a user's PETSC_OPTIONS may override). Its hierarchy
-#: takes about 0.2 KB a row against GAMG's 0.35-0.55 KB, at the same iterations: at 20M points on 2 ranks a
-#: heat step's peak is 3.8 GB a rank against 6.8 GB (docs/distributed.md).
+#: level and truncated interpolation (each a PETSc option a user's PETSC_OPTIONS may override): about half of
+#: GAMG's hierarchy at the same iterations (docs/distributed.md).
 HYPRE_OPTIONS = {"pc_hypre_type": "boomeramg", "pc_hypre_boomeramg_agg_nl": "1", "pc_hypre_boomeramg_coarsen_type": "HMIS",
                  "pc_hypre_boomeramg_interp_type": "ext+i", "pc_hypre_boomeramg_P_max": "2"}
 
@@ -255,8 +253,8 @@ def _poisson(job, R, its, secs):
     b = R.vec(R.m * (fl - piece_means(fl)[lab]))
     x = R.vec()
     # K has one null vector a piece: one value held on each (its row and column made the identity's) makes the
-    # system definite, as on the local engine (BoomerAMG on the singular K gave an indefinite preconditioner at
-    # 1M points), then each piece's mean is taken off
+    # system definite, as on the local engine (a multigrid built on the singular K can be an indefinite
+    # preconditioner), then each piece's mean is taken off
     pinned = np.asarray(_load(job, "pinned"), dtype=np.int64) if pieces > 1 else np.zeros(1, dtype=np.int64)
     rows = pinned[(pinned >= R.lo) & (pinned < R.hi)].astype(PETSc.IntType)
     A = R.K
