@@ -510,3 +510,80 @@ def test_mpi_engine_geodesic_rhs_in_blocks_of_rows(monkeypatch):
         loc = ts.gather(ts.geodesic_distance(5, engine="local"))
         got = ts.gather(ts.geodesic_distance(5, engine="mpi", ranks=2))
     assert rel(got, loc) < 1e-8
+
+
+DASK_MPI_SCRIPT = '''
+"""mpirun -n 4 python SCRIPT OUT: a Dask cluster from dask_mpi (scheduler, this client, two workers), the tiles
+built on it, then the global solves on the workers' own MPI ranks (engine "auto" and "dask-mpi") and locally."""
+import json, sys
+import numpy as np
+from dask_mpi import initialize
+
+initialize(nthreads=1, dashboard=False, memory_limit=0)
+from dask.distributed import Client
+from manifold_sph.distributed import TiledSurface
+from manifold_sph.reference import shapes
+
+client = Client()
+client.wait_for_workers(2)
+cloud = shapes.sphere(2000)
+x = cloud.points
+u0 = np.exp(-10 * ((x - [0, 0, 1]) ** 2).sum(axis=1))
+out = {}
+with TiledSurface(x, cloud.normals, tile_points=600, client=client, keep=("stable", "derivatives")) as ts:
+    for engine in ("auto", "dask-mpi", "local"):
+        heat = ts.gather(ts.heat(u0, 1e-3, 2, method="implicit", engine=engine))
+        info = dict(ts.last_solve)
+        poisson = ts.gather(ts.poisson(x[:, 2], engine=engine))
+        geodesic = ts.gather(ts.geodesic_distance([3, 1500], engine=engine))
+        lam = ts.eigs(6, engine=engine)[0]
+        out[engine] = {"heat": heat.tolist(), "poisson": poisson.tolist(), "geodesic": geodesic.tolist(),
+                       "eigs": np.asarray(lam).tolist(), "engine": info["engine"], "ranks": info["ranks"]}
+    try:
+        ts.poisson(x[:, 2], engine="dask-mpi", ranks=3)
+    except ValueError as e:
+        out["too_many_ranks"] = str(e)
+client.close()
+with open(sys.argv[1], "w") as f:
+    json.dump(out, f)
+'''
+
+dask_mpi = pytest.mark.skipif(__import__("importlib.util").util.find_spec("dask_mpi") is None,
+                              reason="dask-mpi (the mpi extra) is not installed")
+
+
+@mpi_engine
+@dask_mpi
+def test_dask_mpi_engine_on_the_workers_ranks(tmp_path):
+    """Under mpirun, a cluster from dask_mpi.initialize: the global solves run on its two workers' ranks
+    (chosen by "auto") and equal the local engine (CG + multigrid to 1e-12; MUMPS; SLEPc)."""
+    import json
+    import os
+    import shutil
+    import subprocess
+    import sys
+
+    script, out = tmp_path / "run.py", tmp_path / "out.json"
+    script.write_text(DASK_MPI_SCRIPT)
+    launcher = shutil.which("mpirun") or shutil.which("mpiexec")
+    env = dict(os.environ, OMPI_MCA_rmaps_base_oversubscribe="1", OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+    cmd = [launcher, "-n", "4", "--oversubscribe", sys.executable, str(script), str(out)]
+    proc = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=600, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    res = json.loads(out.read_text())
+    for engine in ("auto", "dask-mpi"):
+        assert res[engine]["engine"] == "dask-mpi" and res[engine]["ranks"] == 2
+        for name in ("heat", "poisson", "geodesic"):
+            assert rel(np.array(res[engine][name]), np.array(res["local"][name])) < 1e-8, (engine, name)
+        np.testing.assert_allclose(res[engine]["eigs"], res["local"]["eigs"], rtol=1e-8, atol=1e-10)
+    assert res["local"]["engine"] == "local"
+    assert "ranks" in res["too_many_ranks"] and "2 worker" in res["too_many_ranks"]
+
+
+def test_dask_mpi_engine_refused_without_mpi_workers(stable):
+    """A LocalCluster's workers are not MPI ranks: engine="dask-mpi" says so; "auto" does not pick it."""
+    from manifold_sph.distributed.solve import dask_mpi_workers
+
+    assert dask_mpi_workers(stable.client) is None
+    with pytest.raises(ValueError, match="dask_mpi.initialize"):
+        stable.poisson(np.ones(2000), engine="dask-mpi")

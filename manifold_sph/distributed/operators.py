@@ -180,7 +180,7 @@ class TiledOperators:
 
     def heat(self, u0: FieldLike, dt: float, steps: int, *, diffusivity: float = 1.0, method: str = "explicit",
              every: int | None = None, check: bool = True, engine: str = "auto",
-             ranks: int = 2) -> DaskArray | list[DaskArray]:
+             ranks: int | None = None) -> DaskArray | list[DaskArray]:
         """Heat steps: explicit Euler on the tiles' Laplacian, or implicit Euler on the stable Laplacian.
 
         Parameters
@@ -199,11 +199,11 @@ class TiledOperators:
             Explicit steps: refuse ``dt > 2 / (a G)``, ``G`` the largest absolute row sum of ``L``
             (an upper bound of its spectral radius, so this limit is at most the single-process
             one of :func:`manifold_sph.pde.explicit_dt_limit`).
-        engine : {"auto", "mpi", "local"}
+        engine : {"auto", "mpi", "dask-mpi", "local"}
             Implicit steps: PETSc on ``ranks`` MPI ranks, or one process (module notes of
             :mod:`manifold_sph.distributed.solve`). :attr:`last_solve` reports iterations and times.
-        ranks : int
-            MPI ranks of the ``"mpi"`` engine.
+        ranks : int or None
+            MPI ranks of the ``"mpi"`` engine (None: 2), or workers of the ``"dask-mpi"`` engine (None: all).
 
         Returns
         -------
@@ -243,7 +243,7 @@ class TiledOperators:
 
         self._check_open()
         check_in("engine", engine, ENGINES)
-        ranks = check_int("ranks", ranks, minimum=1)
+        ranks = None if ranks is None else check_int("ranks", ranks, minimum=1)
         out, self.last_solve = run(self, problem, engine=engine, ranks=ranks, **args)
         return out
 
@@ -264,14 +264,14 @@ class TiledOperators:
         return da.from_array(np.asarray(x), chunks=(self.chunks,) + tuple((s,) for s in np.shape(x)[1:]),
                              name=DRIVER_PREFIX + uuid.uuid4().hex)
 
-    def poisson(self, f: FieldLike, *, engine: str = "auto", ranks: int = 2) -> DaskArray:
+    def poisson(self, f: FieldLike, *, engine: str = "auto", ranks: int | None = None) -> DaskArray:
         """The zero-mean solution of ``-Lap u = f - mean(f)`` on the stable Laplacian, ``K u = M (f - mean_M f)``.
 
         ``f`` as in :meth:`field`; ``engine``, ``ranks`` as in :meth:`heat`. Returns a Dask array (N,) in tile order.
         """
         return self._as_dask(self._global("poisson", engine, ranks, f=self._tile_values(f)))
 
-    def geodesic_distance(self, sources: ArrayLike, *, engine: str = "auto", ranks: int = 2) -> DaskArray:
+    def geodesic_distance(self, sources: ArrayLike, *, engine: str = "auto", ranks: int | None = None) -> DaskArray:
         """Geodesic distance from ``sources`` (input indices) by the heat method on the stable Laplacian.
 
         The formulation of :class:`manifold_sph.geometry.GeodesicSolver` (module notes of
@@ -298,7 +298,7 @@ class TiledOperators:
         return self._as_dask(d)
 
     def eigs(self, k: int = 50, *, sigma: float | None = None, engine: str = "auto",
-             ranks: int = 2) -> tuple[np.ndarray, DaskArray]:
+             ranks: int | None = None) -> tuple[np.ndarray, DaskArray]:
         """The ``k`` smallest eigenpairs of ``K v = lambda M v`` (or those nearest ``sigma``), whole cloud.
 
         Returns ``(values (k,), vectors)``, the vectors a (N, k) Dask array in tile order, M-orthonormal.

@@ -7,15 +7,21 @@ and, for geodesics, of the tangent-plane derivatives. Two engines solve with the
     PETSc/SLEPc through petsc4py/slepc4py (the ``mpi`` extra): ``mpirun -n R python -m
     manifold_sph.mpi JOB`` is started on this machine (or the same command is run by the
     user under ``srun``/``mpirun`` on a cluster); each rank reads its own tiles' rows from
-    the cache directory and solves with CG preconditioned by PETSc's algebraic multigrid
-    (GAMG), the geodesic's heat step as below, eigenpairs with SLEPc (Krylov-Schur,
-    shift-invert through the same CG).
+    the cache directory and solves with CG preconditioned by algebraic multigrid (hypre's
+    BoomerAMG, or PETSc's GAMG), the geodesic's heat step as below, eigenpairs with SLEPc
+    (Krylov-Schur, shift-invert through the same CG).
+``"dask-mpi"``
+    The same engine on the workers of the Dask cluster that built the tiles, when that cluster was
+    started by ``dask_mpi.initialize`` under ``mpirun``/``srun`` (each worker is an MPI rank; the
+    ``mpi`` extra has dask-mpi): the job runs as a task on each of ``ranks`` workers (all of them
+    by default), which make their communicator among themselves; nothing else is launched.
 ``"local"``
     One process: ``K`` and ``M`` assembled from the tiles and solved with
     :mod:`manifold_sph.solvers` (sparse Cholesky or AMG-CG) and :mod:`manifold_sph.spectrum`.
 
-``engine="auto"`` takes ``"mpi"`` when petsc4py and ``mpirun`` are installed and ``ranks`` > 1,
-``"local"`` otherwise, and says so in a warning when it falls back for want of the engine.
+``engine="auto"`` takes ``"dask-mpi"`` when the tiles' Dask workers are MPI ranks, else ``"mpi"`` when
+petsc4py and ``mpirun`` are installed and ``ranks`` > 1, ``"local"`` otherwise, and says so in a warning
+when it falls back for want of the engine.
 
 Formulations (the same on both engines, so their results agree to the solver tolerance):
 
@@ -57,9 +63,9 @@ if TYPE_CHECKING:
     from .operators import TiledOperators
 
 __all__ = ["ENGINES", "GEODESIC_DIRECT_MAX_N", "GEODESIC_T", "SOURCE_RADIUS",
-           "engine_available", "geodesic_from_matrices", "piece_labels", "run"]
+           "dask_mpi_workers", "engine_available", "geodesic_from_matrices", "piece_labels", "run"]
 
-ENGINES = ("auto", "mpi", "local")
+ENGINES = ("auto", "mpi", "dask-mpi", "local")
 #: Geodesic heat time in units of the mean area element, and the held radius in units of the spacing.
 GEODESIC_T = 4.0
 SOURCE_RADIUS = 3.0
@@ -239,29 +245,46 @@ def _local_eigs(ts, k, sigma):
 
 
 # ----------------------------------------------------------------------------- dispatch
-def run(ts: TiledOperators, problem: str, *, engine: str, ranks: int, **args: Any) -> tuple[Any, dict[str, Any]]:
-    """Run a global solve on ``engine``; returns ``(result in tile order, info dict)``."""
+def run(ts: TiledOperators, problem: str, *, engine: str, ranks: int | None, **args: Any) -> tuple[Any, dict[str, Any]]:
+    """Run a global solve on ``engine``; returns ``(result in tile order, info dict)``.
+
+    ``ranks``: MPI ranks of the ``"mpi"`` engine (None: 2), workers of the ``"dask-mpi"`` engine (None: all).
+    """
     need = ["stable"] + (["derivatives"] if problem == "geodesic" else [])
     missing = [k for k in need if k not in ts.keep]
     if missing:
         raise ValueError(f"{problem} needs the tiles' {' and '.join(missing)} rows, which were not kept "
                          f"(keep={ts.keep!r}); build with keep=(..., {', '.join(map(repr, missing))})")
+    workers = dask_mpi_workers(ts.client) if engine in ("auto", "dask-mpi") else None
+    if engine == "dask-mpi" and not workers:
+        raise ValueError("engine='dask-mpi' needs a Dask cluster started by dask_mpi.initialize (each worker an "
+                         "MPI rank, worker_class distributed.Worker): the tiles' workers are not MPI ranks")
     if engine == "auto":
         why = engine_available()
-        if why is None and ranks > 1:
+        if workers:
+            engine = "dask-mpi"
+        elif why is None and (ranks or 2) > 1:
             engine = "mpi"
         else:
             engine = "local"
             if why is not None:
                 warnings.warn(f"the MPI engine is not available ({why}): solving on one process with "
                               "scipy/pyamg/cholespy instead", ManifoldSPHWarning, stacklevel=3)
+    if engine == "dask-mpi":
+        assert workers is not None
+        if ranks is not None and ranks > len(workers):
+            raise ValueError(f"ranks: the dask-mpi engine has {len(workers)} worker(s) (MPI ranks), got ranks={ranks}")
+        workers = dict(list(workers.items())[: ranks or len(workers)])
+        ranks = len(workers)
+    else:
+        ranks = ranks or 2
     t0 = time.perf_counter()
-    if engine == "mpi":
+    if engine in ("mpi", "dask-mpi"):
         if problem == "poisson":  # the ranks see their own rows only: the pieces are labelled here
             pieces, labels = piece_labels(ts)
             args = args | {"pieces": pieces, "labels": labels.astype(np.int32 if pieces < 2**31 else np.int64),
                            "pinned": np.unique(labels, return_index=True)[1].astype(np.int64)}
-        out, info = _run_mpi(ts, problem, ranks, args)
+        out, info = _run_mpi(ts, problem, ranks, args, workers=workers if engine == "dask-mpi" else None)
         if problem == "poisson":
             info["pieces"] = int(args["pieces"])
     elif problem == "heat":
@@ -273,11 +296,45 @@ def run(ts: TiledOperators, problem: str, *, engine: str, ranks: int, **args: An
     else:
         lam, V, info = _local_eigs(ts, args["k"], args.get("sigma"))
         out = (lam, V)
-    info = {"engine": engine, "ranks": ranks if engine == "mpi" else 1, "seconds": time.perf_counter() - t0} | info
+    info = {"engine": engine, "ranks": ranks if engine != "local" else 1, "seconds": time.perf_counter() - t0} | info
     return out, info
 
 
-def _run_mpi(ts, problem, ranks, args):
+def dask_mpi_workers(client: Any) -> dict[str, int] | None:
+    """The workers of ``client`` that are MPI ranks, ``{address: rank in COMM_WORLD}`` in rank order.
+
+    None when the client has no worker, or any of its workers is not a rank of a COMM_WORLD of several
+    processes in which the worker has already initialised MPI (as ``dask_mpi.initialize`` does). Asks the
+    workers without importing mpi4py there.
+    """
+    if client is None:
+        return None
+    try:
+        found = client.run(_world_rank)
+    except Exception:  # a closed or unreachable cluster: no dask-mpi engine
+        return None
+    if not found or any(r is None for r in found.values()):
+        return None
+    return dict(sorted(((str(a), int(r)) for a, r in found.items()), key=lambda item: item[1]))
+
+
+def _world_rank() -> int | None:
+    """This process's rank in COMM_WORLD if it has initialised MPI and COMM_WORLD has several processes."""
+    MPI = sys.modules.get("mpi4py.MPI")
+    if MPI is None or not MPI.Is_initialized() or MPI.Is_finalized() or MPI.COMM_WORLD.Get_size() < 2:
+        return None
+    return int(MPI.COMM_WORLD.Get_rank())
+
+
+def _worker_job(path: str | None, world_ranks: list[int], all_ranks: list[int]) -> int | None:
+    """A Dask task on each MPI worker: its part of the job at ``path`` (collective over ``world_ranks``)."""
+    import importlib
+
+    engine = importlib.import_module("manifold_sph.mpi.engine")  # the engine, as ``python -m manifold_sph.mpi``
+    return engine.run_on_world_ranks(path, world_ranks, all_ranks)
+
+
+def _run_mpi(ts, problem, ranks, args, *, workers=None):
     work = tempfile.mkdtemp(prefix="msph-mpi-", dir=str(ts.cache_dir))
     try:
         job = job_description(ts) | {"problem": problem, "work": work, "geodesic_direct_max_n": GEODESIC_DIRECT_MAX_N}
@@ -291,19 +348,10 @@ def _run_mpi(ts, problem, ranks, args):
         path = os.path.join(work, "job.json")
         with open(path, "w") as f:
             json.dump(job, f)
-        launcher = shutil.which("mpirun") or shutil.which("mpiexec")
-        if launcher is None:
-            raise RuntimeError("the MPI engine needs mpirun or mpiexec on the PATH")
-        cmd = [launcher, "-n", str(ranks)]
-        if _is_openmpi(launcher):  # Open MPI refuses root and more ranks than cores unless told
-            cmd += ["--allow-run-as-root", "--oversubscribe"]
-        cmd += [sys.executable, "-m", "manifold_sph.mpi", path]
-        env = dict(os.environ, OMPI_MCA_rmaps_base_oversubscribe="1")
-        for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):  # one thread a rank unless told
-            env.setdefault(name, "1")
-        proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
-        if proc.returncode != 0:
-            raise RuntimeError(f"the MPI engine failed (exit {proc.returncode}): {' '.join(cmd)}\n{proc.stderr[-3000:]}")
+        if workers is not None:
+            _launch_on_workers(ts.client, path, workers)
+        else:
+            _launch_mpirun(path, ranks)
         with open(os.path.join(work, "info.json")) as f:
             info = json.load(f)
         if problem == "eigs":
@@ -313,6 +361,37 @@ def _run_mpi(ts, problem, ranks, args):
         return out, info
     finally:
         shutil.rmtree(work, ignore_errors=True)
+
+
+def _launch_mpirun(path, ranks):
+    launcher = shutil.which("mpirun") or shutil.which("mpiexec")
+    if launcher is None:
+        raise RuntimeError("the MPI engine needs mpirun or mpiexec on the PATH")
+    cmd = [launcher, "-n", str(ranks)]
+    if _is_openmpi(launcher):  # Open MPI refuses root and more ranks than cores unless told
+        cmd += ["--allow-run-as-root", "--oversubscribe"]
+    cmd += [sys.executable, "-m", "manifold_sph.mpi", path]
+    env = dict(os.environ, OMPI_MCA_rmaps_base_oversubscribe="1")
+    for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):  # one thread a rank unless told
+        env.setdefault(name, "1")
+    proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
+    if proc.returncode != 0:
+        raise RuntimeError(f"the MPI engine failed (exit {proc.returncode}): {' '.join(cmd)}\n{proc.stderr[-3000:]}")
+
+
+def _launch_on_workers(client, path, workers):
+    """The job as one task on every MPI worker at once: those of ``workers`` (``{address: world rank}``) solve,
+    the others only take part in PETSc's first initialisation (collective over all of them)."""
+    everyone = dask_mpi_workers(client) or {}
+    if not set(workers.items()) <= set(everyone.items()):
+        raise RuntimeError("the dask-mpi engine's workers changed while the job was being written")
+    ranks, all_ranks = list(workers.values()), list(everyone.values())
+    tag = os.path.basename(os.path.dirname(path))
+    futures = [client.submit(_worker_job, path if address in workers else None, ranks, all_ranks,
+                             workers=[address], allow_other_workers=False, pure=False,
+                             key=f"manifold-sph-mpi-{rank}-{tag}")
+               for address, rank in everyone.items()]
+    client.gather(futures)
 
 
 def _is_openmpi(launcher: str) -> bool:

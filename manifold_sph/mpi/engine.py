@@ -1,7 +1,8 @@
 """The MPI engine of the global solves: PETSc (CG + algebraic multigrid, MUMPS) and SLEPc on the tiles' rows of ``K`` and ``M``.
 
 Run by ``mpirun -n R python -m manifold_sph.mpi JOB.json`` (``TiledSurface`` writes the job
-and starts it; on a cluster the same command runs under ``srun``). Each rank owns whole
+and starts it; on a cluster the same command runs under ``srun``), or on the workers of a Dask
+cluster started by ``dask_mpi.initialize`` (each worker is an MPI rank: :func:`run_on_world_ranks`). Each rank owns whole
 tiles: a contiguous range of rows in tile order, balanced by particle count, read from
 the tile cache directory with memory maps. Nothing is assembled on one rank.
 
@@ -27,10 +28,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-__all__ = ["HYPRE_OPTIONS", "RTOL", "main", "multigrid", "rank_tiles"]
+__all__ = ["HYPRE_OPTIONS", "RTOL", "main", "multigrid", "rank_tiles", "run_job", "run_on_world_ranks"]
 
 #: Rows of K a rank treats at once where it forms pair arrays (the geodesic's right-hand side; a job's "block_rows").
 BLOCK_ROWS = 131_072
+#: The tag of ``MPI_Comm_create_group`` when a job runs on some of COMM_WORLD's ranks (Dask workers).
+JOB_TAG = 4242
 #: Relative residual of every CG solve (equality with the single process's Cholesky to ~1e-10).
 RTOL = 1e-12
 #: The multigrid of the CG solves where PETSc has hypre: BoomerAMG with aggressive coarsening on the finest
@@ -481,19 +484,13 @@ def _eigs(job, R, its, secs):
     return np.maximum(np.asarray(vals)[order], 0.0), np.stack([vecs[i] for i in order], axis=1)
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    argv = sys.argv[1:] if argv is None else argv
-    if len(argv) != 1:
-        print("usage: mpirun -n RANKS python -m manifold_sph.mpi JOB.json  (written by TiledSurface)", file=sys.stderr)
-        return 2
-    with open(argv[0]) as f:
-        job = json.load(f)
-    import petsc4py
+def run_job(job: dict[str, Any], comm: Any) -> None:
+    """Run a job (the dict :mod:`manifold_sph.distributed.solve` writes) on the ranks of ``comm``.
 
-    petsc4py.init([])
-    from petsc4py import PETSc
-
-    comm = PETSc.COMM_WORLD
+    Collective over ``comm`` (a ``petsc4py.PETSc.Comm``): every rank of it calls this with the same job. The
+    result goes to the job's work directory (``x.npy`` or ``values.npy`` and ``vectors.npy``, each rank its own
+    rows) with ``info.json`` (iterations, seconds, the largest peak memory of a rank in GiB).
+    """
     t0 = time.perf_counter()
     R = _Rows(job, comm)
     if job["problem"] != "geodesic":  # only the geodesic reads the tiles again: unmap the rest
@@ -520,4 +517,79 @@ def main(argv: Sequence[str] | None = None) -> int:
         with open(os.path.join(job["work"], "info.json"), "w") as f:
             json.dump(info, f)
     comm.barrier()
+
+
+def run_on_world_ranks(path: str | None, world_ranks: Sequence[int], all_ranks: Sequence[int]) -> int | None:
+    """Run the job file ``path`` on the processes of ``MPI.COMM_WORLD`` ranked ``world_ranks`` (Dask workers).
+
+    Called at once in every process of ``all_ranks`` (the Dask workers started by ``dask_mpi.initialize``; the
+    scheduler's and the client's ranks do not take part, so nothing here is collective over COMM_WORLD).
+    The first call of a process initialises PETSc on the communicator of ``all_ranks``; the job runs on the
+    communicator of ``world_ranks`` (both made by ``MPI_Comm_create_group``, collective over their group
+    alone); processes of ``all_ranks`` outside ``world_ranks``, or with ``path`` None, only initialise.
+    Returns this process's rank among ``world_ranks``, or None.
+    """
+    from mpi4py import MPI
+
+    ranks, everyone = [int(r) for r in world_ranks], [int(r) for r in all_ranks]
+    me = MPI.COMM_WORLD.Get_rank()
+    if me not in everyone or not set(ranks) <= set(everyone):
+        raise ValueError(f"all_ranks: this process is rank {me} of COMM_WORLD; got world_ranks={ranks}, "
+                         f"all_ranks={everyone}")
+    _petsc_on(everyone)
+    if path is None or me not in ranks:
+        return None
+    comm = _group_comm(ranks)
+    try:
+        with open(path) as f:
+            job = json.load(f)
+        from petsc4py import PETSc
+
+        run_job(job, PETSc.Comm(comm))
+        return int(comm.Get_rank())
+    finally:
+        comm.Free()
+
+
+_PETSC_WORLD: list[Any] = []  # the communicator PETSc was initialised on in this process (never freed)
+
+
+def _group_comm(ranks):
+    from mpi4py import MPI
+
+    world = MPI.COMM_WORLD
+    group = world.Get_group().Incl(sorted(ranks))
+    try:
+        return world.Create_group(group, tag=JOB_TAG)
+    finally:
+        group.Free()
+
+
+def _petsc_on(ranks):
+    """Initialise PETSc once in this process with ``PETSC_COMM_WORLD`` = the communicator of ``ranks``."""
+    if _PETSC_WORLD:
+        if _PETSC_WORLD[0][0] != sorted(ranks):
+            raise RuntimeError(f"PETSc was initialised here on the ranks {_PETSC_WORLD[0][0]}, not {sorted(ranks)}: "
+                               "the dask-mpi engine's workers changed")
+        return
+    import petsc4py
+
+    comm = _group_comm(ranks)
+    petsc4py.init([], comm=comm)
+    _PETSC_WORLD.append((sorted(ranks), comm))
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if len(argv) != 1:
+        print("usage: mpirun -n RANKS python -m manifold_sph.mpi JOB.json  (written by TiledSurface)", file=sys.stderr)
+        return 2
+    with open(argv[0]) as f:
+        job = json.load(f)
+    import petsc4py
+
+    petsc4py.init([])
+    from petsc4py import PETSc
+
+    run_job(job, PETSc.COMM_WORLD)
     return 0
