@@ -67,6 +67,7 @@ class _Wavefront:
         self.tri = local_triangles(points, normals, neighbors=neighbors)
         self._inc = self.tri.incidence()
         self._adj = self.tri.adjacency()
+        self._gauss = self.tri.resolved_gauss()
         n = points.shape[0]
         import scipy.sparse as sp
 
@@ -76,7 +77,7 @@ class _Wavefront:
 
     def distance(self, src, offsets, targets):
         P = self.tri.points
-        d = propagate(P, self._inc, self._adj, src, offsets / self.tri.scale, targets)
+        d = propagate(P, self._inc, self._adj, src, offsets / self.tri.scale, targets, gauss=self._gauss)
         if not offsets.any():  # never below the straight line to the nearest source (unreached: inf stays inf)
             np.maximum(d, straight_line(P, src), out=d)
         d *= self.tri.scale

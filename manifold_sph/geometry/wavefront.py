@@ -43,10 +43,15 @@ from .._jit.compile import ENABLED, njit
 from ..results import Result
 from ..voronoi import INCOMPLETE, voronoi_cells
 
-__all__ = ["OPEN_GAP", "LocalTriangles", "local_triangles", "pca_normals", "propagate"]
+__all__ = ["OPEN_GAP", "RESOLVED_CURVATURE", "LocalTriangles", "local_triangles", "pca_normals", "propagate",
+           "quadric_gauss"]
 
 #: A fan whose consecutive Delaunay neighbours leave an angular gap of at least this is open (a boundary).
 OPEN_GAP = 0.95 * np.pi
+#: The fronts use a particle's Gaussian curvature only where ``|K| h^2`` is at most this (``h`` the mean
+#: edge length: a radius of curvature of at least 5.8 spacings); elsewhere (creases, features a few
+#: spacings across, where a quadric over 16 points does not resolve the surface) ``K = 0`` there.
+RESOLVED_CURVATURE = 0.03
 
 
 def _compile(fn):
@@ -97,39 +102,42 @@ _sift_up = _compile(_sift_up)
 _sift_down = _compile(_sift_down)
 
 
-def _triangle_update(lab, cx, cy, da, db, k):
-    """Distance at ``c`` from the front seen through the edge ``ab`` of triangle ``(a, b, c)``; inf if none.
+def _triangle_ray(lab, cx, cy, da, db, k):
+    """The front seen through the edge ``ab`` of triangle ``(a, b, c)`` at ``c``: ``(distance, t, s)``,
+    distance inf if none.
 
     The triangle is unfolded with ``a`` at the origin, ``b = (lab, 0)`` and ``c = (cx, cy)``,
     ``cy > 0``. The front reaches ``a`` and ``b`` at distances ``da``, ``db`` with curvature
-    ``k`` (``1 / da`` for a point source, 0 for a straight front): its unit normal ``g`` at ``a``
+    ``k`` (``1 / da`` for a point source in a plane, 0 for a straight front): its unit normal ``g`` at ``a``
     solves ``(b - a) . g = D + k (D^2 - lab^2) / 2``, ``D = db - da`` (the circle intersection
     written without cancellation); the distance at ``c = a + y`` is
-    ``da + (k |y|^2 + 2 y . g) / (1 + |k y + g|)``, when the ray to ``c`` crosses ``ab``.
+    ``da + (k |y|^2 + 2 y . g) / (1 + |k y + g|)``, when the ray to ``c`` crosses ``ab``: at
+    ``t lab`` from ``a``, a length ``s`` before ``c``.
     """
     if lab <= 0.0 or cy <= 0.0 or not k < np.inf:
-        return np.inf
+        return np.inf, 0.0, 0.0
     delta = db - da
     gx = (delta + 0.5 * k * (delta * delta - lab * lab)) / lab
     if gx * gx > 1.0:
-        return np.inf
+        return np.inf, 0.0, 0.0
     gy = np.sqrt(1.0 - gx * gx)
     qx = k * cx + gx
     qy = k * cy + gy
     nq = np.sqrt(qx * qx + qy * qy)
     if nq <= 0.0:
-        return np.inf
-    ry = -qy / nq
-    if ry >= 0.0:
-        return np.inf
-    t = -cy / ry
-    xc = cx - t * qx / nq
+        return np.inf, 0.0, 0.0
+    ux = qx / nq
+    uy = qy / nq
+    if uy <= 0.0:
+        return np.inf, 0.0, 0.0
+    s = cy / uy
+    xc = cx - s * ux
     if xc < 0.0 or xc > lab:  # the ray from the front to c misses the edge ab
-        return np.inf
-    return da + (k * (cx * cx + cy * cy) + 2.0 * (cx * gx + cy * gy)) / (1.0 + nq)
+        return np.inf, 0.0, 0.0
+    return da + (k * (cx * cx + cy * cy) + 2.0 * (cx * gx + cy * gy)) / (1.0 + nq), xc / lab, s
 
 
-_triangle_update = _compile(_triangle_update)
+_triangle_ray = _compile(_triangle_ray)
 
 
 def _push(heap, key, pos, size, v, dv):
@@ -146,11 +154,35 @@ def _push(heap, key, pos, size, v, dv):
 _push = _compile(_push)
 
 
-def _propagate(P, vt_ptr, vt_pair, vt_geom, e_ptr, e_idx, e_len, src, d0, targets):
+def _kappa(r, w):
+    """Geodesic curvature of a point source's front at distance ``r`` with Jacobi correction ``w``:
+    ``1 / r - w / r^2`` (``w = 0`` in a plane); inf at the source."""
+    if not r > 0.0:
+        return np.inf
+    return (1.0 - w / r) / r
+
+
+_kappa = _compile(_kappa)
+
+
+def _carry(w0, r0, r1, K):
+    """The Jacobi correction ``w = r^2 (1 / r - kappa)`` carried from distance ``r0`` to ``r1`` along a geodesic
+    through Gaussian curvature ``K``: ``(r^2 mu)' = r^2 (K + mu^2)``, one step."""
+    if not r0 > 0.0:
+        return K * r1 * r1 * r1 / 3.0
+    mu = w0 / (r0 * r0)
+    return w0 + (r1 * r1 * r1 - r0 * r0 * r0) / 3.0 * (K + mu * mu)
+
+
+_carry = _compile(_carry)
+
+
+def _propagate(P, vt_ptr, vt_pair, vt_geom, e_ptr, e_idx, e_len, src, d0, targets, K, riccati):
     n = P.shape[0]
     d = np.full(n, np.inf)
     o = np.zeros(n)  # the offset of the source each particle's front comes from
     sid = np.full(n, -1, np.int64)  # and which source that is
+    w = np.zeros(n)  # the Jacobi correction of each front's curvature (see _kappa)
     heap = np.empty(n, np.int64)
     key = np.empty(n)  # the heap entries' distances, stored beside them (no indirection in the sifts)
     pos = np.full(n, -1, np.int64)
@@ -185,14 +217,18 @@ def _propagate(P, vt_ptr, vt_pair, vt_geom, e_ptr, e_idx, e_len, src, d0, target
         dv = d[v]
         ov = o[v]
         sv = sid[v]
+        rv = dv - ov
+        kv = _kappa(rv, w[v]) if riccati else (1.0 / rv if rv > 0.0 else np.inf)
         for q in range(e_ptr[v], e_ptr[v + 1]):
-            w = e_idx[q]
+            x = e_idx[q]
             cand = dv + e_len[q]
-            if cand < d[w] * (1.0 - 1e-12):
-                d[w] = cand
-                o[w] = ov
-                sid[w] = sv
-                size = _push(heap, key, pos, size, w, cand)
+            if cand < d[x] * (1.0 - 1e-12):
+                d[x] = cand
+                o[x] = ov
+                sid[x] = sv
+                if riccati:
+                    w[x] = _carry(w[v], rv, cand - ov, 0.5 * (K[v] + K[x]))
+                size = _push(heap, key, pos, size, x, cand)
         for q in range(vt_ptr[v], vt_ptr[v + 1]):
             for r in range(2):
                 x = vt_pair[q, r]
@@ -210,21 +246,27 @@ def _propagate(P, vt_ptr, vt_pair, vt_geom, e_ptr, e_idx, e_len, src, d0, target
                 if d[y] <= 0.5 * (dv + dx - lab) + cy:
                     continue
                 sx = sid[x]
+                t = 0.0
+                s = 0.0
                 if sx == sv:  # both corners' fronts come from one point source
-                    cand = _triangle_update(lab, cx, cy, dv - ov, dx - ov, 1.0 / (dv - ov) if dv > ov else np.inf) + ov
+                    cand, t, s = _triangle_ray(lab, cx, cy, rv, dx - ov, kv)
+                    cand += ov
                 else:
                     ax = P[sx, 0] - P[sv, 0]
                     ay = P[sx, 1] - P[sv, 1]
                     az = P[sx, 2] - P[sv, 2]
                     if ax * ax + ay * ay + az * az <= 9.0 * lab * lab and o[x] == ov:
                         # neighbouring sources of a set (a curve, a boundary): one straight front
-                        cand = _triangle_update(lab, cx, cy, dv, dx, 0.0)
+                        cand, t, s = _triangle_ray(lab, cx, cy, dv, dx, 0.0)
                     else:  # fronts of distinct sources meet here (a kink): no front spans them
                         cand = np.inf
                 if cand < d[y] * (1.0 - 1e-12):
                     d[y] = cand
                     o[y] = ov
                     sid[y] = sv
+                    if riccati:  # the correction carried from where the ray crosses vx (s before y) to y
+                        w[y] = _carry((1.0 - t) * w[v] + t * w[x], cand - ov - s, cand - ov,
+                                      0.5 * K[y] + 0.5 * ((1.0 - t) * K[v] + t * K[x]))
                     size = _push(heap, key, pos, size, y, cand)
     return d
 
@@ -239,6 +281,7 @@ def propagate(
     sources: np.ndarray,
     offsets: np.ndarray,
     targets: np.ndarray | None = None,
+    gauss: np.ndarray | None = None,
 ) -> np.ndarray:
     """Run the wavefront sweep (see the module notes); distances in the units of ``P``, inf where not reached.
 
@@ -263,10 +306,16 @@ def propagate(
         offset) carry one straight front; others (fronts of distinct sources meeting) none.
     targets : ndarray of int, optional
         Stop once all of these are final; the others may be left larger or inf.
+    gauss : ndarray, shape (N,), optional
+        Gaussian curvature at every particle (units of ``P``). When given, each point source's
+        front carries its geodesic curvature along the rays by the Riccati equation
+        ``kappa' = -kappa^2 - K``; without it the curvature is ``1 / r`` (exact in a plane).
     """
     targets = np.zeros(0, np.int64) if targets is None else np.ascontiguousarray(targets, dtype=np.int64)
+    K = np.zeros(P.shape[0]) if gauss is None else np.ascontiguousarray(gauss, dtype=np.float64)
     return _propagate(P, incidence[0], incidence[1], incidence[2], edges[0], edges[1], edges[2],
-                      np.ascontiguousarray(sources, dtype=np.int64), np.ascontiguousarray(offsets, dtype=np.float64), targets)
+                      np.ascontiguousarray(sources, dtype=np.int64), np.ascontiguousarray(offsets, dtype=np.float64), targets,
+                      K, gauss is not None)
 
 
 # ----------------------------------------------------------------------------- triangles
@@ -296,6 +345,11 @@ class LocalTriangles(Result):
     open : ndarray of bool, shape (N,)
         Particles whose fan is open (boundary particles of an open surface, or particles
         without a closed neighbourhood).
+    normals : ndarray, shape (N, 3)
+        Unit normals of the tangent planes the fans were computed in.
+    gauss : ndarray, shape (N,)
+        Gaussian curvature of the quadric fitted to each particle's nearest points (in the
+        units of ``points``), for the front's curvature.
     """
 
     points: np.ndarray
@@ -303,6 +357,8 @@ class LocalTriangles(Result):
     triangles: np.ndarray
     edges: np.ndarray
     open: np.ndarray
+    normals: np.ndarray
+    gauss: np.ndarray
 
     def incidence(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(ptr, pairs, unfolded)`` for :func:`propagate`: the two other corners of each triangle at each
@@ -323,6 +379,14 @@ class LocalTriangles(Result):
             geom[:, 3 * r], geom[:, 3 * r + 1], geom[:, 3 * r + 2] = lab, cx, cy
         return ptr, pairs, geom
 
+    def resolved_gauss(self) -> np.ndarray:
+        """``gauss`` where the quadric resolves it (:data:`RESOLVED_CURVATURE`), 0 elsewhere; shape (N,)."""
+        e = self.edges
+        if e.shape[0] == 0:
+            return np.zeros(self.points.shape[0])
+        h = float(np.mean(np.linalg.norm(self.points[e[:, 0]] - self.points[e[:, 1]], axis=1)))
+        return np.where(np.abs(self.gauss) * h * h <= RESOLVED_CURVATURE, self.gauss, 0.0)
+
     def adjacency(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(ptr, idx, length)`` for :func:`propagate`: the edge neighbours of each particle (CSR, both
         directions) and the edges' lengths."""
@@ -333,6 +397,34 @@ class LocalTriangles(Result):
         idx = np.ascontiguousarray(both[order, 1], dtype=np.int64)
         length = np.linalg.norm(self.points[idx] - self.points[np.repeat(np.arange(n), np.diff(ptr))], axis=1)
         return ptr, idx, length
+
+
+def quadric_gauss(P: np.ndarray, nrm: np.ndarray, u: np.ndarray, v: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """Gaussian curvature (N,) of the quadric height function ``z = c0 + c1 x + c2 y + c3 x^2 + c4 x y + c5 y^2``
+    fitted by least squares to the points ``P[idx[i]]`` in particle ``i``'s frame ``(u, v, nrm)``:
+    ``(4 c3 c5 - c4^2) / (1 + c1^2 + c2^2)^2``; 0 where the fit is singular (fewer than 6 points, collinear)."""
+    out = np.zeros(P.shape[0])
+    if idx.shape[1] < 6:
+        return out
+    for lo in range(0, P.shape[0], 8192):
+        sl = slice(lo, lo + 8192)
+        off = P[idx[sl]] - P[sl][:, None, :]
+        x = np.einsum("rkd,rd->rk", off, u[sl])
+        y = np.einsum("rkd,rd->rk", off, v[sl])
+        z = np.einsum("rkd,rd->rk", off, nrm[sl])
+        scale = np.sqrt(np.mean(x * x + y * y, axis=1))[:, None]
+        scale = np.where(scale > 0, scale, 1.0)
+        x, y, z = x / scale, y / scale, z / scale  # a fit in units of the neighbourhood: well conditioned
+        A = np.stack([np.ones_like(x), x, y, x * x, x * y, y * y], axis=-1)
+        AtA = np.einsum("rki,rkj->rij", A, A)
+        Atz = np.einsum("rki,rk->ri", A, z)
+        ok = np.linalg.cond(AtA) < 1e10
+        c = np.zeros((AtA.shape[0], 6))
+        if ok.any():
+            c[ok] = np.linalg.solve(AtA[ok], Atz[ok][..., None])[..., 0]
+        K = (4.0 * c[:, 3] * c[:, 5] - c[:, 4] ** 2) / (1.0 + c[:, 1] ** 2 + c[:, 2] ** 2) ** 2
+        out[sl] = np.where(ok, K, 0.0) / scale[:, 0] ** 2
+    return out
 
 
 def _knn(tree, X, k):
@@ -424,6 +516,7 @@ def local_triangles(points: np.ndarray, normals: np.ndarray | None = None, *, ne
     u /= np.linalg.norm(u, axis=1)[:, None]
     v = np.cross(nrm, u)
     rows, cols, ang, _, flags, reach = _delaunay_pairs(P, nrm, u, v, tree, np.arange(n), k, knn)
+    gauss = quadric_gauss(P, nrm, u, v, knn[1])
     del knn
     redo = np.flatnonzero((flags & INCOMPLETE) != 0)
     interior = np.zeros(n, bool)  # fans that close only in the wider search
@@ -456,4 +549,5 @@ def local_triangles(points: np.ndarray, normals: np.ndarray | None = None, *, ne
     if lonely.size:
         pairs = np.concatenate([pairs, np.stack([lonely, tree.query(P[lonely], k=2)[1][:, 1]], axis=1)])
     edges = _unique_rows(np.sort(pairs, axis=1), n)
-    return LocalTriangles(points=P, scale=scale, triangles=tri.astype(np.int64), edges=edges.astype(np.int64), open=is_open)
+    return LocalTriangles(points=P, scale=scale, triangles=tri.astype(np.int64), edges=edges.astype(np.int64), open=is_open,
+                          normals=np.ascontiguousarray(nrm), gauss=gauss)
