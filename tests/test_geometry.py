@@ -103,30 +103,72 @@ def random_sphere(n, seed=0):
 
 
 def test_geodesic_wavefront_sphere_and_two_sources():
-    """Default method (wavefront): first order on the sphere, the kink where two fronts meet exact,
+    """Default method (wavefront): accurate on the sphere, the kink where two fronts meet exact,
     never below the straight line."""
     c = shapes.sphere(4000)
     P = c.points
     solver = GeodesicSolver(c)
     d = solver.distance(0)
     exact = sphere_exact(P, 0)
-    assert d[0] == 0 and rel(d, exact) < 6e-3  # measured 4.5e-3
+    assert d[0] == 0 and rel(d, exact) < 2e-4  # measured 9.2e-5 (fronts with the curvature 1 / d: 4.5e-3)
     assert np.all(d >= (1 - 1e-12) * np.linalg.norm(P - P[0], axis=1))  # never below the chord (to round-off)
     j = int(np.argmin(np.abs(P @ P[0] + 0.2)))
     two = solver.distance([0, j])
-    assert rel(two, np.minimum(exact, sphere_exact(P, j))) < 5e-3  # measured 2.5e-3 (heat method: 2.2e-2)
+    assert rel(two, np.minimum(exact, sphere_exact(P, j))) < 3e-4  # measured 1.4e-4 (heat method: 2.2e-2)
     assert np.array_equal(solver.distance(0), d)  # deterministic
     assert np.array_equal(Surface(c).geodesic_distance(0), d)  # the Surface method: same solver
 
 
 def test_geodesic_wavefront_converges_on_fibonacci_and_random_points():
-    for make in (lambda n: shapes.sphere(n).points, random_sphere):
-        errs = []
+    """Fitted orders in h from N = 2,500 to 10,000 (h / 2). Fibonacci: relative L2 error, order >= 1.5
+    (measured 1.78). Random points: the median relative error, order >= 1.5 (measured 1.91), and the
+    relative L2 error at 10,000 below 5e-4 (measured 2.4e-4); its order is only 1.1, set by a few particles
+    that no triangle's ray reaches (docs/geometry.md)."""
+    for kind, make in (("fibonacci", lambda n: shapes.sphere(n).points), ("random", random_sphere)):
+        l2, median = [], []
         for n in (2500, 10000):
             P = make(n)
-            errs.append(rel(GeodesicSolver(P).distance(7), sphere_exact(P, 7)))
-        order = np.log(errs[0] / errs[1]) / np.log(2.0)
-        assert order > 0.85, (errs, order)  # measured 1.0 (Fibonacci), 1.1 (random): first order
+            d, ex = GeodesicSolver(P).distance(7), sphere_exact(P, 7)
+            l2.append(rel(d, ex))
+            far = ex > 0.05
+            median.append(np.median(np.abs(d - ex)[far] / ex[far]))
+        order, order_median = np.log2(l2[0] / l2[1]), np.log2(median[0] / median[1])
+        if kind == "fibonacci":
+            assert order > 1.5, (l2, order)
+        else:
+            assert order_median > 1.5 and l2[1] < 5e-4, (l2, median, order_median)
+
+
+def test_front_curvature_carried_exactly_through_constant_curvature():
+    """The fronts' Riccati step is exact for constant K: a point source's front on a sphere of curvature
+    K = c^2 has geodesic curvature c cot(c r), on a pseudosphere c coth(c r), in a plane 1 / r; two steps
+    equal one."""
+    from manifold_sph.geometry.wavefront import _carry, _kappa
+
+    for K, exact in ((4.0, lambda r: 2.0 / np.tan(2.0 * r)), (-4.0, lambda r: 2.0 / np.tanh(2.0 * r)),
+                     (0.0, lambda r: 1.0 / r)):
+        w1 = _carry(0.0, 0.0, 0.3, K)  # from the source
+        assert abs(_kappa(0.3, w1) - exact(0.3)) < 1e-12 * exact(0.3)
+        w2 = _carry(w1, 0.3, 0.7, K)
+        assert abs(_kappa(0.7, w2) - exact(0.7)) < 1e-10 * abs(exact(0.7))
+        w, r = 0.0, 0.0
+        for r1 in np.linspace(0.01, 0.7, 70):  # short steps (a series in K s^2)
+            w, r = _carry(w, r, r1, K), r1
+        assert abs(_kappa(0.7, w) - exact(0.7)) < 1e-8 * abs(exact(0.7))
+
+
+def test_quadric_gaussian_curvature_of_the_local_triangles():
+    """The Gaussian curvature the fronts use: 1 / R^2 on a sphere of radius R (in the scaled units of the
+    triangles), 0 in a plane, and 0 where the quadric does not resolve the surface."""
+    from manifold_sph.geometry.wavefront import local_triangles
+
+    tri = local_triangles(2.0 * shapes.sphere(4000).points)  # extent 4: radius 0.5 after scaling
+    assert np.allclose(tri.gauss, 4.0, rtol=1e-2) and np.array_equal(tri.resolved_gauss(), tri.gauss)
+    p = np.random.default_rng(2).uniform(-1, 1, (2000, 2))
+    flat = local_triangles(np.column_stack([p, np.zeros(2000)]))
+    assert np.abs(flat.gauss).max() < 1e-9
+    coarse = local_triangles(shapes.sphere(60).points)  # 60 points: curvature radius below 6 spacings
+    assert np.all(coarse.resolved_gauss() == 0.0) and np.all(coarse.gauss > 0)
 
 
 def test_geodesic_exact_in_the_plane_and_on_a_cylinder():

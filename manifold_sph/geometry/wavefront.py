@@ -19,14 +19,21 @@ the cloud itself defines:
    ``d_a`` from ``a`` and ``d_b`` from ``b`` in the triangle's plane, unfolded across the
    edge ``ab`` (Novotni and Klein 2002), when the straight ray from that source to ``c``
    crosses ``ab``; every Delaunay pair and triangle side gives ``d_a + |x_a - x_c|``. The smallest candidate
-   wins. In a plane, and across any developable strip of triangles, this is exact;
-   on a curved surface the front's curvature is taken as ``1 / d``, which costs a relative
-   error of first order in the spacing.
+   wins. In a plane, and across any developable strip of triangles, this is exact.
+3. **Front curvature.** The virtual source sits at the front's radius of curvature from
+   ``a``. A point source's front in a plane has curvature ``1 / d``; on a curved surface its
+   geodesic curvature obeys the Riccati equation ``kappa' = -kappa^2 - K`` along the rays
+   (``K`` the Gaussian curvature; ``cot d`` on the unit sphere). Taking ``1 / d`` there costs
+   a relative error of first order in the spacing (an error ``O(h^2)`` per triangle over
+   ``O(1 / h)`` triangles), so each particle carries its front's curvature as the correction
+   ``w = d^2 (1 / d - kappa)`` (0 in a plane, smooth at the source), interpolated along the edge
+   the ray crosses and stepped to the particle by the exact solution for constant ``K``.
+   ``K`` is that of a quadric fitted to each particle's nearest points, used only where it
+   resolves the surface (:data:`RESOLVED_CURVATURE`).
 
-Every candidate is the length of a path of straight segments across triangles, so the
-result is never below the straight-line distance (it is also clamped to it). Several
-sources are one sweep, so the kink where their fronts meet is exact. The sweep stops as
-soon as every requested target is final (point-to-point queries).
+The result is clamped to the straight-line distance to the nearest source, so it is never
+below it. Several sources are one sweep, so the kink where their fronts meet is exact. The
+sweep stops as soon as every requested target is final (point-to-point queries).
 
 Coordinates are divided by the cloud's extent before anything is computed, so the
 result does not depend on the units (:data:`~manifold_sph.geometry.common.WAVEFRONT_SCALE_RANGE`).
@@ -166,12 +173,31 @@ _kappa = _compile(_kappa)
 
 
 def _carry(w0, r0, r1, K):
-    """The Jacobi correction ``w = r^2 (1 / r - kappa)`` carried from distance ``r0`` to ``r1`` along a geodesic
-    through Gaussian curvature ``K``: ``(r^2 mu)' = r^2 (K + mu^2)``, one step."""
-    if not r0 > 0.0:
-        return K * r1 * r1 * r1 / 3.0
-    mu = w0 / (r0 * r0)
-    return w0 + (r1 * r1 * r1 - r0 * r0 * r0) / 3.0 * (K + mu * mu)
+    """The correction ``w = r^2 (1 / r - kappa)`` of a point source's front carried from distance ``r0`` to ``r1``
+    along a ray through constant Gaussian curvature ``K``, by the exact solution of ``kappa' = -kappa^2 - K``
+    over the step ``s``: ``kappa1 = (kappa0 - K tau) / (1 + kappa0 tau)``, ``tau = tan(c s) / c`` for
+    ``K = c^2`` (``tanh`` for ``K = -c^2``, ``s`` for 0; a series in ``K s^2`` on the short steps of a
+    sweep, no trigonometry). A front focused to a point (the cut locus is near) is held short of it."""
+    if r0 > 0.0:
+        k0 = (1.0 - w0 / r0) / r0
+        s = r1 - r0
+    else:
+        k0 = np.inf
+        s = r1
+    x = K * s * s
+    if x * x <= 0.0016:  # |c s| <= 0.2: tan(c s) / (c s) to 8 digits or better
+        tau = s * (1.0 + x * (1.0 / 3.0 + x * (2.0 / 15.0 + x * (17.0 / 315.0))))
+    elif K > 0.0:
+        c = np.sqrt(K)
+        tau = np.tan(min(c * s, 0.5 * np.pi - 1e-9)) / c
+    else:
+        c = np.sqrt(-K)
+        tau = np.tanh(c * s) / c
+    if k0 == np.inf:
+        k1 = 1.0 / tau
+    else:  # past a focal point 1 + k0 tau would change sign: held at 1e-3
+        k1 = (k0 - K * tau) / max(1.0 + k0 * tau, 1e-3)
+    return r1 - r1 * r1 * k1
 
 
 _carry = _compile(_carry)
@@ -418,7 +444,8 @@ def quadric_gauss(P: np.ndarray, nrm: np.ndarray, u: np.ndarray, v: np.ndarray, 
         A = np.stack([np.ones_like(x), x, y, x * x, x * y, y * y], axis=-1)
         AtA = np.einsum("rki,rkj->rij", A, A)
         Atz = np.einsum("rki,rk->ri", A, z)
-        ok = np.linalg.cond(AtA) < 1e10
+        # singular fits (points on a line, too few distinct points): det far below the diagonal's product
+        ok = np.linalg.det(AtA) > 1e-12 * np.prod(np.einsum("rii->ri", AtA), axis=1)
         c = np.zeros((AtA.shape[0], 6))
         if ok.any():
             c[ok] = np.linalg.solve(AtA[ok], Atz[ok][..., None])[..., 0]
