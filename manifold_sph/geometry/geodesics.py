@@ -202,10 +202,9 @@ class GeodesicSolver:
     Notes
     -----
     Measured (``python benchmarks/geometry.py``): against libigl's exact polyhedral
-    geodesics on the vertices of the test models, mean relative error 2 to 18 times
-    below potpourri3d's point-cloud heat method; on the unit sphere first order in the
-    spacing (4.5e-3 at 4,000 Fibonacci points, 1.3e-3 at 64,000). ``docs/geometry.md``
-    has the tables.
+    geodesics on the vertices of the test models, mean relative error 2 to 10 times
+    below potpourri3d's point-cloud heat method; on the unit sphere of Fibonacci points
+    second order in the spacing. ``docs/geometry.md`` has the tables.
 
     Examples
     --------
