@@ -7,7 +7,8 @@ all pairs of a moderate set):
     Propagation over the cloud's local Delaunay triangles
     (:mod:`manifold_sph.geometry.wavefront`): exact across developable strips, the kink
     where fronts meet exact, never below the straight line; on curved surfaces the fronts
-    carry their geodesic curvature (second order on a smooth sphere of Fibonacci points). Needs only the points (and takes a Surface's normals when given one).
+    carry their geodesic curvature (second order on a sphere of Fibonacci points). Needs only
+    the points (and takes a Surface's normals when given one).
 ``"heat"``
     The heat method (Crane, Weischedel and Wardetzky 2013) on a Surface's stable Laplacian:
     a heat step ``(M + t K) u = delta``, the unit field ``X = -grad u / |grad u|``, a Poisson
