@@ -40,8 +40,9 @@ INTERFACES = ("auto", "average", "jump")
 EPS_AVERAGES = ("arithmetic", "harmonic", "anisotropic", "staircase")
 
 
-#: Interface treatments of :func:`run_tez_scattering`: the averages and "jump" (:func:`tez_jump_permittivity`).
-TEZ_INTERFACES = EPS_AVERAGES + ("jump",)
+#: Interface treatments of :func:`run_tez_scattering`: the averages, "jump" (:func:`tez_jump_permittivity`),
+#: "corrected" (the jump-corrected curl pair, :class:`.tez.CircularInterface`) and "auto".
+TEZ_INTERFACES = EPS_AVERAGES + ("jump", "corrected", "auto")
 
 
 # ----------------------------------------------------------------------------- layouts and materials

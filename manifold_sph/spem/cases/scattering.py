@@ -29,10 +29,11 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
+import scipy.sparse as sp
 from numpy.typing import ArrayLike
 
 from ..._validation import check_in, check_int, check_positive
-from ..constants import C0, ETA0
+from ..constants import C0, ETA0, MU0
 from ..interfaces import (
     INTERFACES,
     TEZ_INTERFACES,
@@ -47,7 +48,7 @@ from ..operators import COUPLINGS, DEFAULT_COUPLING
 from ..pml import PML
 from ..results import ScatteringResult, TEzScatteringResult
 from ..sources import Source
-from ..tez import DISK_H_RATIO, TEzPMLSolver
+from ..tez import DISK_H_RATIO, CircularInterface, TEzPMLSolver
 from ..tmz import TMzSolver
 from .common import l2_error
 
@@ -548,13 +549,66 @@ def run_scattering(kind: str = "dielectric", *, n_radial: int = 8, radius: float
                             pts, phasor, exact, interface if kind != "pec" else "average")
 
 
+#: ``average="auto"`` of :func:`run_tez_scattering` uses the corrected interface up to this contrast
+#: ``max(eps_r, 1 / eps_r)`` (measured up to 8, docs/spem.md) and the anisotropic cell average above it.
+TEZ_CORRECTED_CONTRAST_MAX = 8.0
+
+
+#: Hz and E particles within this many spacings of the interface get the incident wave's residual through the
+#: corrected operators (:class:`IncidentResidual`).
+TEZ_BAND_SPACINGS = 6.0
+
+
+class IncidentResidual:
+    """The incident wave's residual through the solver's operators next to a TEz interface.
+
+    With the scattered field ``F_s = F - F_inc`` and operators exact for the
+    total field's jump conditions, each leap-frog update of ``F_s`` gets
+    ``(dt / mu0) (Dy Ex_inc - Dx Ey_inc) - (Hz_inc(t + dt) - Hz_inc(t))`` (Hz) and
+    ``(dt / eps) (G Hz_inc) - (E_inc(t + 3 dt / 2) - E_inc(t + dt / 2))`` (E) on the
+    particles within ``width`` of the circle; the incident wave along x is
+    ``Hz_inc = w cos(w t - k x)``, ``Ey_inc = eta0 Hz_inc``, ``Ex_inc = 0``.
+    """
+
+    def __init__(self, s, lay, radius, width, freq, x0, ramp, k0):
+        def near(p):
+            return np.abs(np.hypot(p[:, 0], p[:, 1]) - radius) < width
+
+        self.hb, self.xb, self.yb = (np.flatnonzero(near(p)) for p in (lay.hz, lay.ex, lay.ey))
+        self.in_ey = near(lay.ey)
+        dxb = sp.csr_matrix(s.Dx[self.hb])
+        self.ey_cols = np.unique(dxb.indices)
+        self.dxb = dxb[:, self.ey_cols]
+        gy, gx = sp.csr_matrix(s.Gy[self.xb]), sp.csr_matrix(s.Gx[self.yb])
+        self.hz_cols = np.unique(np.r_[gy.indices, gx.indices])
+        self.gyb, self.gxb = gy[:, self.hz_cols], gx[:, self.hz_cols]
+        self.hz_inc = SwitchedWave(lay.hz[self.hb, 0], freq, x0, ramp, k0)
+        self.ey_inc_cols = SwitchedWave(lay.ey[self.ey_cols, 0], freq, x0, ramp, k0)
+        self.hz_inc_cols = SwitchedWave(lay.hz[self.hz_cols, 0], freq, x0, ramp, k0)
+        self.ey_inc = SwitchedWave(lay.ey[self.yb, 0], freq, x0, ramp, k0)
+        self.dt, self.cx, self.cy = s.dt, s.dt / s.eps_x[self.xb], s.dt / s.eps_y[self.yb]
+        self.dhz = np.zeros(len(lay.hz))
+        self.dex = np.zeros(len(lay.ex))
+
+    def __call__(self, t_half: float, dey: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Increments ``(dhz, dex, dey)`` of the step from E at ``t_half`` (``dey`` updated in place)."""
+        dt = self.dt
+        self.dhz[self.hb] = (-dt / MU0 * ETA0 * (self.dxb @ self.ey_inc_cols(t_half))
+                             - (self.hz_inc(t_half + 0.5 * dt) - self.hz_inc(t_half - 0.5 * dt)))
+        h = self.hz_inc_cols(t_half + 0.5 * dt)
+        self.dex[self.xb] = self.cx * (self.gyb @ h)
+        dey[self.yb] = -self.cy * (self.gxb @ h) - ETA0 * (self.ey_inc(t_half + dt) - self.ey_inc(t_half))
+        return self.dhz, self.dex, dey
+
+
 def run_tez_scattering(kind: str = "pec", *, n_radial: int = 8, radius: float = 0.1, ka: float = 2.0,
                        eps_r: float = 4.0, layout: str = "yee", amplitude: float = 0.2, seed: int | None = 0,
                        average: str = "anisotropic", margin: float = 0.5, pml_thickness: float = 0.5,
                        pml_order: int = 3, pml_reflection: float = 1e-6, periods: float = 12.0, ramp: float = 3.0,
                        dft_periods: float = 2.0, coupling: str = "sbp", h_ratio: float = DISK_H_RATIO,
                        courant: float = 0.9, wall_spacing: float = 0.5, wall_margin: float = 0.3,
-                       n_sub: int = 8, jump_energy_weight: float = 0.0) -> TEzScatteringResult:
+                       n_sub: int = 8, jump_energy_weight: float = 0.0,
+                       bulk_order: int | None = None) -> TEzScatteringResult:
     """TEz plane-wave scattering by a circular cylinder with SPEM, compared with the exact series.
 
     The scattered-field formulation of the module docstring on the TEz Yee
@@ -579,10 +633,18 @@ def run_tez_scattering(kind: str = "pec", *, n_radial: int = 8, radius: float = 
     eps_r : float
         Dielectric permittivity ("dielectric").
     layout : {"yee", "jittered"}
-    average : {"anisotropic", "arithmetic", "harmonic", "staircase", "jump"}
+    average : {"anisotropic", "arithmetic", "harmonic", "staircase", "jump", "corrected", "auto"}
         Permittivity of the E particles near the interface
         (:func:`particle_permittivity`; "jump": the anisotropic average
-        refitted by :func:`tez_jump_permittivity`, opt-in: see its measurements).
+        refitted by :func:`tez_jump_permittivity`, opt-in: see its measurements;
+        "corrected": the sharp permittivity with the jump-corrected curl pair,
+        :class:`.CircularInterface`, and the incident wave's residual through it
+        on the particles within :data:`TEZ_BAND_SPACINGS` of the circle,
+        :class:`IncidentResidual`; "auto": "corrected" on the lattice up to the
+        contrast :data:`TEZ_CORRECTED_CONTRAST_MAX`, else, or where the correction
+        is refused, "anisotropic"; the result's ``average`` says which ran).
+    bulk_order : {2, 4} or None
+        As :class:`.TEzSolver` (None: 4 with the corrected interface, 2 otherwise).
     coupling : {"sbp", "adjoint"}
     h_ratio, courant : float
         As :class:`.TEzSolver` (default ``h_ratio`` 0.8, as the TEz cavity with curved walls).
@@ -635,17 +697,42 @@ def run_tez_scattering(kind: str = "pec", *, n_radial: int = 8, radius: float = 
     freq, dr, inner, outer = scattering_domain(radius, ka, n_radial, margin, pml_thickness)
     lay = tez_scattering_layout(kind, radius, dr, outer, amplitude=amplitude if layout == "jittered" else 0.0,
                                 seed=seed, wall_spacing=wall_spacing, wall_margin=wall_margin, jitter_width=inner)
+    if bulk_order is not None:
+        check_in("bulk_order", bulk_order, (2, 4))
+    pml = PML(outer - inner, pml_order, pml_reflection, interior=(-inner, inner, -inner, inner))
+    s = iface = None
+    if kind == "dielectric" and average in ("auto", "corrected"):
+        iface = CircularInterface(radius, eps_r)
+        if average == "auto" and (layout != "yee" or max(eps_r, 1.0 / eps_r) > TEZ_CORRECTED_CONTRAST_MAX):
+            iface = None
+        else:
+            try:
+                s = TEzPMLSolver(lay, eps_ex=iface.permittivity(lay.ex), eps_ey=iface.permittivity(lay.ey), pml=pml,
+                                 h_ratio=h_ratio, courant=courant, coupling=coupling, interface=iface,
+                                 bulk_order=4 if bulk_order is None else bulk_order)
+            except ValueError:
+                if average == "corrected":
+                    raise
+                iface = None  # "auto": the correction is refused on this layout, keep the cell average
+        average = "corrected" if iface is not None else "anisotropic"
+    if bulk_order is None:
+        bulk_order = 4 if iface is not None else 2
     eps_x, eps_y = np.ones(len(lay.ex)), np.ones(len(lay.ey))
-    if kind == "dielectric":
+    if kind == "dielectric" and iface is None:
         start = "anisotropic" if average == "jump" else average
         eps_x = particle_permittivity(lay.ex, 0, dr, radius, eps_r, start, n_sub)
         eps_y = particle_permittivity(lay.ey, 1, dr, radius, eps_r, start, n_sub)
-    pml = PML(outer - inner, pml_order, pml_reflection, interior=(-inner, inner, -inner, inner))
+    elif iface is not None:
+        eps_x, eps_y = iface.permittivity(lay.ex), iface.permittivity(lay.ey)
     if average == "jump" and kind == "dielectric":
         # the operators do not depend on the permittivity: fit on a first solver, then build the one that runs
-        s = TEzPMLSolver(lay, eps_ex=eps_x, eps_ey=eps_y, h_ratio=h_ratio, courant=courant, coupling=coupling)
+        s = TEzPMLSolver(lay, eps_ex=eps_x, eps_ey=eps_y, h_ratio=h_ratio, courant=courant, coupling=coupling,
+                         bulk_order=bulk_order)
         eps_x, eps_y = tez_jump_permittivity(s, radius, eps_r, eps_x, eps_y, energy_weight=jump_energy_weight)
-    s = TEzPMLSolver(lay, eps_ex=eps_x, eps_ey=eps_y, pml=pml, h_ratio=h_ratio, courant=courant, coupling=coupling)
+        s = None
+    if s is None:
+        s = TEzPMLSolver(lay, eps_ex=eps_x, eps_ey=eps_y, pml=pml, h_ratio=h_ratio, courant=courant,
+                         coupling=coupling, bulk_order=bulk_order)
     T = 1.0 / freq
     per = int(math.ceil(T / s.dt - 1e-9))
     s.set_dt(T / per)
@@ -662,6 +749,13 @@ def run_tez_scattering(kind: str = "pec", *, n_radial: int = 8, radius: float = 
     ey_inc = SwitchedWave(lay.ey[diel, 0], freq, x0, ramp, k0) if len(diel) else None
     fac = ETA0 * (eps_y[diel] - 1.0) / eps_y[diel]
     dey = np.zeros(len(lay.ey))
+    band = dhz = None
+    if iface is not None:
+        # the corrected operators are exact for fields meeting the jump conditions, which the smooth incident
+        # wave does not: near the circle the scattered field gets the incident wave's full residual
+        # (dt / mu0) C E_inc - dHz_inc and (dt / eps) G Hz_inc - dE_inc instead of -(eps - 1) / eps dEy_inc
+        band = IncidentResidual(s, lay, radius, TEZ_BAND_SPACINGS * dr, freq, x0, ramp, k0)
+        fac = np.where(band.in_ey[diel], 0.0, fac)
     steps = int(round(periods * per))
     n_dft = int(round(dft_periods * per))
     hz = lay.hz
@@ -675,7 +769,10 @@ def run_tez_scattering(kind: str = "pec", *, n_radial: int = 8, radius: float = 
             et[ring] = -ETA0 * wall_inc(t_half) * tau_y
         if ey_inc is not None:
             dey[diel] = -fac * (ey_inc(t_half + s.dt) - ey_inc(t_half))
-        s.step(et if wall_inc is not None else None, None, dey if ey_inc is not None else None)
+        dex = None
+        if band is not None:
+            dhz, dex, dey = band(t_half, dey)
+        s.step(et if wall_inc is not None else None, dex, dey if ey_inc is not None else None, dhz)
         h = s.hz
         if n >= steps - 2 * per:
             peak[int(n >= steps - per)] = max(peak[int(n >= steps - per)], float(np.abs(h).max()))
