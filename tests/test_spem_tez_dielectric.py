@@ -1,7 +1,6 @@
 """TEz dielectric interface: the jump-corrected curl pair (CircularInterface) and the fourth-order bulk rows."""
 
 import importlib.util
-import math
 import pathlib
 
 import numpy as np
@@ -106,8 +105,8 @@ def test_corrected_columns_exact_on_the_jump_fields(solvers):
 
 
 def test_corrected_pair_is_consistent_on_the_static_cylinder(solvers):
-    """The static solutions (not in the fitted span): curl error O(1) against O(1 / dr) uncorrected, gradient
-    error 4 % against 36 % (measured at 8 spacings per radius)."""
+    """The static solutions (not in the fitted span), 8 spacings per radius: curl error 0.04 E / R against 4.0
+    uncorrected (O(1 / dr)), gradient error 1.7 % against 37 % (measured)."""
     lay, plain, s = solvers
     near_h = np.abs(np.hypot(*lay.hz.T) - R) < 3 * lay.dr
     ex, ey = static_e(lay.ex)[0], static_e(lay.ey)[1]
@@ -121,7 +120,7 @@ def test_corrected_pair_is_consistent_on_the_static_cylinder(solvers):
                    np.abs(m.Gx @ f - static_hz(lay.ey)[1])[near_y].max()) / 1.6  # |grad Hz| = 1.6 inside
         out[name] = (curl, grad)
     assert out["plain"][0] > 1.0 and out["plain"][1] > 0.2
-    assert out["corrected"][0] < 0.15 and out["corrected"][1] < 0.08
+    assert out["corrected"][0] < 0.1 and out["corrected"][1] < 0.05
 
 
 def test_corrected_pair_conserves_energy_and_keeps_the_step(solvers):

@@ -107,7 +107,7 @@ from .results import (
 )
 from .sources import GaussianPulse, Sinusoid, Source, line_source, point_source
 from .stability import cfl_number, leapfrog_growth, spectral_radius_bound
-from .tez import DISK_H_RATIO, TEzPMLSolver, TEzSolver
+from .tez import DISK_H_RATIO, CircularInterface, TEzPMLSolver, TEzSolver
 from .tmz import TMzSolver
 
 __all__ = [
@@ -119,7 +119,7 @@ __all__ = [
     "PML", "sigma_max",
     "GaussianPulse", "Sinusoid", "Source", "line_source", "point_source",
     "cfl_number", "leapfrog_growth", "spectral_radius_bound",
-    "TMzSolver", "Line1DSolver", "TEzSolver", "TEzPMLSolver", "DISK_H_RATIO",
+    "TMzSolver", "Line1DSolver", "TEzSolver", "TEzPMLSolver", "CircularInterface", "DISK_H_RATIO",
     "SCATTERERS", "TEZ_SCATTERERS", "wavenumber", "mie_coefficients", "scattered_field", "total_field",
     "tez_mie_coefficients", "tez_scattered_field", "tez_total_field",
     "INTERFACES", "EPS_AVERAGES", "TEZ_INTERFACES", "cell_fraction", "jump_permittivity", "particle_permittivity",

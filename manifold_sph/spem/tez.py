@@ -76,7 +76,8 @@ from .pml import PML
 from .stability import STABILITY_MARGIN, leapfrog_growth, spectral_radius_bound
 from .stepping import Leapfrog
 
-__all__ = ["TEZ_COUPLINGS", "CircularInterface", "DISK_H_RATIO", "TEZ_PML_H_RATIO_MAX", "TEzSolver", "TEzPMLSolver", "curl_sbp", "per_e_particle"]
+__all__ = ["TEZ_COUPLINGS", "CircularInterface", "DISK_H_RATIO", "FOURTH_ORDER_WEIGHTS", "TEZ_PML_H_RATIO_MAX", "TEzSolver",
+           "TEzPMLSolver", "curl_sbp", "fourth_order_rows", "per_e_particle"]
 
 
 #: Couplings of :class:`TEzSolver` (those of :class:`.TMzSolver` but "mimetic").
@@ -143,7 +144,7 @@ class CircularInterface:
     volume_weight: float = 30.0
     reach: float = 4.0
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         check_positive("radius", self.radius)
         check_positive("eps_in", self.eps_in)
         check_positive("eps_out", self.eps_out)
@@ -165,13 +166,16 @@ class CircularInterface:
         p = np.asarray(points, dtype=np.float64) - np.asarray(self.center)
         return np.abs(np.hypot(p[:, 0], p[:, 1]) - self.radius) < self.reach * scale
 
-    def conditions(self, hz, cols, dirs, i, k, n_free, scale, r_val, v_row, c_val, v_col):
+    def conditions(self, hz: np.ndarray, cols: np.ndarray, dirs: np.ndarray, i: np.ndarray, j: np.ndarray,
+                   n_free: int, scale: float, r_val: list, v_row: list, c_val: list,
+                   v_col: list) -> tuple[list, list, list, list]:
         """The exactness conditions of :func:`curl_sbp` with the rows and columns that cross the circle replaced.
 
-        ``r_val`` (pair values of the six row fields), ``v_row`` (the rows'
-        ``dEx/dy - dEy/dx`` of each field), ``c_val`` (pair values of the three
-        column fields) and ``v_col`` (``d x grad g`` per free column), in units of
-        ``scale``; returns the four lists, the crossing rows' sixth slot empty.
+        For the pairs (row ``i``, column ``j``) of ``curl_sbp``: ``r_val`` (pair
+        values of the six row fields), ``v_row`` (the rows' ``dEx/dy - dEy/dx``
+        of each field), ``c_val`` (pair values of the three column fields) and
+        ``v_col`` (``d x grad g`` per free column), in units of ``scale``;
+        returns the four lists, the crossing rows' sixth slot empty.
         """
         c = np.asarray(self.center, dtype=np.float64)
         R = self.radius / scale
@@ -181,17 +185,17 @@ class CircularInterface:
         in_h, in_c = rh < R, rc < R
         eps_h = np.where(in_h, self.eps_in, self.eps_out)
         eps_c = np.where(in_c, self.eps_in, self.eps_out)
-        cross = in_h[i] != in_c[k]
+        cross = in_h[i] != in_c[j]
         nr = len(hz)
         row_cut = np.bincount(i, cross, minlength=nr) > 0
-        col_cut = np.bincount(k, cross, minlength=len(cols))[:n_free] > 0
+        col_cut = np.bincount(j, cross, minlength=len(cols))[:n_free] > 0
         r_val = [a.copy() for a in r_val]
         v_row = [a.copy() for a in v_row]
         c_val = [a.copy() for a in c_val]
         v_col = [a.copy() for a in v_col]
         # rows: the five E fields at the column points, polar frame anchored at the row's angle (the sixth slot empty)
         s = np.flatnonzero(row_cut[i])
-        ii, kk = i[s], k[s]
+        ii, kk = i[s], j[s]
         u = R * np.angle(np.exp(1j * (th_c[kk] - th_h[ii])))
         v = rc[kk] - R
         er = pc[kk] / rc[kk, None]
@@ -210,8 +214,8 @@ class CircularInterface:
                                   0.0 * r0)):
             v_row[m][rows] = curl  # the rows compute dEx/dy - dEy/dx = -(curl E)_z
         # columns: Hz = 1, u, eps v at the Hz particles, polar frame anchored at the column's angle
-        s = np.flatnonzero(np.r_[col_cut, np.zeros(len(cols) - n_free, bool)][k])
-        ii, kk = i[s], k[s]
+        s = np.flatnonzero(np.r_[col_cut, np.zeros(len(cols) - n_free, bool)][j])
+        ii, kk = i[s], j[s]
         c_val[1][s] = R * np.angle(np.exp(1j * (th_h[ii] - th_c[kk])))
         c_val[2][s] = eps_h[ii] * (rh[ii] - R)
         cc = np.flatnonzero(col_cut)
@@ -269,7 +273,8 @@ def fourth_order_rows(curl0: sp.csr_matrix, hz: np.ndarray, e: np.ndarray, dirs:
 
 def curl_sbp(hz: np.ndarray, cols: np.ndarray, dirs: np.ndarray, curl0: sp.csr_matrix, n_free: int,
               wall_length: np.ndarray, vol_hz: np.ndarray, vol_e: np.ndarray, width: float, scale: float,
-              volume_weight: float = DISK_VOLUME_WEIGHT, interface: "CircularInterface | None" = None) -> tuple[sp.csr_matrix, np.ndarray, np.ndarray, float]:
+              volume_weight: float = DISK_VOLUME_WEIGHT, interface: CircularInterface | None = None
+              ) -> tuple[sp.csr_matrix, np.ndarray, np.ndarray, float]:
     """Flux weights and volumes of the energy-conserving TEz curl pair next to curved walls (module docstring).
 
     ``curl0`` (Hz rows) approximates ``dEx/dy - dEy/dx`` from the E columns: the
@@ -284,7 +289,11 @@ def curl_sbp(hz: np.ndarray, cols: np.ndarray, dirs: np.ndarray, curl0: sp.csr_m
     every free column's adjoint ``-V_E^-1 C^T V_Hz`` exact for linear Hz;
     every closure column ``sum_i Q_iw {1, x_i - x_w, y_i - y_w} = {-s_w, 0, 0}``.
     Minimum of ``|dQ|^2 + sum (dV / V0)^2 / volume_weight`` by one sparse
-    normal-equations solve.
+    normal-equations solve. With ``interface`` (:class:`CircularInterface`) the rows and
+    free columns whose pairs cross its circle take its jump-field conditions
+    instead of the linear ones, the volumes next to it its ``volume_weight``,
+    and a band that misses the conditions raises ValueError (no whole-operator
+    solve).
 
     Returns
     -------

@@ -570,7 +570,8 @@ class IncidentResidual:
     ``Hz_inc = w cos(w t - k x)``, ``Ey_inc = eta0 Hz_inc``, ``Ex_inc = 0``.
     """
 
-    def __init__(self, s, lay, radius, width, freq, x0, ramp, k0):
+    def __init__(self, s: TEzPMLSolver, lay: TEzLayout, radius: float, width: float, freq: float, x0: float,
+                 ramp: float, k0: float) -> None:
         def near(p):
             return np.abs(np.hypot(p[:, 0], p[:, 1]) - radius) < width
 
