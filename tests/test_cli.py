@@ -425,7 +425,7 @@ def test_spem_tez_scattering_cases(capsys):
     assert out["case"] == "dielectric" and out["coupling"] == "adjoint" and out["error"] < 0.2
     for argv, msg in ((["tez-scatter-pec", "--eps-r", "2"], "--eps-r does not apply to tez-scatter-pec"),
                       (["tez-scatter-pec", "--coupling", "mimetic"], "coupling must be one of"),
-                      (["tez-scatter-dielectric", "--interface", "jump"], "--interface does not apply"),
+                      (["tez-scatter-dielectric", "--interface", "jump"], "must be one of average, corrected, auto"),
                       (["tez-scatter-dielectric", "--mimetic-fast"], "--mimetic-fast does not apply"),
                       (["tez-scatter-dielectric", "--layout", "poisson"], "must be yee or jittered")):
         assert cli_main(["spem", *argv]) == 2
