@@ -351,10 +351,17 @@ def test_mpi_engine_two_ranks_equals_local(stable, cloud, problem):
 
 
 @mpi_engine
-def test_mpi_engine_eigenpairs_two_ranks(stable):
+@pytest.mark.parametrize("direct", [True, False])
+def test_mpi_engine_eigenpairs_two_ranks(stable, monkeypatch, direct):
+    """Shift-invert on one MUMPS factor (up to EIGS_DIRECT_MAX_N particles) or by multigrid CG (above)."""
+    import manifold_sph.distributed.solve as S
+
+    if not direct:
+        monkeypatch.setattr(S, "EIGS_DIRECT_MAX_N", 10)
     lam, _ = stable.eigs(6, engine="local")
     lam2, V = stable.eigs(6, engine="mpi", ranks=2)
     assert stable.last_solve["engine"] == "mpi" and stable.last_solve["ranks"] == 2
+    assert ("mumps" in stable.last_solve["method"]) == direct, stable.last_solve["method"]
     np.testing.assert_allclose(lam2, lam, rtol=1e-8, atol=1e-10)  # lambda_0 = 0: atol
     V = np.asarray(V)
     K, m = stable.stiffness_matrix("tile"), stable.mass_matrix("tile").diagonal()

@@ -9,7 +9,8 @@ and, for geodesics, of the tangent-plane derivatives. Two engines solve with the
     user under ``srun``/``mpirun`` on a cluster); each rank reads its own tiles' rows from
     the cache directory and solves with CG preconditioned by algebraic multigrid (hypre's
     BoomerAMG, or PETSc's GAMG), the geodesic's heat step as below, eigenpairs with SLEPc
-    (Krylov-Schur, shift-invert through the same CG).
+    (Krylov-Schur, shift-invert on one MUMPS Cholesky factor up to :data:`EIGS_DIRECT_MAX_N`
+    particles, through the same CG above).
 ``"dask-mpi"``
     The same engine on the workers of the Dask cluster that built the tiles, when that cluster was
     started by ``dask_mpi.initialize`` under ``mpirun``/``srun`` (each worker is an MPI rank; the
@@ -62,7 +63,7 @@ from .bands import BAND_FLOOR, BAND_RTOL, DIRECT_FLOOR, WindowedHeat, band_direc
 if TYPE_CHECKING:
     from .operators import TiledOperators
 
-__all__ = ["ENGINES", "GEODESIC_DIRECT_MAX_N", "GEODESIC_T", "SOURCE_RADIUS",
+__all__ = ["EIGS_DIRECT_MAX_N", "ENGINES", "GEODESIC_DIRECT_MAX_N", "GEODESIC_T", "SOURCE_RADIUS",
            "dask_mpi_workers", "engine_available", "geodesic_from_matrices", "piece_labels", "run"]
 
 ENGINES = ("auto", "mpi", "dask-mpi", "local")
@@ -71,6 +72,9 @@ GEODESIC_T = 4.0
 SOURCE_RADIUS = 3.0
 #: Particles up to which the geodesic's heat step is a direct (Cholesky) solve on both engines; above, bands.
 GEODESIC_DIRECT_MAX_N = 2_000_000
+#: Particles up to which the MPI engine's eigensolver shift-inverts with a MUMPS Cholesky factor of
+#: ``K - sigma M`` (as the local engine does with CHOLMOD); above, each application is a multigrid CG solve.
+EIGS_DIRECT_MAX_N = 2_000_000
 
 
 def engine_available() -> str | None:
@@ -337,7 +341,8 @@ def _worker_job(path: str | None, world_ranks: list[int], all_ranks: list[int]) 
 def _run_mpi(ts, problem, ranks, args, *, workers=None):
     work = tempfile.mkdtemp(prefix="msph-mpi-", dir=str(ts.cache_dir))
     try:
-        job = job_description(ts) | {"problem": problem, "work": work, "geodesic_direct_max_n": GEODESIC_DIRECT_MAX_N}
+        job = job_description(ts) | {"problem": problem, "work": work, "geodesic_direct_max_n": GEODESIC_DIRECT_MAX_N,
+                                     "eigs_direct_max_n": EIGS_DIRECT_MAX_N}
         for name, value in args.items():
             if isinstance(value, np.ndarray):
                 path = os.path.join(work, name + ".npy")

@@ -461,13 +461,22 @@ def _eigs(job, R, its, secs):
     st = eps.getST()
     st.setType("sinvert")
     ksp = st.getKSP()
-    ksp.setType("cg")
-    multigrid(ksp.getPC())
-    ksp.setTolerances(rtol=RTOL, atol=0.0, max_it=2000)
-    eps.setFromOptions()
+    # up to eigs_direct_max_n particles one Cholesky factor of K - sigma M (MUMPS) serves every shift-invert
+    # application, as CHOLMOD's does on the local engine; above, each application is a CG solve to RTOL
+    if R.n <= int(job.get("eigs_direct_max_n", 0)) and PETSc.Sys.hasExternalPackage("mumps"):
+        R.K.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+        ksp.setType("preonly")
+        ksp.getPC().setType("cholesky")
+        ksp.getPC().setFactorSolverType("mumps")
+    else:
+        ksp.setType("cg")
+        multigrid(ksp.getPC())
+        ksp.setTolerances(rtol=RTOL, atol=0.0, max_it=2000)
+    eps.setFromOptions()  # PETSC_OPTIONS -st_ksp_type / -st_pc_type override either
     t = time.perf_counter()
     eps.solve()
-    R.methods.append(f"cg-{ksp.getPC().getType()}")
+    pc = ksp.getPC()
+    R.methods.append(pc.getFactorSolverType() if ksp.getType() == "preonly" else f"{ksp.getType()}-{pc.getType()}")
     secs.append(time.perf_counter() - t)
     its.append(int(eps.getIterationNumber()))
     nconv = eps.getConverged()
