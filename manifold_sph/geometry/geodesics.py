@@ -69,6 +69,7 @@ class _Wavefront:
         self._inc = self.tri.incidence()
         self._adj = self.tri.adjacency()
         self._gauss = self.tri.resolved_gauss()
+        self._rescue = self.tri.rescuable()
         n = points.shape[0]
         import scipy.sparse as sp
 
@@ -78,7 +79,8 @@ class _Wavefront:
 
     def distance(self, src, offsets, targets):
         P = self.tri.points
-        d = propagate(P, self._inc, self._adj, src, offsets / self.tri.scale, targets, gauss=self._gauss)
+        d = propagate(P, self._inc, self._adj, src, offsets / self.tri.scale, targets, gauss=self._gauss,
+                      rescue=self._rescue)
         if not offsets.any():  # never below the straight line to the nearest source (unreached: inf stays inf)
             np.maximum(d, straight_line(P, src), out=d)
         d *= self.tri.scale

@@ -59,6 +59,13 @@ OPEN_GAP = 0.95 * np.pi
 #: edge length: a radius of curvature of at least 5.8 spacings); elsewhere (creases, features a few
 #: spacings across, where a quadric over 16 points does not resolve the surface) ``K = 0`` there.
 RESOLVED_CURVATURE = 0.03
+#: A particle's distance from an edge is re-solved (:func:`_rescue`) only through pairs whose segment
+#: keeps it at least this fraction of its distance to the farther corner (a thinner pair puts the
+#: particle nearly on the line through them: the ray's crossing is ill-conditioned) ...
+RESCUE_MIN_HEIGHT = 0.2
+#: ... and whose front has travelled at least this many times that distance (near a source the
+#: front's curvature is large and a pair of edges is a coarse chord of it).
+RESCUE_MIN_RADIUS = 3.0
 
 
 def _compile(fn):
@@ -110,7 +117,7 @@ _sift_down = _compile(_sift_down)
 
 
 def _triangle_ray(lab, cx, cy, da, db, k):
-    """The front seen through the edge ``ab`` of triangle ``(a, b, c)`` at ``c``: ``(distance, t, s)``,
+    """The front seen through the edge ``ab`` of triangle ``(a, b, c)`` at ``c``: ``(distance, t, s, ux, uy)``,
     distance inf if none.
 
     The triangle is unfolded with ``a`` at the origin, ``b = (lab, 0)`` and ``c = (cx, cy)``,
@@ -119,29 +126,29 @@ def _triangle_ray(lab, cx, cy, da, db, k):
     solves ``(b - a) . g = D + k (D^2 - lab^2) / 2``, ``D = db - da`` (the circle intersection
     written without cancellation); the distance at ``c = a + y`` is
     ``da + (k |y|^2 + 2 y . g) / (1 + |k y + g|)``, when the ray to ``c`` crosses ``ab``: at
-    ``t lab`` from ``a``, a length ``s`` before ``c``.
+    ``t lab`` from ``a``, a length ``s`` before ``c``, arriving in the direction ``(ux, uy)``.
     """
     if lab <= 0.0 or cy <= 0.0 or not k < np.inf:
-        return np.inf, 0.0, 0.0
+        return np.inf, 0.0, 0.0, 0.0, 0.0
     delta = db - da
     gx = (delta + 0.5 * k * (delta * delta - lab * lab)) / lab
     if gx * gx > 1.0:
-        return np.inf, 0.0, 0.0
+        return np.inf, 0.0, 0.0, 0.0, 0.0
     gy = np.sqrt(1.0 - gx * gx)
     qx = k * cx + gx
     qy = k * cy + gy
     nq = np.sqrt(qx * qx + qy * qy)
     if nq <= 0.0:
-        return np.inf, 0.0, 0.0
+        return np.inf, 0.0, 0.0, 0.0, 0.0
     ux = qx / nq
     uy = qy / nq
     if uy <= 0.0:
-        return np.inf, 0.0, 0.0
+        return np.inf, 0.0, 0.0, 0.0, 0.0
     s = cy / uy
     xc = cx - s * ux
     if xc < 0.0 or xc > lab:  # the ray from the front to c misses the edge ab
-        return np.inf, 0.0, 0.0
-    return da + (k * (cx * cx + cy * cy) + 2.0 * (cx * gx + cy * gy)) / (1.0 + nq), xc / lab, s
+        return np.inf, 0.0, 0.0, 0.0, 0.0
+    return da + (k * (cx * cx + cy * cy) + 2.0 * (cx * gx + cy * gy)) / (1.0 + nq), xc / lab, s, ux, uy
 
 
 _triangle_ray = _compile(_triangle_ray)
@@ -203,12 +210,100 @@ def _carry(w0, r0, r1, K):
 _carry = _compile(_carry)
 
 
-def _propagate(P, vt_ptr, vt_pair, vt_geom, e_ptr, e_idx, e_len, src, d0, targets, K, riccati):
+def _rescue(P, y, d, o, sid, w, g, pos, e_ptr, e_idx, K, riccati):
+    """Re-solve particle ``y``, about to be final, whose distance came from an edge; True if it fell.
+
+    On thin or obtuse local triangles (random points: pairs much closer than the spacing) a particle
+    may be reached by no triangle from two final corners, its upstream neighbours all to one side.
+    The edge candidate ``d_a + |x_a - x_y|`` is then long by about the spacing times the angle to the
+    true ray, and every later update copies that error downstream. Here every pair ``(a, b)`` of
+    ``y``'s final edge neighbours of one source, adjacent in a fan or not (a virtual triangle, as fast
+    marching forms for obtuse triangles), gives the distance from the virtual source through the
+    segment ``ab``, accepted only where the ray crosses ``ab`` (never longer than the edge candidate,
+    which stays when none does), where ``y`` is not nearly on the line ``ab``
+    (:data:`RESCUE_MIN_HEIGHT`), away from the source (:data:`RESCUE_MIN_RADIUS`) and where the
+    fronts at ``a`` and ``b`` move towards ``y``'s side of ``ab`` (else the virtual source lies on
+    that side). Of the accepted pairs the one crossed nearest its middle wins (the best conditioned;
+    the smallest would bias the distance short)."""
+    best = d[y]
+    score = np.inf
+    ba = -1
+    bb = -1
+    bt = 0.0
+    bs = 0.0
+    gy0 = 0.0
+    gy1 = 0.0
+    gy2 = 0.0
+    for q in range(e_ptr[y], e_ptr[y + 1]):
+        a = e_idx[q]
+        if pos[a] >= 0 or not d[a] < d[y]:
+            continue
+        ra = d[a] - o[a]
+        ka = _kappa(ra, w[a]) if riccati else (1.0 / ra if ra > 0.0 else np.inf)
+        ay0 = P[y, 0] - P[a, 0]
+        ay1 = P[y, 1] - P[a, 1]
+        ay2 = P[y, 2] - P[a, 2]
+        l2 = ay0 * ay0 + ay1 * ay1 + ay2 * ay2
+        for q2 in range(e_ptr[y], e_ptr[y + 1]):
+            b = e_idx[q2]
+            if b == a or pos[b] >= 0 or not d[b] < d[y] or sid[b] != sid[a] or o[b] != o[a]:
+                continue
+            e0 = P[b, 0] - P[a, 0]
+            e1 = P[b, 1] - P[a, 1]
+            e2 = P[b, 2] - P[a, 2]
+            lab = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+            if lab <= 0.0:
+                continue
+            e0 /= lab
+            e1 /= lab
+            e2 /= lab
+            cx = ay0 * e0 + ay1 * e1 + ay2 * e2
+            cy = np.sqrt(max(l2 - cx * cx, 0.0))
+            far = max(l2, (cx - lab) * (cx - lab) + cy * cy)
+            if cy * cy < RESCUE_MIN_HEIGHT * RESCUE_MIN_HEIGHT * far or ra * ra < RESCUE_MIN_RADIUS * RESCUE_MIN_RADIUS * far:
+                continue
+            n0 = (ay0 - cx * e0) / cy  # the unit normal of ab towards y, in the plane of a, b, y
+            n1 = (ay1 - cx * e1) / cy
+            n2 = (ay2 - cx * e2) / cy
+            if (g[a, 0] + g[b, 0]) * n0 + (g[a, 1] + g[b, 1]) * n1 + (g[a, 2] + g[b, 2]) * n2 < 0.0:
+                continue
+            cand, t, s, ux, uy = _triangle_ray(lab, cx, cy, ra, d[b] - o[a], ka)
+            cand += o[a]
+            if cand < d[y] * (1.0 - 1e-12) and abs(t - 0.5) < score:
+                score = abs(t - 0.5)
+                best = cand
+                ba = a
+                bb = b
+                bt = t
+                bs = s
+                gy0 = ux * e0 + uy * n0
+                gy1 = ux * e1 + uy * n1
+                gy2 = ux * e2 + uy * n2
+    if ba < 0:
+        return False
+    d[y] = best
+    o[y] = o[ba]
+    sid[y] = sid[ba]
+    g[y, 0] = gy0
+    g[y, 1] = gy1
+    g[y, 2] = gy2
+    if riccati:
+        r = best - o[ba]
+        w[y] = _carry((1.0 - bt) * w[ba] + bt * w[bb], r - bs, r, 0.5 * K[y] + 0.5 * ((1.0 - bt) * K[ba] + bt * K[bb]))
+    return True
+
+
+_rescue = _compile(_rescue)
+
+
+def _propagate(P, vt_ptr, vt_pair, vt_geom, e_ptr, e_idx, e_len, src, d0, targets, K, riccati, rescue):
     n = P.shape[0]
     d = np.full(n, np.inf)
     o = np.zeros(n)  # the offset of the source each particle's front comes from
     sid = np.full(n, -1, np.int64)  # and which source that is
     w = np.zeros(n)  # the Jacobi correction of each front's curvature (see _kappa)
+    g = np.zeros((n, 3))  # the unit direction of each particle's ray (0 at the sources)
+    by_edge = np.zeros(n, np.bool_)  # the distance came from an edge candidate
     heap = np.empty(n, np.int64)
     key = np.empty(n)  # the heap entries' distances, stored beside them (no indirection in the sifts)
     pos = np.full(n, -1, np.int64)
@@ -240,6 +335,8 @@ def _propagate(P, vt_ptr, vt_pair, vt_geom, e_ptr, e_idx, e_len, src, d0, target
             left -= 1
             if left == 0:
                 break
+        if rescue[v] and by_edge[v] and _rescue(P, v, d, o, sid, w, g, pos, e_ptr, e_idx, K, riccati):
+            by_edge[v] = False
         dv = d[v]
         ov = o[v]
         sv = sid[v]
@@ -252,6 +349,10 @@ def _propagate(P, vt_ptr, vt_pair, vt_geom, e_ptr, e_idx, e_len, src, d0, target
                 d[x] = cand
                 o[x] = ov
                 sid[x] = sv
+                by_edge[x] = True
+                g[x, 0] = (P[x, 0] - P[v, 0]) / e_len[q]
+                g[x, 1] = (P[x, 1] - P[v, 1]) / e_len[q]
+                g[x, 2] = (P[x, 2] - P[v, 2]) / e_len[q]
                 if riccati:
                     w[x] = _carry(w[v], rv, cand - ov, 0.5 * (K[v] + K[x]))
                 size = _push(heap, key, pos, size, x, cand)
@@ -274,8 +375,10 @@ def _propagate(P, vt_ptr, vt_pair, vt_geom, e_ptr, e_idx, e_len, src, d0, target
                 sx = sid[x]
                 t = 0.0
                 s = 0.0
+                ux = 0.0
+                uy = 0.0
                 if sx == sv:  # both corners' fronts come from one point source
-                    cand, t, s = _triangle_ray(lab, cx, cy, rv, dx - ov, kv)
+                    cand, t, s, ux, uy = _triangle_ray(lab, cx, cy, rv, dx - ov, kv)
                     cand += ov
                 else:
                     ax = P[sx, 0] - P[sv, 0]
@@ -283,13 +386,30 @@ def _propagate(P, vt_ptr, vt_pair, vt_geom, e_ptr, e_idx, e_len, src, d0, target
                     az = P[sx, 2] - P[sv, 2]
                     if ax * ax + ay * ay + az * az <= 9.0 * lab * lab and o[x] == ov:
                         # neighbouring sources of a set (a curve, a boundary): one straight front
-                        cand, t, s = _triangle_ray(lab, cx, cy, dv, dx, 0.0)
+                        cand, t, s, ux, uy = _triangle_ray(lab, cx, cy, dv, dx, 0.0)
                     else:  # fronts of distinct sources meet here (a kink): no front spans them
+                        cand = np.inf
+                e0 = e1 = e2 = m0 = m1 = m2 = 0.0
+                if cand < d[y] * (1.0 - 1e-12):
+                    # the triangle laid flat in space: vx along e, y's side along m
+                    e0 = (P[x, 0] - P[v, 0]) / lab
+                    e1 = (P[x, 1] - P[v, 1]) / lab
+                    e2 = (P[x, 2] - P[v, 2]) / lab
+                    m0 = (P[y, 0] - P[v, 0] - cx * e0) / cy
+                    m1 = (P[y, 1] - P[v, 1] - cx * e1) / cy
+                    m2 = (P[y, 2] - P[v, 2] - cx * e2) / cy
+                    if (g[v, 0] + g[x, 0]) * m0 + (g[v, 1] + g[x, 1]) * m1 + (g[v, 2] + g[x, 2]) * m2 < 0.0:
+                        # the fronts at v and x move away from y's side of vx: their virtual source lies on
+                        # that side (y nearly on the line vx), the construction's mirror image of it is too far
                         cand = np.inf
                 if cand < d[y] * (1.0 - 1e-12):
                     d[y] = cand
                     o[y] = ov
                     sid[y] = sv
+                    by_edge[y] = False
+                    g[y, 0] = ux * e0 + uy * m0
+                    g[y, 1] = ux * e1 + uy * m1
+                    g[y, 2] = ux * e2 + uy * m2
                     if riccati:  # the correction carried from where the ray crosses vx (s before y) to y
                         w[y] = _carry((1.0 - t) * w[v] + t * w[x], cand - ov - s, cand - ov,
                                       0.5 * K[y] + 0.5 * ((1.0 - t) * K[v] + t * K[x]))
@@ -308,6 +428,7 @@ def propagate(
     offsets: np.ndarray,
     targets: np.ndarray | None = None,
     gauss: np.ndarray | None = None,
+    rescue: np.ndarray | None = None,
 ) -> np.ndarray:
     """Run the wavefront sweep (see the module notes); distances in the units of ``P``, inf where not reached.
 
@@ -336,12 +457,17 @@ def propagate(
         Gaussian curvature at every particle (units of ``P``). When given, each point source's
         front carries its geodesic curvature along the rays by the Riccati equation
         ``kappa' = -kappa^2 - K``; without it the curvature is ``1 / r`` (exact in a plane).
+    rescue : ndarray of bool, shape (N,), optional
+        Particles that, reached only by an edge candidate, are re-solved through pairs of their final
+        neighbours before they pass their distance on (see :func:`_rescue`;
+        :meth:`LocalTriangles.rescuable`). None: nowhere.
     """
     targets = np.zeros(0, np.int64) if targets is None else np.ascontiguousarray(targets, dtype=np.int64)
     K = np.zeros(P.shape[0]) if gauss is None else np.ascontiguousarray(gauss, dtype=np.float64)
     return _propagate(P, incidence[0], incidence[1], incidence[2], edges[0], edges[1], edges[2],
                       np.ascontiguousarray(sources, dtype=np.int64), np.ascontiguousarray(offsets, dtype=np.float64), targets,
-                      K, gauss is not None)
+                      K, gauss is not None,
+                      np.zeros(P.shape[0], np.bool_) if rescue is None else np.ascontiguousarray(rescue, dtype=np.bool_))
 
 
 # ----------------------------------------------------------------------------- triangles
@@ -412,6 +538,20 @@ class LocalTriangles(Result):
             return np.zeros(self.points.shape[0])
         h = float(np.mean(np.linalg.norm(self.points[e[:, 0]] - self.points[e[:, 1]], axis=1)))
         return np.where(np.abs(self.gauss) * h * h <= RESOLVED_CURVATURE, self.gauss, 0.0)
+
+    def rescuable(self) -> np.ndarray:
+        """Where :func:`propagate` may re-solve a particle reached only by an edge, shape (N,) bool: away
+        (by more than two edges) from open fans and from particles whose curvature the quadric does not
+        resolve (creases, thin features, the gaps between sheets: there a pair of neighbours may span
+        what is not surface)."""
+        bad = self.open | (self.resolved_gauss() != self.gauss)
+        e = self.edges
+        for _ in range(2):
+            grown = bad.copy()
+            grown[e[:, 0][bad[e[:, 1]]]] = True
+            grown[e[:, 1][bad[e[:, 0]]]] = True
+            bad = grown
+        return ~bad
 
     def adjacency(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(ptr, idx, length)`` for :func:`propagate`: the edge neighbours of each particle (CSR, both
