@@ -59,12 +59,9 @@ OPEN_GAP = 0.95 * np.pi
 #: edge length: a radius of curvature of at least 5.8 spacings); elsewhere (creases, features a few
 #: spacings across, where a quadric over 16 points does not resolve the surface) ``K = 0`` there.
 RESOLVED_CURVATURE = 0.03
-#: A particle's distance from an edge is re-solved (:func:`_rescue`) only through pairs whose segment
-#: keeps it at least this fraction of its distance to the farther corner (a thinner pair puts the
-#: particle nearly on the line through them: the ray's crossing is ill-conditioned) ...
-RESCUE_MIN_HEIGHT = 0.2
-#: ... and whose front has travelled at least this many times that distance (near a source the
-#: front's curvature is large and a pair of edges is a coarse chord of it).
+#: A particle's distance from an edge is re-solved (:func:`_rescue`) only through pairs of neighbours
+#: whose front has travelled at least this many times the particle's distance to the farther of them
+#: (near a source the front's curvature is large and a pair of edges is a coarse chord of it).
 RESCUE_MIN_RADIUS = 3.0
 
 
@@ -220,8 +217,7 @@ def _rescue(P, y, d, o, sid, w, g, pos, e_ptr, e_idx, K, riccati):
     ``y``'s final edge neighbours of one source, adjacent in a fan or not (a virtual triangle, as fast
     marching forms for obtuse triangles), gives the distance from the virtual source through the
     segment ``ab``, accepted only where the ray crosses ``ab`` (never longer than the edge candidate,
-    which stays when none does), where ``y`` is not nearly on the line ``ab``
-    (:data:`RESCUE_MIN_HEIGHT`), away from the source (:data:`RESCUE_MIN_RADIUS`) and where the
+    which stays when none does), away from the source (:data:`RESCUE_MIN_RADIUS`) and where the
     fronts at ``a`` and ``b`` move towards ``y``'s side of ``ab`` (else the virtual source lies on
     that side). Of the accepted pairs the one crossed nearest its middle wins (the best conditioned;
     the smallest would bias the distance short)."""
@@ -260,7 +256,7 @@ def _rescue(P, y, d, o, sid, w, g, pos, e_ptr, e_idx, K, riccati):
             cx = ay0 * e0 + ay1 * e1 + ay2 * e2
             cy = np.sqrt(max(l2 - cx * cx, 0.0))
             far = max(l2, (cx - lab) * (cx - lab) + cy * cy)
-            if cy * cy < RESCUE_MIN_HEIGHT * RESCUE_MIN_HEIGHT * far or ra * ra < RESCUE_MIN_RADIUS * RESCUE_MIN_RADIUS * far:
+            if cy <= 0.0 or ra * ra < RESCUE_MIN_RADIUS * RESCUE_MIN_RADIUS * far:
                 continue
             n0 = (ay0 - cx * e0) / cy  # the unit normal of ab towards y, in the plane of a, b, y
             n1 = (ay1 - cx * e1) / cy
