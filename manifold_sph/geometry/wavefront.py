@@ -31,6 +31,17 @@ the cloud itself defines:
    ``K`` is that of a quadric fitted to each particle's nearest points, used only where it
    resolves the surface (:data:`RESOLVED_CURVATURE`).
 
+4. **Particles no triangle reaches.** On random points (pairs much closer than the spacing: slivers,
+   obtuse corners) a particle may be reached by no triangle from two final corners, only along an
+   edge, too long by about the spacing times the angle to the true ray; every later update would copy
+   that downstream. Such a particle, about to be final, is re-solved through every pair of its final
+   edge neighbours, adjacent in a fan or not (virtual triangles), where the ray from the pair's
+   virtual source crosses the segment between them (:func:`_rescue`); only away from open fans and
+   unresolved curvature (:meth:`LocalTriangles.rescuable`). Each particle also carries the direction
+   its ray arrived in: a triangle whose corners' fronts move away from the third corner's side of
+   their edge has its virtual source on that side, where the construction would take its mirror
+   image (too far), and gives no candidate.
+
 The result is clamped to the straight-line distance to the nearest source, so it is never
 below it. Several sources are one sweep, so the kink where their fronts meet is exact. The
 sweep stops as soon as every requested target is final (point-to-point queries).
