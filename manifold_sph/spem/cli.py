@@ -65,6 +65,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     p.add_argument("--size", type=_positive(float), default=None, help="planewave: square side (default 0.5 m)")
     p.add_argument("--freq", type=_positive(float), default=None, help="line1d/planewave frequency (Hz)")
     p.add_argument("--pml-cells", type=_positive(int), default=None, help="PML thickness in spacings")
+    p.add_argument("--sides", default=None, choices=("mirror", "pml"),
+                   help="planewave: side walls, mirror (PMC, exact for the plane wave; default except on the staggered "
+                        "layout) or pml (layers)")
     p.add_argument("--png", default=None, help="write the final field to this PNG")
     p.add_argument("--gif", default=None, help="write an animation of the field to this GIF")
     p.add_argument("--frames", type=_positive(int), default=24, help="GIF frames (default 24)")
@@ -78,7 +81,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
 _OPTION_CASES = {
     "ppw": ("planewave", "waveguide"), "n_radial": ("cavity",), "r0": ("cavity",), "eps_r": ("cavity",),
     "spectrum_periods": ("cavity",), "size": ("planewave",), "freq": ("line1d", "planewave"),
-    "pml_cells": ("planewave", "pml"), "layout": ("cavity", "waveguide", "planewave", "pml"),
+    "pml_cells": ("planewave", "pml"), "sides": ("planewave",), "layout": ("cavity", "waveguide", "planewave", "pml"),
     "coupling": ("cavity", "waveguide", "planewave", "pml"), "h_ratio": ("cavity", "waveguide", "planewave", "pml"),
 }
 
@@ -93,7 +96,7 @@ def _kwargs(args) -> dict:
             continue
         if args.case not in cases:
             raise ValueError(f"--{name.replace('_', '-')} does not apply to case {args.case!r} (only {', '.join(cases)})")
-        kw[name] = v
+        kw["side" if name == "sides" else name] = v
     if args.png or args.gif:
         if args.case == "pml":
             raise ValueError("pictures are not available for the pml case (it compares probe series)")

@@ -156,13 +156,14 @@ class PlanewaveResult(CaseResult):
 
     ``pml_reflection_db``: the worst reflection of the run's layer measured by
     :func:`~manifold_sph.spem.certify.pml_certificate` (None where not measured: ``certify=False``, or
-    the "mimetic" and "direct" couplings by default)."""
+    the "mimetic" and "direct" couplings by default). ``side``: "mirror" (PMC side walls) or "pml"."""
 
     layout: str
     form: str
     ppw: float
     pml_cells: int
     error_centre: float
+    side: str = "pml"
     adjacent_line_difference: float | None = None
     alternating_amplitude: float | None = None
     pml_reflection_db: float | None = None

@@ -44,6 +44,7 @@ from .._validation import check_in, check_int, check_positive
 from . import compiled
 from .constants import C0, EPS0, MU0
 from .layouts import Layout
+from .mirror import check_mirror_planes, folded_gradient, mirror_reach
 from .operators import (
     COUPLINGS,
     DEFAULT_COUPLING,
@@ -178,6 +179,12 @@ class TMzSolver(Leapfrog):
         quadratics instead of cubics (:data:`.mimetic.FAST`): a faster set-up (plane wave
         at 20 particles per wavelength 48 -> 33 s, measured), the same energy
         conservation; a larger phase error on coarse Poisson layouts.
+    mirror : float or pair of float, optional
+        x values of mirror (perfect magnetic conductor) walls: each derivative matrix takes mirror
+        images of its columns across these planes, Ez and Hx even, Hy odd (:mod:`.mirror`); no
+        particle beyond them is needed. Exact for any TMz field with ``Hy = 0`` on the planes (a
+        plane wave travelling along y). Every particle must lie at least :data:`.mirror.MIRROR_GAP`
+        spacings from a plane, between the planes; not with the "mimetic" coupling.
     pml_check : bool
         Refuse a PML with ``h / dr`` above :data:`PML_H_RATIO_MAX` (couplings other than "mimetic"), where
         the layer no longer absorbs (default True).
@@ -204,7 +211,8 @@ class TMzSolver(Leapfrog):
                  sigma: float | ArrayLike | Callable[[np.ndarray], ArrayLike] = 0.0,
                  pml: PML | None = None, dt: float | None = None, courant: float = 0.9, sources: Sequence[Source] = (),
                  coupling: str = DEFAULT_COUPLING, workers: int = 1, sbp_layers: int | None = SBP_LAYERS,
-                 mimetic_fast: bool = False, stencil: bool = True, pml_check: bool = True) -> None:
+                 mimetic_fast: bool = False, stencil: bool = True, pml_check: bool = True,
+                 mirror: float | Sequence[float] | None = None) -> None:
         if not isinstance(layout, Layout):
             raise TypeError(f"layout must be a Layout, got {type(layout).__name__}")
         if pml is not None and not isinstance(pml, PML):
@@ -223,6 +231,11 @@ class TMzSolver(Leapfrog):
         if pml is not None and pml_check:
             self.check_pml_support(self.h / layout.dr, self.coupling)
         self.kernel, self.form = kernel, form
+        self.mirror = check_mirror_planes(mirror, [("E particles", layout.e), ("Hx particles", layout.hx),
+                                                   ("Hy particles", layout.hy)], layout.dr)
+        if self.mirror and self.coupling == "mimetic":
+            raise ValueError("mirror walls are not available with coupling='mimetic' (its operators come from a "
+                             "global fit without mirror images); use coupling='sbp', 'adjoint' or 'direct'")
         self.workers = check_int("workers", workers, minimum=1)
         self.sbp_layers = None if sbp_layers is None else check_int("sbp_layers", sbp_layers, minimum=0)
         self.n_e = len(layout.e)
@@ -278,6 +291,12 @@ class TMzSolver(Leapfrog):
             raise ValueError("every E particle is fixed (PEC) or driven: no E particle left to update")
 
     def _gradient(self, rows, cols, axis, row_name, col_name):
+        if self.mirror:
+            # Hy (the x derivative's H columns) is odd about a mirror plane, Ez and Hx even
+            lay = self.layout
+            return folded_gradient(rows, cols, self.h, axis, planes=self.mirror, odd=cols is not lay.e and axis == 0,
+                                   spacing=lay.dr, y_range=tuple(lay.bounds[2:4]), kernel=self.kernel,
+                                   form=self.form, row_name=row_name, col_name=col_name)
         return cross_gradient(rows, cols, self.h, kernel=self.kernel, form=self.form, row_name=row_name,
                               col_name=col_name)[axis]
 
@@ -569,7 +588,8 @@ class TMzSolver(Leapfrog):
 
         A consistent first-derivative row maps ``f = x`` to 1 and ``f = y`` to 0 (``Dx``), and
         conversely for ``Dy``; the E rows act on the H particles' values, the H rows on every E
-        particle's (the PEC and driven ones included). The "sbp", "mimetic" and "direct" couplings
+        particle's (the PEC and driven ones included); next to mirror walls, on the linear fields that meet
+        the mirror conditions (:meth:`_consistency_fields`). The "sbp", "mimetic" and "direct" couplings
         are exact to round-off on every layout; "adjoint" is not next to walls and on irregular
         layouts (O(1)). This is the certificate that the operators the run used are consistent.
         ``margin`` (m): only the rows of particles farther than this from every PEC and driven E
@@ -603,18 +623,44 @@ class TMzSolver(Leapfrog):
 
             rows = {"e": far(lay.e[self.free]), "hx": far(lay.hx), "hy": far(lay.hy)}
         worst = 0.0
+        points = {"e": lay.e[self.free], "hx": lay.hx, "hy": lay.hy}
         for D, cols, axis, which in ((self.Dx_e, lay.hy, 0, "e"), (self.Dy_e, lay.hx, 1, "e"),
                                      (self.Dx_hy, lay.e, 0, "hy"), (self.Dy_hx, lay.e, 1, "hx")):
-            for k in (0, 1):
-                f = (cols[:, k] - cols[:, k].mean()) / scale
-                target = 1.0 / scale if k == axis else 0.0
-                r = np.abs(D @ f - target)
-                if which in rows:
-                    r = r[rows[which]]
+            keep = rows.get(which, np.ones(D.shape[0], dtype=bool))
+            for f, target, mask in self._consistency_fields(points[which], cols, axis, cols is not lay.e and axis == 0):
+                r = np.abs(D @ f - target)[keep & mask]
                 if r.size:
                     worst = max(worst, float(r.max()) * scale)
         self._consistency = {**cached, key: worst}
         return worst
+
+    def _consistency_fields(self, rows, cols, axis, odd):
+        """Test fields (dimensionless, per column), the exact derivative (times dr) and the rows they test.
+
+        Without mirror walls: ``x`` and ``y`` on every row. With them, the rows within reach of a plane
+        are tested on the linear fields that meet its mirror conditions only: ``1`` and ``y`` (even
+        columns) or ``x - m`` (odd columns, ``m`` the row's nearest plane); the other rows on ``x`` and ``y``.
+        """
+        scale = self.layout.dr
+        out = []
+        if self.mirror:
+            planes = np.asarray(self.mirror)
+            dist = np.abs(rows[:, [0]] - planes[None, :])
+            near = dist.min(axis=1) < mirror_reach(self.h)
+            nearest = dist.argmin(axis=1)
+        else:
+            near = np.zeros(len(rows), dtype=bool)
+        for k in (0, 1):
+            f = (cols[:, k] - cols[:, k].mean()) / scale
+            out.append((f, 1.0 / scale if k == axis else 0.0, ~near))
+        if near.any():
+            if odd:
+                for i, m in enumerate(self.mirror):
+                    out.append(((cols[:, 0] - m) / scale, 1.0 / scale if axis == 0 else 0.0, near & (nearest == i)))
+            else:
+                out.append((np.ones(len(cols)), 0.0, near))
+                out.append(((cols[:, 1] - cols[:, 1].mean()) / scale, 1.0 / scale if axis == 1 else 0.0, near))
+        return out
 
     def interior_consistency_residual(self) -> float:
         """:meth:`consistency_residual` over the rows farther than :data:`CONSISTENCY_MARGIN` kernel supports

@@ -38,7 +38,7 @@ from ..certify import (
     restricted,
 )
 from ..constants import C0
-from ..layouts import Layout, make_layout, tez_layout
+from ..layouts import Layout, jitter, make_layout, tez_layout
 from ..operators import COUPLINGS, DEFAULT_COUPLING, DEFAULT_H_RATIO, MIMETIC_H_RATIO
 from ..pml import PML
 from ..results import PlanewaveResult, PMLResult, TEzPMLResult, WaveguideResult
@@ -52,7 +52,10 @@ if TYPE_CHECKING:
 from .common import check_every, field_history, fit_dt, fit_solver_dt, relative_error, timed
 
 __all__ = ["guided_exact", "adjacent_line_difference", "alternating_amplitude", "run_planewave", "run_waveguide",
-           "run_pml", "run_tez_pml"]
+           "run_pml", "run_tez_pml", "PLANEWAVE_SIDES"]
+
+#: Side walls of :func:`run_planewave`: mirror (PMC) walls or absorbing layers backed by PEC.
+PLANEWAVE_SIDES = ("mirror", "pml")
 
 
 def guided_exact(waveform: Callable[[np.ndarray], ArrayLike], distances: ArrayLike, t: float, *, cutoff: float = 0.0,
@@ -169,9 +172,9 @@ def run_planewave(*, size: float = 0.5, freq: float = 3.6e9, ppw: float = 40.0, 
                   layout: str = "yee", form: str = "fpm", kernel: str | Kernel | type[Kernel] = "cubic", h_ratio: float | None = None,
                   courant: float = 0.9, coupling: str = DEFAULT_COUPLING, travel: float = 0.8, ramp: float = 2.0,
                   seed: int | np.random.Generator | None = 0,
-                  source_span: str = "full", every: int | None = None, certify: bool | None = None,
-                  progress: bool = False) -> PlanewaveResult:
-    """Free-space plane wave in a ``size`` square with PML on all sides ([2] sec. 4.5).
+                  source_span: str = "full", side: str | None = None, every: int | None = None,
+                  certify: bool | None = None, progress: bool = False) -> PlanewaveResult:
+    """Free-space plane wave in a ``size`` square, PML at the bottom and top, mirror walls or PML at the sides.
 
     A hard source (a ramped sinusoid) drives the E particles within dr/2 of
     the line ``y = dr`` and every E particle behind it (the incident region),
@@ -183,9 +186,18 @@ def run_planewave(*, size: float = 0.5, freq: float = 3.6e9, ppw: float = 40.0, 
     the wave travels +y. A jittered layout keeps the layers' particles on the
     lattice (:func:`.layouts.jitter` with ``calm``). The error is taken over the interior E particles above the
     source at the time the front has crossed ``travel`` of the square.
-    ``error_centre`` leaves out the 10 % of the width next to each side
-    layer (the PEC walls behind them perturb the grazing wave, and no PML
-    absorbs grazing incidence). ``adjacent_line_difference`` reports the
+    ``side="mirror"`` (the default, except on the staggered layout) bounds
+    the square at the sides by mirror (perfect magnetic conductor) walls on
+    ``x = -dr/2`` and ``x = size + dr/2`` (``TMzSolver(mirror=)``), exact
+    for this wave: no side layer, no PEC side wall; a jittered layout keeps
+    its particles next to the planes on the lattice, as next to a layer.
+    ``side="pml"`` (the staggered layout's default) puts layers on all four
+    sides ([2] sec. 4.5), PEC behind them: the grazing wave along those
+    walls, which no layer absorbs, dominates the error next to them. The
+    staggered layout refuses mirror walls: with its H particles shared at
+    the cell centres, the E particles next to a plane between particle
+    columns have two H neighbours within the support.
+    ``error_centre`` leaves out the 10 % of the width next to each side. ``adjacent_line_difference`` reports the
     largest difference between
     neighbouring lines parallel to the propagation (the failure of [2]:
     O(1) on the staggered layout), relative to the amplitude. ``certify``:
@@ -203,8 +215,26 @@ def run_planewave(*, size: float = 0.5, freq: float = 3.6e9, ppw: float = 40.0, 
     n = max(4, int(round(size / dr)))
     dr = size / n
     interior = (0.0, size, 0.0, size)
-    pml, outer = _with_pml(interior, pml_cells, dr)
-    lay = make_layout(layout, outer, dr, seed=seed, calm=pml.calm_bounds())
+    if side is None:
+        side = "pml" if layout == "staggered" else "mirror"
+    check_in("side", side, PLANEWAVE_SIDES)
+    if side == "mirror" and layout == "staggered":
+        raise ValueError("side='mirror' is not available on the staggered layout (its E particles next to a "
+                         "plane between particle columns have too few shared H neighbours); use side='pml'")
+    if side == "pml":
+        pml, outer = _with_pml(interior, pml_cells, dr)
+        mirror = None
+        lay = make_layout(layout, outer, dr, seed=seed, calm=pml.calm_bounds())
+    else:
+        pml = PML(pml_cells * dr, order=3, reflection=1e-6, interior=interior, sides=("bottom", "top"))
+        outer = pml.outer_bounds()
+        mirror = (-0.5 * dr, size + 0.5 * dr)  # between particle columns: no lattice particle on a plane
+        lay = make_layout("yee" if layout == "jittered" else layout, outer, dr, seed=seed)
+        tol = 1e-6 * dr  # PEC only behind the bottom and top layers
+        fixed = (np.abs(lay.e[:, 1] - outer[2]) < tol) | (np.abs(lay.e[:, 1] - outer[3]) < tol)
+        lay = Layout(lay.e, lay.hx, lay.hy, dr, lay.name, fixed, lay.bounds, lay.h_ratio)
+        if layout == "jittered":  # lattice next to the mirror planes, as next to side layers (jitter's calm)
+            lay = jitter(lay, 0.2, seed, calm=(0.0, size, *pml.calm_bounds()[2:]))
     ys = dr  # one spacing inside the interior
     wave = Sinusoid(freq, ramp=ramp)
     e = lay.e
@@ -221,7 +251,7 @@ def run_planewave(*, size: float = 0.5, freq: float = 3.6e9, ppw: float = 40.0, 
     src = Source(idx, _Band())
     t_end = travel * (size - ys) / C0
     s = TMzSolver(lay, h_ratio=h_ratio, kernel=kernel, form=form, coupling=coupling, pml=pml, courant=courant,
-                  sources=[src])
+                  sources=[src], mirror=mirror)
     dt, steps = fit_solver_dt(s, t_end)
     res = s.run(steps, every=every, progress=progress)
     inside = (e[:, 0] > 0) & (e[:, 0] < size) & (e[:, 1] > ys + 0.5 * dr) & (e[:, 1] < size) & ~lay.e_fixed
@@ -233,7 +263,7 @@ def run_planewave(*, size: float = 0.5, freq: float = 3.6e9, ppw: float = 40.0, 
     return certified(PlanewaveResult(
         case="planewave", particles=lay.n_particles, steps=steps, seconds=res.seconds, step_seconds=res.seconds,
         error=relative_error(s.e_field[inside], exact), dt=dt, dr=dr, layout=lay.name, form=form,
-        ppw=C0 / freq / dr, pml_cells=pml_cells, error_centre=relative_error(s.e_field[inside][centre], exact[centre]),
+        ppw=C0 / freq / dr, pml_cells=pml_cells, side=side, error_centre=relative_error(s.e_field[inside][centre], exact[centre]),
         adjacent_line_difference=adjacent_line_difference(e, s.e_field, dr, axis=0, mask=inside) if lattice else None,
         alternating_amplitude=alternating_amplitude(e, s.e_field, dr, mask=inside) if lattice else None,
         fields=field_history(e, s.e_field, s.t, res), consistency=s.consistency_residual(),
