@@ -30,11 +30,15 @@ True
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
 
 from .operators import cross_gradient
+
+if TYPE_CHECKING:
+    from ..kernels import Kernel
 
 __all__ = ["MIRROR_GAP", "check_mirror_planes", "mirror_reach", "folded_gradient"]
 
@@ -77,7 +81,7 @@ def mirror_reach(h: float | np.ndarray, support: float = 3.0) -> float:
 
 def folded_gradient(rows: np.ndarray, cols: np.ndarray, h: float | np.ndarray, axis: int, *,
                     planes: Sequence[float], odd: bool, spacing: float, y_range: tuple[float, float],
-                    kernel="cubic", form: str = "fpm", row_name: str = "rows",
+                    kernel: str | Kernel | type[Kernel] = "cubic", form: str = "fpm", row_name: str = "rows",
                     col_name: str = "columns") -> sp.csr_matrix:
     """``d/dx_axis`` from ``cols`` to ``rows`` with mirror images of the columns across ``planes`` folded back.
 
