@@ -230,7 +230,7 @@ def vector_table(quick):
     if igl is None or quick:
         return
     print("Log map radius against libigl's exact geodesic (mean relative error, 3 sources, points farther than 2 % of "
-          "the diagonal): geodesics='heat' (default) / 'wavefront'")
+          "the diagonal): geodesics='heat' / 'wavefront' (default)")
     P, F = torus_mesh(20000)
     s = quiet(Surface, P)
     solvers = [quiet(VectorHeatSolver, s, geodesics=g) for g in ("heat", "wavefront")]

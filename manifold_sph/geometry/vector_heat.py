@@ -25,8 +25,8 @@ Tangent vectors at particle ``i`` are complex numbers in its frame ``(u_i, v_i)`
   distance whose gradient best fits those directions
   (:meth:`~manifold_sph.geometry.GeodesicSolver.integrate`, the heat method's Poisson
   step, with the wavefront distance held within ``LOG_MAP_HELD`` spacings of the source,
-  where the radial field's divergence ``1 / r`` is too steep for the Poisson step), or the
-  wavefront distance (``geodesics="wavefront"``).
+  where the radial field's divergence ``1 / r`` is too steep for the Poisson step:
+  ``geodesics="heat"``), or, by default, the wavefront distance.
   Where the diffused vector keeps less than ``ANGLE_TRUST`` of the scalar heat
   (``|Y| < ANGLE_TRUST |X| u``: paths of the diffusion cancel, towards the cut locus, and the
   direction of the small remainder is mostly discretisation error), the angle is instead carried
@@ -217,13 +217,14 @@ class VectorHeatSolver:
     t : float, optional
         Heat time of the vector diffusion (default the mean cell area times
         ``VECTOR_HEAT_TIME``).
-    geodesics : {"heat", "wavefront"}
-        The log map's distances: ``"heat"`` (default; the distance integrated from the
-        radial directions, the more accurate on smooth surfaces) or ``"wavefront"`` (the
-        :class:`~manifold_sph.geometry.GeodesicSolver` default, for coarse or sharp models).
+    geodesics : {"wavefront", "heat"}
+        The log map's distances: ``"wavefront"`` (default; the
+        :class:`~manifold_sph.geometry.GeodesicSolver` default, second order on smooth surfaces
+        and the more accurate on every surface measured) or ``"heat"`` (the distance integrated
+        from the radial directions, held to the wavefront within ``LOG_MAP_SPREAD``).
     """
 
-    def __init__(self, surface: Surface, *, t: float | None = None, geodesics: str = "heat") -> None:
+    def __init__(self, surface: Surface, *, t: float | None = None, geodesics: str = "wavefront") -> None:
         from ..solvers import spd_solver
 
         check_surface(surface)
@@ -363,7 +364,7 @@ class VectorHeatSolver:
         return p
 
 
-def _solver(surface, geodesics="heat"):
+def _solver(surface, geodesics="wavefront"):
     check_surface(surface)
     return surface.cached(("vector_heat", geodesics), lambda: VectorHeatSolver(surface, geodesics=geodesics))
 
@@ -386,17 +387,17 @@ def transport(surface: Surface, source: int, vector: ArrayLike) -> np.ndarray:
     return _solver(surface).transport(source, vector)
 
 
-def log_map(surface: Surface, source: int, *, geodesics: str = "heat") -> np.ndarray:
+def log_map(surface: Surface, source: int, *, geodesics: str = "wavefront") -> np.ndarray:
     """Logarithmic map at particle ``source``, shape (N, 2), in the frame ``(u, v)`` of ``source``.
 
-    The length of each row is the geodesic distance (``geodesics="heat"``: integrated from the
-    radial directions by :meth:`~manifold_sph.geometry.GeodesicSolver.integrate`;
-    ``"wavefront"``: the wavefront distance), its angle that of the initial direction of the
-    shortest geodesic. See :class:`VectorHeatSolver`.
+    The length of each row is the geodesic distance (``geodesics="wavefront"``, the default: the
+    wavefront distance; ``"heat"``: integrated from the radial directions by
+    :meth:`~manifold_sph.geometry.GeodesicSolver.integrate`), its angle that of the initial
+    direction of the shortest geodesic. See :class:`VectorHeatSolver`.
     """
     return _solver(surface, check_in("geodesics", geodesics, ("heat", "wavefront"))).log_map(source)
 
 
-def karcher_mean(surface: Surface, indices: ArrayLike, weights: ArrayLike | None = None, *, geodesics: str = "heat") -> int:
+def karcher_mean(surface: Surface, indices: ArrayLike, weights: ArrayLike | None = None, *, geodesics: str = "wavefront") -> int:
     """Weighted Karcher (Frechet) mean of particles ``indices``, as a particle index; see :class:`VectorHeatSolver`."""
     return _solver(surface, check_in("geodesics", geodesics, ("heat", "wavefront"))).karcher_mean(indices, weights)
