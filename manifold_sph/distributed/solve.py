@@ -278,7 +278,7 @@ def run(ts: TiledOperators, problem: str, *, engine: str, ranks: int | None, **a
         assert workers is not None
         if ranks is not None and ranks > len(workers):
             raise ValueError(f"ranks: the dask-mpi engine has {len(workers)} worker(s) (MPI ranks), got ranks={ranks}")
-        workers = dict(list(workers.items())[: ranks or len(workers)])
+        everyone, workers = workers, dict(list(workers.items())[: ranks or len(workers)])
         ranks = len(workers)
     else:
         ranks = ranks or 2
@@ -288,7 +288,8 @@ def run(ts: TiledOperators, problem: str, *, engine: str, ranks: int | None, **a
             pieces, labels = piece_labels(ts)
             args = args | {"pieces": pieces, "labels": labels.astype(np.int32 if pieces < 2**31 else np.int64),
                            "pinned": np.unique(labels, return_index=True)[1].astype(np.int64)}
-        out, info = _run_mpi(ts, problem, ranks, args, workers=workers if engine == "dask-mpi" else None)
+        out, info = _run_mpi(ts, problem, ranks, args,
+                             workers=(workers, everyone) if engine == "dask-mpi" else None)
         if problem == "poisson":
             info["pieces"] = int(args["pieces"])
     elif problem == "heat":
@@ -354,7 +355,7 @@ def _run_mpi(ts, problem, ranks, args, *, workers=None):
         with open(path, "w") as f:
             json.dump(job, f)
         if workers is not None:
-            _launch_on_workers(ts.client, path, workers)
+            _launch_on_workers(ts.client, path, *workers)
         else:
             _launch_mpirun(path, ranks)
         with open(os.path.join(work, "info.json")) as f:
@@ -384,12 +385,9 @@ def _launch_mpirun(path, ranks):
         raise RuntimeError(f"the MPI engine failed (exit {proc.returncode}): {' '.join(cmd)}\n{proc.stderr[-3000:]}")
 
 
-def _launch_on_workers(client, path, workers):
-    """The job as one task on every MPI worker at once: those of ``workers`` (``{address: world rank}``) solve,
-    the others only take part in PETSc's first initialisation (collective over all of them)."""
-    everyone = dask_mpi_workers(client) or {}
-    if not set(workers.items()) <= set(everyone.items()):
-        raise RuntimeError("the dask-mpi engine's workers changed while the job was being written")
+def _launch_on_workers(client, path, workers, everyone):
+    """The job as one task on every MPI worker of ``everyone`` at once (``{address: world rank}``): those of
+    ``workers`` solve, the others only take part in PETSc's first initialisation (collective over all of them)."""
     ranks, all_ranks = list(workers.values()), list(everyone.values())
     tag = os.path.basename(os.path.dirname(path))
     futures = [client.submit(_worker_job, path if address in workers else None, ranks, all_ranks,

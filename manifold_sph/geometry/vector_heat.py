@@ -219,8 +219,8 @@ class VectorHeatSolver:
         ``VECTOR_HEAT_TIME``).
     geodesics : {"wavefront", "heat"}
         The log map's distances: ``"wavefront"`` (default; the
-        :class:`~manifold_sph.geometry.GeodesicSolver` default, second order on smooth surfaces
-        and the more accurate on every surface measured) or ``"heat"`` (the distance integrated
+        :class:`~manifold_sph.geometry.GeodesicSolver` default, second order on smooth surfaces;
+        docs/geometry.md compares the two) or ``"heat"`` (the distance integrated
         from the radial directions, held to the wavefront within ``LOG_MAP_SPREAD``).
     """
 
