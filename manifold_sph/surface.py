@@ -210,12 +210,12 @@ class Surface(OperatorSet, PointViews):
         return principal_curvatures(self, scale=scale)
 
     def geodesic_distance(
-        self, sources: ArrayLike, *, to: ArrayLike | None = None, method: str = "wavefront"
+        self, sources: ArrayLike, *, to: ArrayLike | None = None, method: str = "wavefront", denoise: bool | str = "auto"
     ) -> np.ndarray | float:
         """(N,) geodesic distance from ``sources`` (or to ``to`` only); see :func:`manifold_sph.geometry.geodesic_distance`."""
         from .geometry import geodesic_distance
 
-        return geodesic_distance(self, sources, to=to, method=method)
+        return geodesic_distance(self, sources, to=to, method=method, denoise=denoise)
 
     def transport(self, source: int, vector: ArrayLike) -> np.ndarray:
         """(N, 3) the tangent ``vector`` at particle ``source`` carried to every particle; see :func:`manifold_sph.geometry.transport`."""

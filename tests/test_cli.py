@@ -236,6 +236,27 @@ def test_geodesic_on_the_unit_sphere(unit_sphere_file, capsys):
     assert "N = 800" in text and "from particle(s) 0" in text and "max 3." in text
 
 
+def test_geodesic_denoise_option(unit_sphere_file, tmp_path, capsys):
+    from manifold_sph.reference import shapes
+    from manifold_sph.scans.io import write
+
+    src = str(unit_sphere_file)
+    assert main(["geodesic", src, "--source", "0", "--json"]) == 0
+    clean = json.loads(capsys.readouterr().out)
+    assert clean["denoised"] is False and clean["noise"] < 0.01
+    assert main(["geodesic", src, "--source", "0", "--denoise", "yes", "--json"]) == 0
+    forced = json.loads(capsys.readouterr().out)
+    assert forced["denoised"] is True and abs(forced["max"] - clean["max"]) < 0.05
+    h = np.sqrt(4 * np.pi / 800)
+    noisy = tmp_path / "noisy.xyz"
+    P = shapes.sphere(800).points
+    write(noisy, P + 0.4 * h * np.random.default_rng(0).standard_normal(P.shape))
+    assert main(["geodesic", str(noisy), "--source", "0"]) == 0
+    assert "wavefront, denoised) from particle(s) 0" in capsys.readouterr().out
+    assert main(["geodesic", src, "--source", "0", "--method", "heat", "--denoise", "yes"]) == 2
+    assert "--denoise yes needs --method wavefront" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize("source", ["800", "-1"])
 def test_geodesic_bad_source_exit_2(unit_sphere_file, capsys, source):
     assert main(["geodesic", str(unit_sphere_file), "--source", "3", "--source", source]) == 2

@@ -220,6 +220,41 @@ def test_geodesic_exact_in_the_plane_and_on_a_cylinder():
     assert rel(dc, ex) < 3e-3  # measured 1.1e-3 (chords against arcs, and the ragged rims)
 
 
+@pytest.mark.parametrize("kind", ["fibonacci", "random"])
+def test_geodesic_on_noisy_points_denoises_automatically(kind):
+    """Noise makes every path zigzag and run long (3 % at 0.3 spacings); with ``denoise="auto"`` a cloud that
+    reads noisy is smoothed onto its local quadrics first: the error against the great-circle distance between
+    the points' projections falls at least 8x (measured 4,000 points: Fibonacci 3.65e-2 -> 1.87e-3, random
+    3.07e-2 -> 1.84e-3), never below the input points' straight line. A clean cloud is left as it is."""
+    n = 4000
+    P = shapes.sphere(n).points if kind == "fibonacci" else random_sphere(n, seed=1)
+    h = np.sqrt(4 * np.pi / n)
+    Q = P + 0.3 * h * np.random.default_rng(0).standard_normal(P.shape)
+    V = Q / np.linalg.norm(Q, axis=1)[:, None]
+    exact = np.arccos(np.clip(V @ V[0], -1, 1))
+    auto, raw = GeodesicSolver(Q), GeodesicSolver(Q, denoise=False)
+    assert auto.denoised and not raw.denoised
+    assert 0.2 < auto.noise == raw.noise < 0.32  # Gaussian noise of s spacings reads about 0.9 s
+    d, d_raw = auto.distance(0), raw.distance(0)
+    assert rel(d, exact) < 3e-3 and rel(d_raw, exact) > 8 * rel(d, exact)
+    assert np.all(d >= (1 - 1e-12) * np.linalg.norm(Q - Q[0], axis=1))  # the bound of the input points
+    clean = GeodesicSolver(P)
+    assert not clean.denoised and clean.noise < 0.01  # measured 0.000
+    assert np.array_equal(clean.distance(0), GeodesicSolver(P, denoise=False).distance(0))
+    forced = GeodesicSolver(P, denoise=True)  # smoothing a clean sphere barely moves it
+    assert forced.denoised and rel(forced.distance(0), sphere_exact(P, 0)) < 3e-4  # measured 1.1e-4 / 1.8e-4
+
+
+def test_geodesic_denoise_is_checked():
+    P = shapes.sphere(500).points
+    with pytest.raises(ValueError, match="denoise must be True, False or 'auto', got 'yes'"):
+        GeodesicSolver(P, denoise="yes")
+    with pytest.raises(ValueError, match="denoise=True is supported by method='wavefront' only"):
+        GeodesicSolver(quiet(P, P.copy()), method="heat", denoise=True)
+    heat = GeodesicSolver(quiet(P, P.copy()), method="heat")
+    assert not heat.denoised and np.isnan(heat.noise)
+
+
 def test_geodesic_queries_point_to_point_pairwise_and_sets():
     c = shapes.sphere(3000)
     solver = GeodesicSolver(c)

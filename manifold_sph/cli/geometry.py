@@ -102,6 +102,9 @@ def add_parsers(sub: SubParsers, schemes: list[str]) -> None:
     source(geo, many=True)
     geo.add_argument("--method", default="wavefront", choices=GEODESIC_METHODS,
                      help="wavefront propagation over the local Delaunay triangles (default), or the heat method")
+    geo.add_argument("--denoise", default="auto", choices=("auto", "yes", "no"),
+                     help="wavefront: measure over the cloud smoothed onto its local quadrics (auto: when the cloud "
+                          "reads noisy, default)")
     geo.add_argument("--robust", type=percent_arg, default=None,
                      help="clip this percentage at each end of the colour range (0: full range; default: 2-98 %% "
                           "narrowed for heavy tails)")
@@ -273,6 +276,9 @@ def _cmd_curvature(args) -> int:
     return _finish(args, summary, text, {"out": png, "save": out})
 
 
+_DENOISE: dict[str, bool | str] = {"auto": "auto", "yes": True, "no": False}
+
+
 def _cmd_geodesic(args) -> int:
     import warnings
 
@@ -294,7 +300,10 @@ def _cmd_geodesic(args) -> int:
         target = _geometry_surface(args, cloud, bar) if args.method == "heat" else cloud
         if args.method != "heat":
             bar.update()
-        solver = GeodesicSolver(target, method=args.method)
+        if args.denoise == "yes" and args.method == "heat":
+            raise UserError("--denoise yes needs --method wavefront (for the heat method smooth the file first: "
+                            "manifold-sph smooth)")
+        solver = GeodesicSolver(target, method=args.method, denoise=_DENOISE[args.denoise])
         if args.boundary:
             if solver.boundary.size == 0:
                 raise UserError(f"{args.file!r} has no open boundary (every particle's neighbourhood closes round it)")
@@ -320,10 +329,13 @@ def _cmd_geodesic(args) -> int:
         "max": float(d[reached].max()), "mean": float(d[reached].mean()),
         "unreached": int((~reached).sum()), "pieces": int(solver.n_components), "seconds": round(seconds, 3),
     }
+    if args.method == "wavefront":
+        summary["noise"], summary["denoised"] = round(solver.noise, 4), solver.denoised
     if args.to:
         summary["to"] = {str(j): float(d[j]) for j in args.to}
     src = "the boundary" if args.boundary else "particle(s) " + ", ".join(str(i) for i in summary["sources"])
-    text = (f"geodesic distance on {args.file} (N = {summary['n']}, {args.method}) from {src}: "
+    how = args.method + (", denoised" if summary.get("denoised") else "")
+    text = (f"geodesic distance on {args.file} (N = {summary['n']}, {how}) from {src}: "
             f"max {summary['max']:.4g}, mean {summary['mean']:.4g} ({seconds:.2f} s)")
     if args.to:
         text += "\n" + "\n".join(f"  to {j}: {v:.6g}" for j, v in summary["to"].items())

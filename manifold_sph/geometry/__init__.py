@@ -29,7 +29,7 @@ from .curvature import (
     principal_curvatures,
     shape_operator,
 )
-from .geodesics import GEODESIC_METHODS, GeodesicSolver, geodesic_distance
+from .geodesics import DENOISE_NOISE, GEODESIC_METHODS, GeodesicSolver, geodesic_distance
 from .signatures import heat_kernel_signature, wave_kernel_signature
 from .smoothing import SMOOTH_METHODS, smooth
 from .vector_heat import (
@@ -44,6 +44,7 @@ __all__ = [
     "AUTO_NOISE",
     "AUTO_RADII",
     "CURVATURE_METHODS",
+    "DENOISE_NOISE",
     "GEODESIC_METHODS",
     "SCALE_RANGE",
     "SMOOTH_METHODS",
