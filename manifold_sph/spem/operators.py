@@ -39,6 +39,8 @@ Examples
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike
@@ -48,7 +50,7 @@ from .._validation import as_points, check_in, check_positive
 from ..kernels import Kernel, get_kernel
 
 __all__ = ["FORMS", "COUPLINGS", "DEFAULT_COUPLING", "DEFAULT_H_RATIO", "MIMETIC_H_RATIO", "SBP_LAYERS", "cross_pairs",
-           "cross_gradient", "sbp_correct", "sbp_pair"]
+           "cross_gradient", "sbp_correct", "sbp_pair", "nearest_plane", "mirror_fields"]
 
 #: Names of the per-particle derivative systems.
 FORMS = ("fpm", "cspm", "diagonal")
@@ -306,10 +308,47 @@ def sbp_correct(D: sp.spmatrix | sp.sparray, rows: np.ndarray, cols: np.ndarray,
     return out
 
 
+def nearest_plane(points: np.ndarray, planes: Sequence[float], reach: float) -> tuple[np.ndarray, np.ndarray]:
+    """Which points lie within ``reach`` of a mirror plane ``x = m`` (bool (n,)), and each point's nearest plane."""
+    n = len(points)
+    if not len(planes) or reach <= 0:
+        return np.zeros(n, dtype=bool), np.zeros(n)
+    pl = np.asarray(planes, dtype=np.float64)
+    dist = np.abs(np.asarray(points)[:, [0]] - pl[None, :])
+    return dist.min(axis=1) < reach, pl[dist.argmin(axis=1)]
+
+
+def mirror_fields(z: np.ndarray, x_at: np.ndarray, near: np.ndarray, plane: np.ndarray, odd: bool, axis: int,
+                  scale: float, near_owner: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
+    """The three linear test fields of each owner particle at the pairs' other points, and their exact derivatives.
+
+    ``z`` (P, 2): the other point minus the owner, in spacings; ``x_at`` (P,): the other point's x; ``near``,
+    ``plane`` (P,): the owner lies within reach of a mirror plane ``x = plane``; ``near_owner`` (n,) the same per
+    owner. An owner away from every plane is tested on ``1``, the offset along ``axis`` and the other offset
+    (derivatives 0, 1, 0). Next to a plane, the field tested must meet the mirror conditions, its continuation
+    across the plane being what the folded rows see: an even field on ``1`` and ``y`` (derivatives 0 and
+    ``axis == 1``), an odd one on ``x - m`` (derivative ``axis == 0``); unused slots are zero.
+    """
+    za, zo = z[:, axis], z[:, 1 - axis]
+    der = np.zeros((len(near_owner), 3))
+    der[:, 1] = 1.0
+    if not near_owner.any():
+        return [np.ones(len(z)), za, zo], der
+    far = ~near
+    if odd:
+        fields = [np.where(near, (x_at - plane) / scale, 1.0), za * far, zo * far]
+        der[near_owner] = (float(axis == 0), 0.0, 0.0)
+    else:
+        fields = [np.ones(len(z)), np.where(near, z[:, 1], za), zo * far]
+        der[near_owner] = (0.0, float(axis == 1), 0.0)
+    return fields, der
+
+
 def sbp_pair(D: sp.spmatrix | sp.sparray, rows: np.ndarray, cols: np.ndarray, axis: int,
              vol_rows: ArrayLike, vol_cols: ArrayLike,
              B: sp.spmatrix | sp.sparray | None = None, wall: np.ndarray | None = None, scale: float = 1.0,
-             degree: int = 1, layers: int | None = SBP_LAYERS) -> tuple[sp.csr_matrix, sp.csr_matrix | None]:
+             degree: int = 1, layers: int | None = SBP_LAYERS, planes: Sequence[float] = (), odd_rows: bool = False,
+             odd_cols: bool = False, reach: float = 0.0) -> tuple[sp.csr_matrix, sp.csr_matrix | None]:
     """Energy-conserving pair with a boundary closure: corrected ``D`` and the wall weights ``B``.
 
     ``D`` (rows x cols) approximates ``d/dx_axis`` from the column set (H)
@@ -326,6 +365,15 @@ def sbp_pair(D: sp.spmatrix | sp.sparray, rows: np.ndarray, cols: np.ndarray, ax
     sparsity) that keep every row of ``D`` exact for linear fields and make
     every row of ``G`` exact for linear fields too (walls included), so
     both operators are first-order consistent everywhere.
+
+    With mirror ``planes`` (the derivative matrices of :mod:`.mirror`, whose
+    rows next to a plane see the columns' mirror images folded back), a row or
+    column within ``reach`` of a plane is fitted on the linear fields that
+    meet the mirror conditions instead (:func:`mirror_fields`: ``1`` and
+    ``y`` for an even field, ``x - m`` for an odd one): a folded row is exact
+    on those and not on plain ``x`` (nor ``1`` and ``y`` for an odd field), so
+    demanding plain linear exactness there would pull the pair away from the
+    fold and stiffen it.
 
     Parameters
     ----------
@@ -354,6 +402,14 @@ def sbp_pair(D: sp.spmatrix | sp.sparray, rows: np.ndarray, cols: np.ndarray, ax
         Rings of pairs around the columns that miss their conditions that
         may change (None: the whole operator, a larger sparse solve; see
         :data:`SBP_LAYERS`).
+    planes : sequence of float
+        x values of mirror planes (none by default); ``degree`` 1 only.
+    odd_rows, odd_cols : bool
+        The row (column) set's field is odd about the planes (else even).
+    reach : float
+        Rows and columns closer than this to a plane take the mirror
+        conditions (the kernel support ``kappa h``: a farther particle's
+        support holds no image).
 
     Returns
     -------
@@ -412,20 +468,34 @@ def sbp_pair(D: sp.spmatrix | sp.sparray, rows: np.ndarray, cols: np.ndarray, ax
 
     m = 3 if degree == 1 else 6
     nk = m * (n_r + n_c)
-    r_val = monomials(x)
+    wall_xy = np.asarray(wall, dtype=np.float64) if B is not None else np.zeros((0, 2))
+    # each row (column) particle within ``reach`` of a mirror plane is tested on the linear fields that meet
+    # the mirror conditions of the column (row) field instead of 1, x and y (:func:`mirror_fields`)
+    near_r, plane_r = nearest_plane(rows, planes, reach)
+    near_c, plane_c = nearest_plane(cols, planes, reach)
+    if degree == 2 and (near_r.any() or near_c.any()):
+        raise ValueError("sbp_pair: degree=2 is not available with mirror planes (degree 1 only)")
+    if degree == 1:
+        r_val, r_der = mirror_fields(x, cols[j, 0], near_r[i], plane_r[i], odd_cols, axis, scale, near_r)
+        c_fields, c_der = mirror_fields(y, rows[i, 0], near_c[j], plane_c[j], odd_rows, axis, scale, near_c)
+        cb_fields, _ = mirror_fields(yb, wall_xy[wb, 0], near_c[jb], plane_c[jb], odd_rows, axis, scale, near_c)
+    else:
+        r_val, c_fields, cb_fields = monomials(x), monomials(y), monomials(yb)
+        r_der = np.zeros((n_r, m))
+        r_der[:, 1] = 1.0  # d/dx_axis of x_axis
+        c_der = np.zeros((n_c, m))
+        c_der[:, 1] = 1.0
     r_idx = [m * i + k for k in range(m)]
-    c_val = [vr[i] * f for f in monomials(y)]
+    c_val = [vr[i] * f for f in c_fields]
     c_idx = [m * n_r + m * j + k for k in range(m)]
-    cb_val = [-vc[jb] * f for f in monomials(yb)]
+    cb_val = [-vc[jb] * f for f in cb_fields]
     cb_idx = [m * n_r + m * jb + k for k in range(m)]
     A = sp.csr_matrix(
         (np.concatenate(r_val + c_val + cb_val),
          (np.concatenate(r_idx + c_idx + cb_idx),
           np.concatenate([np.tile(np.arange(P), 2 * m), np.tile(P + np.arange(Pb), m)]))),
         shape=(nk, P + Pb))
-    target = np.zeros(nk)
-    target[1 : m * n_r : m] = 1.0  # d/dx_axis of x_axis
-    target[m * n_r + 1 :: m] = -vc
+    target = np.concatenate([r_der.ravel(), (-vc[:, None] * c_der).ravel()])
     u0 = np.r_[D.data * scale, b]
     r = target - A @ u0
     if degree == 1:

@@ -40,6 +40,7 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike
 
 from .. import _jit
+from ..kernels import get_kernel
 from .._validation import check_in, check_int, check_positive
 from . import compiled
 from .constants import C0, EPS0, MU0
@@ -350,11 +351,15 @@ class TMzSolver(Leapfrog):
         rows, wall = np.flatnonzero(~boundary), np.flatnonzero(boundary)
         er, ew = e[rows], e[wall]
         ones_r = np.ones(len(rows))
+        # next to mirror planes the pair is fitted on the mirror-compatible fields (Ez, Hx even, Hy odd): the rows
+        # and columns whose support reaches a plane
+        reach = get_kernel(self.kernel).support * self.h if self.mirror else 0.0
         out = []
         for D, (axis, cols, name) in zip(Ds, ((0, hy, ny), (1, hx, nx))):
             B = self._gradient(cols, e, axis, name, "E particles")[:, wall] if len(wall) else None
             D, B = sbp_pair(D, er, cols, axis, ones_r, np.ones(len(cols)), B, ew if len(wall) else None,
-                            scale=lay.dr, degree=degree, layers=self.sbp_layers)
+                            scale=lay.dr, degree=degree, layers=self.sbp_layers, planes=self.mirror,
+                            odd_cols=axis == 0, reach=reach)
             G = self._expand(-D.T, rows)
             if B is not None:
                 G = G + self._expand(B, wall)
