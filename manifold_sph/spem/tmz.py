@@ -40,8 +40,8 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike
 
 from .. import _jit
-from ..kernels import get_kernel
 from .._validation import check_in, check_int, check_positive
+from ..kernels import get_kernel
 from . import compiled
 from .constants import C0, EPS0, MU0
 from .layouts import Layout
@@ -53,6 +53,7 @@ from .operators import (
     MIMETIC_H_RATIO,
     SBP_LAYERS,
     cross_gradient,
+    nearest_plane,
     sbp_pair,
 )
 from .pml import PML
@@ -184,8 +185,11 @@ class TMzSolver(Leapfrog):
         x values of mirror (perfect magnetic conductor) walls: each derivative matrix takes mirror
         images of its columns across these planes, Ez and Hx even, Hy odd (:mod:`.mirror`); no
         particle beyond them is needed. Exact for any TMz field with ``Hy = 0`` on the planes (a
-        plane wave travelling along y). Every particle must lie at least :data:`.mirror.MIRROR_GAP`
-        spacings from a plane, between the planes; not with the "mimetic" coupling.
+        plane wave travelling along y). With "sbp" the rows and columns whose support reaches a plane
+        are fitted on the linear fields that meet the mirror conditions (``sbp_pair(planes=)``), so the
+        pair is exact there on those fields and keeps the stable step of the layout. Every particle
+        must lie at least :data:`.mirror.MIRROR_GAP` spacings from a plane, between the planes; not
+        with the "mimetic" coupling.
     pml_check : bool
         Refuse a PML with ``h / dr`` above :data:`PML_H_RATIO_MAX` (couplings other than "mimetic"), where
         the layer no longer absorbs (default True).
@@ -648,20 +652,14 @@ class TMzSolver(Leapfrog):
         """
         scale = self.layout.dr
         out = []
-        if self.mirror:
-            planes = np.asarray(self.mirror)
-            dist = np.abs(rows[:, [0]] - planes[None, :])
-            near = dist.min(axis=1) < mirror_reach(self.h)
-            nearest = dist.argmin(axis=1)
-        else:
-            near = np.zeros(len(rows), dtype=bool)
+        near, nearest = nearest_plane(rows, self.mirror, mirror_reach(self.h))
         for k in (0, 1):
             f = (cols[:, k] - cols[:, k].mean()) / scale
             out.append((f, 1.0 / scale if k == axis else 0.0, ~near))
         if near.any():
             if odd:
-                for i, m in enumerate(self.mirror):
-                    out.append(((cols[:, 0] - m) / scale, 1.0 / scale if axis == 0 else 0.0, near & (nearest == i)))
+                for m in self.mirror:
+                    out.append(((cols[:, 0] - m) / scale, 1.0 / scale if axis == 0 else 0.0, near & (nearest == m)))
             else:
                 out.append((np.ones(len(cols)), 0.0, near))
                 out.append(((cols[:, 1] - cols[:, 1].mean()) / scale, 1.0 / scale if axis == 1 else 0.0, near))
@@ -670,8 +668,6 @@ class TMzSolver(Leapfrog):
     def interior_consistency_residual(self) -> float:
         """:meth:`consistency_residual` over the rows farther than :data:`CONSISTENCY_MARGIN` kernel supports
         (``kappa h``) from every PEC and driven E particle: the certificate of a run's interior."""
-        from ..kernels import get_kernel
-
         return self.consistency_residual(margin=CONSISTENCY_MARGIN * get_kernel(self.kernel).support * self.h)
 
     def energy(self) -> float:
