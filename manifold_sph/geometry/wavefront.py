@@ -37,10 +37,12 @@ the cloud itself defines:
    that downstream. Such a particle, about to be final, is re-solved through every pair of its final
    edge neighbours, adjacent in a fan or not (virtual triangles), where the ray from the pair's
    virtual source crosses the segment between them (:func:`_rescue`); only away from open fans and
-   unresolved curvature (:meth:`LocalTriangles.rescuable`). Each particle also carries the direction
-   its ray arrived in: a triangle whose corners' fronts move away from the third corner's side of
-   their edge has its virtual source on that side, where the construction would take its mirror
-   image (too far), and gives no candidate.
+   unresolved curvature (:meth:`LocalTriangles.rescuable`). Behind a hole in the sample no pair of
+   final neighbours may cross the ray: pairs with the second ring are then tried
+   (:data:`RESCUE_ALIGNED`). Each particle also carries the direction its ray arrived in: a
+   triangle whose corners' fronts move away from the third corner's side of their edge has its
+   virtual source on that side, where the construction would take its mirror image (too far), and
+   gives no candidate.
 
 The result is clamped to the straight-line distance to the nearest source, so it is never
 below it. Several sources are one sweep, so the kink where their fronts meet is exact. The
@@ -74,6 +76,10 @@ RESOLVED_CURVATURE = 0.03
 #: whose front has travelled at least this many times the particle's distance to the farther of them
 #: (near a source the front's curvature is large and a pair of edges is a coarse chord of it).
 RESCUE_MIN_RADIUS = 3.0
+#: Where no pair of a particle's final edge neighbours crosses its ray, :func:`_rescue` tries pairs of a neighbour
+#: and a neighbour's neighbour (no longer than three times the particle's farthest edge), unless the edge that
+#: reached it runs within ``arccos(RESCUE_ALIGNED)`` of the ray at its upstream end (then that edge is nearly the ray).
+RESCUE_ALIGNED = 0.95
 
 
 def _compile(fn):
@@ -218,6 +224,42 @@ def _carry(w0, r0, r1, K):
 _carry = _compile(_carry)
 
 
+def _pair_ray(P, y, a, b, ra, rb, ka, g, max_len2):
+    """The candidate of :func:`_rescue` at ``y`` through the virtual triangle ``(a, b, y)``: ``(distance, t, s, gx,
+    gy, gz)`` (the ray's direction in space), distance inf when the ray misses ``ab``, ``ab`` is longer than
+    ``sqrt(max_len2)``, the front has not travelled :data:`RESCUE_MIN_RADIUS` times the triangle's size or the
+    fronts at ``a`` and ``b`` move away from ``y``'s side of ``ab``."""
+    ay0 = P[y, 0] - P[a, 0]
+    ay1 = P[y, 1] - P[a, 1]
+    ay2 = P[y, 2] - P[a, 2]
+    l2 = ay0 * ay0 + ay1 * ay1 + ay2 * ay2
+    e0 = P[b, 0] - P[a, 0]
+    e1 = P[b, 1] - P[a, 1]
+    e2 = P[b, 2] - P[a, 2]
+    lab2 = e0 * e0 + e1 * e1 + e2 * e2
+    if not 0.0 < lab2 <= max_len2:
+        return np.inf, 0.0, 0.0, 0.0, 0.0, 0.0
+    lab = np.sqrt(lab2)
+    e0 /= lab
+    e1 /= lab
+    e2 /= lab
+    cx = ay0 * e0 + ay1 * e1 + ay2 * e2
+    cy = np.sqrt(max(l2 - cx * cx, 0.0))
+    far = max(l2, (cx - lab) * (cx - lab) + cy * cy)
+    if cy <= 0.0 or ra * ra < RESCUE_MIN_RADIUS * RESCUE_MIN_RADIUS * far:
+        return np.inf, 0.0, 0.0, 0.0, 0.0, 0.0
+    n0 = (ay0 - cx * e0) / cy  # the unit normal of ab towards y, in the plane of a, b, y
+    n1 = (ay1 - cx * e1) / cy
+    n2 = (ay2 - cx * e2) / cy
+    if (g[a, 0] + g[b, 0]) * n0 + (g[a, 1] + g[b, 1]) * n1 + (g[a, 2] + g[b, 2]) * n2 < 0.0:
+        return np.inf, 0.0, 0.0, 0.0, 0.0, 0.0
+    cand, t, s, ux, uy = _triangle_ray(lab, cx, cy, ra, rb, ka)
+    return cand, t, s, ux * e0 + uy * n0, ux * e1 + uy * n1, ux * e2 + uy * n2
+
+
+_pair_ray = _compile(_pair_ray)
+
+
 def _rescue(P, y, d, o, sid, w, g, pos, e_ptr, e_idx, K, riccati):
     """Re-solve particle ``y``, about to be final, whose distance came from an edge; True if it fell.
 
@@ -231,7 +273,9 @@ def _rescue(P, y, d, o, sid, w, g, pos, e_ptr, e_idx, K, riccati):
     which stays when none does), away from the source (:data:`RESCUE_MIN_RADIUS`) and where the
     fronts at ``a`` and ``b`` move towards ``y``'s side of ``ab`` (else the virtual source lies on
     that side). Of the accepted pairs the one crossed nearest its middle wins (the best conditioned;
-    the smallest would bias the distance short)."""
+    the smallest would bias the distance short). Where no pair of the first ring crosses (a hole in a
+    random sample: the particles upstream all to one side), pairs of a first-ring and a second-ring
+    final particle are tried the same way (:data:`RESCUE_ALIGNED`)."""
     best = d[y]
     score = np.inf
     ba = -1
@@ -241,51 +285,48 @@ def _rescue(P, y, d, o, sid, w, g, pos, e_ptr, e_idx, K, riccati):
     gy0 = 0.0
     gy1 = 0.0
     gy2 = 0.0
+    reach = 0.0
+    aligned = 1.0  # the cosine between the edge that gave d[y] and the ray arriving at its upstream end
     for q in range(e_ptr[y], e_ptr[y + 1]):
         a = e_idx[q]
-        if pos[a] >= 0 or not d[a] < d[y]:
-            continue
-        ra = d[a] - o[a]
-        ka = _kappa(ra, w[a]) if riccati else (1.0 / ra if ra > 0.0 else np.inf)
         ay0 = P[y, 0] - P[a, 0]
         ay1 = P[y, 1] - P[a, 1]
         ay2 = P[y, 2] - P[a, 2]
         l2 = ay0 * ay0 + ay1 * ay1 + ay2 * ay2
-        for q2 in range(e_ptr[y], e_ptr[y + 1]):
-            b = e_idx[q2]
-            if b == a or pos[b] >= 0 or not d[b] < d[y] or sid[b] != sid[a] or o[b] != o[a]:
+        reach = max(reach, l2)
+        if pos[a] < 0 and l2 > 0.0 and abs(d[a] + np.sqrt(l2) - d[y]) <= 1e-12 * d[y]:
+            aligned = (g[a, 0] * ay0 + g[a, 1] * ay1 + g[a, 2] * ay2) / np.sqrt(l2)
+    for ring in range(2):
+        if ring == 1 and (ba >= 0 or aligned > RESCUE_ALIGNED):
+            break
+        for q in range(e_ptr[y], e_ptr[y + 1]):
+            a = e_idx[q]
+            if pos[a] >= 0 or not d[a] < d[y]:
                 continue
-            e0 = P[b, 0] - P[a, 0]
-            e1 = P[b, 1] - P[a, 1]
-            e2 = P[b, 2] - P[a, 2]
-            lab = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
-            if lab <= 0.0:
-                continue
-            e0 /= lab
-            e1 /= lab
-            e2 /= lab
-            cx = ay0 * e0 + ay1 * e1 + ay2 * e2
-            cy = np.sqrt(max(l2 - cx * cx, 0.0))
-            far = max(l2, (cx - lab) * (cx - lab) + cy * cy)
-            if cy <= 0.0 or ra * ra < RESCUE_MIN_RADIUS * RESCUE_MIN_RADIUS * far:
-                continue
-            n0 = (ay0 - cx * e0) / cy  # the unit normal of ab towards y, in the plane of a, b, y
-            n1 = (ay1 - cx * e1) / cy
-            n2 = (ay2 - cx * e2) / cy
-            if (g[a, 0] + g[b, 0]) * n0 + (g[a, 1] + g[b, 1]) * n1 + (g[a, 2] + g[b, 2]) * n2 < 0.0:
-                continue
-            cand, t, s, ux, uy = _triangle_ray(lab, cx, cy, ra, d[b] - o[a], ka)
-            cand += o[a]
-            if cand < d[y] * (1.0 - 1e-12) and abs(t - 0.5) < score:
-                score = abs(t - 0.5)
-                best = cand
-                ba = a
-                bb = b
-                bt = t
-                bs = s
-                gy0 = ux * e0 + uy * n0
-                gy1 = ux * e1 + uy * n1
-                gy2 = ux * e2 + uy * n2
+            ra = d[a] - o[a]
+            ka = _kappa(ra, w[a]) if riccati else (1.0 / ra if ra > 0.0 else np.inf)
+            # ring 0: b among y's edge neighbours; ring 1: among its neighbours' neighbours
+            m_lo = e_ptr[y] if ring == 1 else 0
+            m_hi = e_ptr[y + 1] if ring == 1 else 1
+            for qm in range(m_lo, m_hi):
+                lo = e_ptr[y] if ring == 0 else e_ptr[e_idx[qm]]
+                hi = e_ptr[y + 1] if ring == 0 else e_ptr[e_idx[qm] + 1]
+                for q2 in range(lo, hi):
+                    b = e_idx[q2]
+                    if b == a or b == y or pos[b] >= 0 or not d[b] < d[y] or sid[b] != sid[a] or o[b] != o[a]:
+                        continue
+                    cand, t, s, h0, h1, h2 = _pair_ray(P, y, a, b, ra, d[b] - o[a], ka, g, 9.0 * reach if ring else np.inf)
+                    cand += o[a]
+                    if cand < d[y] * (1.0 - 1e-12) and abs(t - 0.5) < score:
+                        score = abs(t - 0.5)
+                        best = cand
+                        ba = a
+                        bb = b
+                        bt = t
+                        bs = s
+                        gy0 = h0
+                        gy1 = h1
+                        gy2 = h2
     if ba < 0:
         return False
     d[y] = best
