@@ -440,6 +440,29 @@ def test_transport_and_log_map_on_the_sphere(sphere16k):
     assert np.all(r >= np.linalg.norm(P - P[0], axis=1) * (1 - 1e-12))  # never below the straight line
 
 
+def test_log_map_on_noisy_points_takes_the_denoised_radius():
+    """4,000 random points on the unit sphere with 0.3 spacings of noise: the log map's radius (the wavefront
+    distance) is measured over the smoothed cloud ("auto" sees the noise), against the exact log map of the
+    points' projections: relative L2 6.2e-3, the radius 1.7e-3 (measured; 3.2e-2 and 3.1e-2 measured raw)."""
+    from manifold_sph.geometry import VectorHeatSolver
+
+    n = 4000
+    P = random_sphere(n)
+    Q = P + 0.3 * np.sqrt(4 * np.pi / n) * np.random.default_rng(1).standard_normal(P.shape)
+    s = quiet(Q)
+    V = Q / np.linalg.norm(Q, axis=1)[:, None]
+    ex, th = exact_log_map(V, s, 0)
+    far = th < np.pi - 0.1
+    out = {}
+    for denoise in ("auto", False):
+        L = VectorHeatSolver(s, denoise=denoise).log_map(0)
+        out[denoise] = (rel(L[far], ex[far]), rel(np.linalg.norm(L, axis=1)[far], th[far]))
+    assert out["auto"][0] < 1e-2 and out["auto"][1] < 3e-3, out
+    assert out[False][1] > 5 * out["auto"][1], out
+    with pytest.raises(ValueError, match="denoise must be True, False or 'auto'"):
+        VectorHeatSolver(s, denoise="on")
+
+
 def exact_log_map(P, s, i):
     """The unit sphere's log map at particle ``i`` in its frame (u, v), and the exact distances."""
     th = np.arccos(np.clip(P @ P[i], -1, 1))

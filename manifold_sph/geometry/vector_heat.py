@@ -222,15 +222,23 @@ class VectorHeatSolver:
         :class:`~manifold_sph.geometry.GeodesicSolver` default, second order on smooth surfaces;
         docs/geometry.md compares the two) or ``"heat"`` (the distance integrated
         from the radial directions, held to the wavefront within ``LOG_MAP_SPREAD``).
+    denoise : {"auto", True, False}
+        The wavefront distances of the log map measured over the cloud smoothed onto its local
+        quadrics (:class:`~manifold_sph.geometry.GeodesicSolver`'s ``denoise``; "auto": when
+        the cloud reads noisy).
     """
 
-    def __init__(self, surface: Surface, *, t: float | None = None, geodesics: str = "wavefront") -> None:
+    def __init__(self, surface: Surface, *, t: float | None = None, geodesics: str = "wavefront",
+                 denoise: bool | str = "auto") -> None:
         from ..solvers import spd_solver
 
         check_surface(surface)
         check_scale(surface.points, "vector heat method", SCALE_RANGE)
         self.surface = surface
         self.geodesics = check_in("geodesics", geodesics, ("heat", "wavefront"))
+        if not (isinstance(denoise, (bool, np.bool_)) or (isinstance(denoise, str) and denoise == "auto")):
+            raise ValueError(f"denoise must be True, False or 'auto', got {denoise!r}")
+        self.denoise: bool | str = denoise if isinstance(denoise, str) else bool(denoise)
         m = np.asarray(surface.mass_matrix().diagonal(), dtype=np.float64)
         self._h2 = float(m.mean())
         self.t = VECTOR_HEAT_TIME * self._h2 if t is None else check_positive("t", t)
@@ -294,7 +302,7 @@ class VectorHeatSolver:
             A = (sp.diags(self._m) + (self.t / self._h2) * s.stiffness_matrix()).tocsr()
             self._heat = spd_solver(A, method="cholesky" if cholesky_available() else "auto")
         if self._distance is None:
-            self._wavefront = GeodesicSolver(s)
+            self._wavefront = GeodesicSolver(s, denoise=self.denoise)
             self._distance = GeodesicSolver(s, method="heat") if self.geodesics == "heat" else self._wavefront
         b = np.zeros(n)
         b[i] = 1.0
