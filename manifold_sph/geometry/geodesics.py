@@ -43,15 +43,18 @@ from .wavefront import local_triangles, propagate
 if TYPE_CHECKING:
     from ..surface import Surface
 
-__all__ = ["DENOISE_NOISE", "GEODESIC_METHODS", "PAIRWISE_MAX_BYTES", "GeodesicSolver", "geodesic_distance"]
+__all__ = ["CLEAN_READING", "DENOISE_NOISE", "GEODESIC_METHODS", "PAIRWISE_MAX_BYTES", "GeodesicSolver", "geodesic_distance"]
 
 GEODESIC_METHODS = ("wavefront", "heat")
 #: Largest all-pairs matrix :meth:`GeodesicSolver.pairwise` builds (bytes of float64).
 PAIRWISE_MAX_BYTES = 2 << 30
 #: ``denoise="auto"``: the wavefront runs over the smoothed cloud when its noise level
-#: (:meth:`~manifold_sph.geometry.wavefront.LocalTriangles.noise`, in spacings) is above this. Clean test models
-#: read 0.00-0.16, Gaussian noise of 0.2 spacings per coordinate 0.18-0.27.
-DENOISE_NOISE = 0.2
+#: (:attr:`GeodesicSolver.noise`, in spacings) is above this. Gaussian noise of ``s`` spacings per coordinate
+#: reads about ``0.9 s``; clean test models read 0.00-0.09 (the cow 0.05, the beetle 0.09).
+DENOISE_NOISE = 0.07
+#: Below this reading of the 16-point quadrics' residuals (:meth:`LocalTriangles.noise`, an upper bound of the
+#: noise) a cloud is clean without the two-scale estimate.
+CLEAN_READING = 0.05
 _DENOISE = ("auto", True, False)
 
 
@@ -65,6 +68,21 @@ def straight_line(P: np.ndarray, src: np.ndarray) -> np.ndarray:
     return cKDTree(P[src]).query(P, workers=-1 if P.shape[0] > 100_000 else 1)[0]
 
 
+def _noise_level(tri) -> float:
+    """The cloud's noise in spacings from degree-2 fits at two scales (:func:`manifold_sph.normals.scale.noise_level`:
+    the shape's bias grows like the fit radius cubed, noise does not), the median over the particles."""
+    from ..normals import tuning
+    from ..normals.scale import noise_level
+
+    P = tri.points
+    k = max(tuning.NOISE_REGION, 2 * tuning.NOISE_K)
+    dist, idx = cKDTree(P).query(P, k=k, workers=-1 if P.shape[0] > 50_000 else 1)
+    sigma, spacing = noise_level(P, idx, dist, tri.normals)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        nu = np.where(spacing > 0, sigma / spacing, 0.0)
+    return float(np.median(nu))
+
+
 class _Wavefront:
     """The wavefront engine: local triangles built once, one sweep a query."""
 
@@ -72,6 +90,8 @@ class _Wavefront:
         check_scale(points, "geodesic distance (method='wavefront')", WAVEFRONT_SCALE_RANGE)
         self.tri = local_triangles(points, normals, neighbors=neighbors)
         self.noise = self.tri.noise()
+        if self.noise > CLEAN_READING and points.shape[0] >= 32:  # noise or a coarse cloud's misfit: told apart
+            self.noise = _noise_level(self.tri)
         self.denoised = denoise is True or (denoise == "auto" and self.noise > DENOISE_NOISE)
         self._chord = None
         if self.denoised:
@@ -229,8 +249,10 @@ class GeodesicSolver:
     n_components : int
         Connected pieces of the cloud (as the method sees them).
     noise : float
-        ``"wavefront"``: the cloud's noise level in spacings (the median residual of the quadrics
-        fitted to each particle's nearest points over the mean spacing; NaN for ``"heat"``).
+        ``"wavefront"``: the cloud's noise level in spacings (NaN for ``"heat"``): the median over the
+        particles of the noise read from quadric fits at two scales, which tells noise from a coarse
+        cloud's misfit (as the normal estimation does); where the quadrics fitted to each particle's
+        16 nearest points leave less than :data:`CLEAN_READING` spacings, that residual (an upper bound).
     denoised : bool
         Whether the distances are measured over the smoothed cloud (``denoise``).
 
