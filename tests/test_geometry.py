@@ -236,15 +236,33 @@ def test_geodesic_on_noisy_points_denoises_automatically(kind):
     exact = np.arccos(np.clip(V @ V[0], -1, 1))
     auto, raw = GeodesicSolver(Q), GeodesicSolver(Q, denoise=False)
     assert auto.denoised and not raw.denoised
-    assert 0.2 < auto.noise == raw.noise < 0.32  # Gaussian noise of s spacings reads about 0.9 s
+    assert 0.2 < auto.noise == raw.noise < 0.32  # Gaussian noise of s spacings reads about 0.9 s (0.25)
     d, d_raw = auto.distance(0), raw.distance(0)
     assert rel(d, exact) < 3e-3 and rel(d_raw, exact) > 8 * rel(d, exact)
     assert np.all(d >= (1 - 1e-12) * np.linalg.norm(Q - Q[0], axis=1))  # the bound of the input points
     clean = GeodesicSolver(P)
     assert not clean.denoised and clean.noise < 0.01  # measured 0.000
+    low = P + 0.1 * h * np.random.default_rng(0).standard_normal(P.shape)  # 0.1 spacings: 0.8 % long raw
+    V1 = low / np.linalg.norm(low, axis=1)[:, None]
+    ex1 = np.arccos(np.clip(V1 @ V1[0], -1, 1))
+    s1 = GeodesicSolver(low)
+    assert s1.denoised and 0.07 < s1.noise < 0.12  # measured 0.09
+    assert 5 * rel(s1.distance(0), ex1) < rel(GeodesicSolver(low, denoise=False).distance(0), ex1)
     assert np.array_equal(clean.distance(0), GeodesicSolver(P, denoise=False).distance(0))
     forced = GeodesicSolver(P, denoise=True)  # smoothing a clean sphere barely moves it
     assert forced.denoised and rel(forced.distance(0), sphere_exact(P, 0)) < 3e-4  # measured 1.1e-4 / 1.8e-4
+
+
+def test_geodesic_denoise_tells_a_coarse_clean_cloud_from_noise():
+    """A torus of 300 points: its 16-point quadrics leave 0.12 spacings (the surface, not noise: above the 0.1
+    spacings of noise that a sphere's read); the fits at two scales read 0.000 and the cloud is left as it is."""
+    from manifold_sph.geometry.wavefront import local_triangles
+
+    P = shapes.torus(300).points
+    assert local_triangles(P).noise() > 0.1  # measured 0.117
+    solver = GeodesicSolver(P)
+    assert not solver.denoised and solver.noise < 0.02  # measured 0.000
+    assert np.array_equal(solver.distance(0), GeodesicSolver(P, denoise=False).distance(0))
 
 
 def test_geodesic_denoise_is_checked():
