@@ -51,7 +51,7 @@ from ..kernels import Kernel, get_kernel
 
 __all__ = ["FORMS", "COUPLINGS", "DEFAULT_COUPLING", "DEFAULT_H_RATIO", "MIMETIC_H_RATIO", "SBP_LAYERS", "cross_pairs",
            "cross_gradient", "sbp_correct", "sbp_pair", "nearest_plane", "mirror_fields",
-           "normal_solve"]
+           "normal_solve", "supernodal_available", "supernodal_cholesky_solve"]
 
 #: Names of the per-particle derivative systems.
 FORMS = ("fpm", "cspm", "diagonal")
@@ -345,23 +345,69 @@ def mirror_fields(z: np.ndarray, x_at: np.ndarray, near: np.ndarray, plane: np.n
     return fields, der
 
 
-def normal_solve(AAt: sp.spmatrix, rhs: np.ndarray) -> np.ndarray:
+def supernodal_available() -> bool:
+    """True when ``cvxopt`` (CHOLMOD's supernodal Cholesky on an optimised BLAS) is importable."""
+    try:
+        import cvxopt.cholmod  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def supernodal_cholesky_solve(AAt: sp.spmatrix, rhs: np.ndarray) -> np.ndarray:
+    """Solve ``AAt x = rhs`` (symmetric positive definite) by CHOLMOD's supernodal Cholesky through ``cvxopt``.
+
+    The same factorisation as :func:`manifold_sph.solvers.spd_solver` (CHOLMOD, a fill-reducing ordering, the
+    lower triangle), with its dense supernode updates on the optimised BLAS that the ``cvxopt`` wheel carries.
+    Raises ``ArithmeticError`` when a pivot is not positive and ``ImportError`` without ``cvxopt``.
+    """
+    import cvxopt
+    import cvxopt.cholmod as cholmod
+
+    lower = sp.tril(AAt, format="coo")
+    M = cvxopt.spmatrix(cvxopt.matrix(np.ascontiguousarray(lower.data, dtype=np.float64)),
+                        cvxopt.matrix(lower.row.astype(np.int64)), cvxopt.matrix(lower.col.astype(np.int64)),
+                        size=AAt.shape)
+    saved = dict(cholmod.options)
+    cholmod.options.update({"supernodal": 2, "postorder": True})
+    try:
+        factor = cholmod.symbolic(M, uplo="L")
+        cholmod.numeric(M, factor)
+        out = cvxopt.matrix(np.ascontiguousarray(rhs, dtype=np.float64))
+        cholmod.solve(factor, out)
+    finally:
+        cholmod.options.clear()
+        cholmod.options.update(saved)
+    return np.array(out).ravel()
+
+
+def normal_solve(AAt: sp.spmatrix, rhs: np.ndarray, *, method: str = "auto") -> np.ndarray:
     """Solve the regularised normal equations ``A A^T lam = rhs`` of a correction (symmetric positive definite).
 
-    A sparse Cholesky factorisation (:func:`manifold_sph.solvers.spd_solver`: CHOLMOD, nested-dissection
-    ordering) where ``cholespy`` is installed, SuperLU otherwise or when the factorisation meets a non-positive
-    pivot: the Cholesky factor of these mesh-like systems takes far less memory than SuperLU's LU factors
-    (docs/spem.md has the measured peaks).
+    ``method``: ``"supernodal"`` (CHOLMOD's supernodal Cholesky on an optimised BLAS through ``cvxopt``,
+    :func:`supernodal_cholesky_solve`), ``"cholesky"`` (:func:`manifold_sph.solvers.spd_solver`: CHOLMOD through
+    ``cholespy``, whose wheel carries the reference BLAS), ``"lu"`` (SuperLU), or ``"auto"``: the first of these
+    that is installed, SuperLU also when a factorisation meets a non-positive pivot. All factorise the same
+    matrix: their solutions differ by round-off, amplified by the near-null multiplier fields of the
+    correction (docs/spem.md, "Set-up of the sbp correction", has the measured differences and times).
     """
     from scipy.sparse.linalg import spsolve
 
     from ..solvers import NotPositiveDefiniteError, cholesky_available, spd_solver
 
-    if cholesky_available():
+    method = check_in("method", method, ("auto", "supernodal", "cholesky", "lu"))
+    if method in ("auto", "supernodal") and (method == "supernodal" or supernodal_available()):
+        try:
+            return supernodal_cholesky_solve(AAt, rhs)
+        except ArithmeticError:
+            if method == "supernodal":
+                raise
+    if method in ("auto", "cholesky") and (method == "cholesky" or cholesky_available()):
         try:
             return spd_solver(AAt, method="cholesky").solve(rhs)
         except NotPositiveDefiniteError:
-            pass
+            if method == "cholesky":
+                raise
     return spsolve(sp.csc_matrix(AAt), rhs)
 
 
