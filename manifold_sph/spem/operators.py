@@ -77,6 +77,9 @@ MIMETIC_H_RATIO = 1.5
 #: operator keeps converging (1.5e-2 / 3.9e-3 / 1.3e-3 / 5.2e-4).
 SBP_LAYERS = 2
 SBP_REGULARISATION = 1e-12
+#: ``normal_solve(method="auto")`` takes the supernodal path from this many unknowns (below, cholespy's simplicial
+#: factorisation is faster: cavity at 10 spacings per radius 0.21 s against 0.6 s of set-up; docs/spem.md).
+SUPERNODAL_MIN_N = 20_000
 
 
 def cross_pairs(rows: np.ndarray, cols: np.ndarray, radius: float, *, row_name: str = "rows",
@@ -387,7 +390,8 @@ def normal_solve(AAt: sp.spmatrix, rhs: np.ndarray, *, method: str = "auto") -> 
     ``method``: ``"supernodal"`` (CHOLMOD's supernodal Cholesky on an optimised BLAS through ``cvxopt``,
     :func:`supernodal_cholesky_solve`), ``"cholesky"`` (:func:`manifold_sph.solvers.spd_solver`: CHOLMOD through
     ``cholespy``, whose wheel carries the reference BLAS), ``"lu"`` (SuperLU), or ``"auto"``: the first of these
-    that is installed, SuperLU also when a factorisation meets a non-positive pivot. All factorise the same
+    that is installed (the supernodal one from :data:`SUPERNODAL_MIN_N` unknowns), SuperLU also when a
+    factorisation meets a non-positive pivot. All factorise the same
     matrix: their solutions differ by round-off, amplified by the near-null multiplier fields of the
     correction (docs/spem.md, "Set-up of the sbp correction", has the measured differences and times).
     """
@@ -396,7 +400,7 @@ def normal_solve(AAt: sp.spmatrix, rhs: np.ndarray, *, method: str = "auto") -> 
     from ..solvers import NotPositiveDefiniteError, cholesky_available, spd_solver
 
     method = check_in("method", method, ("auto", "supernodal", "cholesky", "lu"))
-    if method in ("auto", "supernodal") and (method == "supernodal" or supernodal_available()):
+    if method == "supernodal" or (method == "auto" and AAt.shape[0] >= SUPERNODAL_MIN_N and supernodal_available()):
         try:
             return supernodal_cholesky_solve(AAt, rhs)
         except ArithmeticError:
