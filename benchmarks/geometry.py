@@ -1,6 +1,6 @@
 """Geometry against the peers, same points, same run: geodesics, vector heat, smoothing, curvature.
 
-Tables (``python benchmarks/geometry.py [--only NAME[,NAME]] [--quick] [--big]``):
+Tables (``python benchmarks/geometry.py [--only NAME[,NAME]] [--quick] [--big] [--sampled N [--loop K]]``):
 
 ``models``
     Geodesic distance on the vertices of ../shared/data/models (bare points, faces dropped)
@@ -33,7 +33,7 @@ Tables (``python benchmarks/geometry.py [--only NAME[,NAME]] [--quick] [--big]``
     jet with features: the default, flow) and CGAL's ``jet_smooth_point_set`` (k = 24; from the
     ``cgal`` wheel), the clean vertices smoothed the same way (the default: the smoothing's own
     bias), and on the rocker-arm the 95th percentile distance of the vertices on a sharp edge
-    (dihedral angle above 60 degrees), in spacings.
+    (dihedral angle above 60 degrees), in spacings. With ``--sampled N``: see ``sampled`` below.
 ``curvature``
     Model vertices, clean and with 0.3 and 0.9 spacings of noise: Spearman rank correlation of the
     mean curvature (pointwise, ``scale="auto"``, ``scale=r``) with the mesh's cotan mean
@@ -41,6 +41,18 @@ Tables (``python benchmarks/geometry.py [--only NAME[,NAME]] [--quick] [--big]``
     mean edge lengths (``scale=r`` against the same ``r``), and at the radius the automatic
     scale chose per vertex; beside them the noisy vertices meshed with the clean faces, their
     cotan curvature diffused over ``r`` (what knowing the connectivity gives).
+``--sampled N [--loop K]`` (for ``smooth`` and ``curvature``)
+    The same on ``N`` points drawn uniformly at random on each clean mesh's surface
+    (``trimesh.sample.sample_surface``, seed 0), after ``K`` Loop subdivisions of the mesh (default
+    0: the polyhedral mesh itself; ``K`` = 2 gives a smooth surface of the same shape). The spacing
+    ``h1`` is that sample's mean distance from a point to its nearest other point; noise and
+    distances are in ``h1``. Smoothing: noise of 0.5 ``h1``, mean distance to the clean (subdivided)
+    mesh before and after, ours (default) and CGAL's jet smoothing (k = 24 and k = 48), the clean
+    sample smoothed (bias), seconds. Curvature: noise of 0.3 and 0.9 ``h1``; the reference at each
+    sample point is the mesh's cotan ``H`` diffused over ``r`` (as above) interpolated linearly
+    (barycentric weights on the point's face) to the clean point it came from; Spearman
+    correlation over the points whose face has no boundary or non-manifold vertex, ``scale="auto"``
+    against the reference at the radius it chose per point and ``scale=r`` at ``r`` = 8 and 16 ``h1``.
 ``big`` (with ``--big``)
     Wavefront geodesic on a 1,048,576-point Fibonacci sphere: build, first query, peak memory.
 
@@ -314,10 +326,12 @@ def cgal_jet_smooth(X, k):
     return np.array([[p.x(), p.y(), p.z()] for p in ps.points()])
 
 
-def smooth_table(quick):
+def smooth_table(quick, sampled=None, loop=0):
     igl = peer("igl")
     if igl is None:
         return
+    if sampled:
+        return sampled_smooth_table(igl, sampled, loop, quick)
     try:
         from CGAL import CGAL_Point_set_processing_3 as psp
     except ImportError:
@@ -366,6 +380,110 @@ def smooth_table(quick):
         print(row, flush=True)
 
 
+def sampled_surface(name, n, loop=0, seed=0):
+    """The model's mesh (``loop`` Loop subdivisions of its welded vertices and faces), ``n`` points drawn
+    uniformly at random on it, the face of each point and its barycentric coordinates there, and the
+    sample's spacing ``h1`` (mean distance to the nearest other point)."""
+    import trimesh
+    from scipy.spatial import cKDTree
+
+    U, F = welded(MODELS / f"{name}.obj")
+    if loop:
+        U, F = trimesh.remesh.subdivide_loop(U, F, iterations=loop)
+        U, F = np.asarray(U, dtype=float), np.asarray(F, dtype=np.int64)
+    P, face = trimesh.sample.sample_surface(trimesh.Trimesh(U, F, process=False), n, seed=seed)
+    P = np.asarray(P, dtype=float)
+    bary = trimesh.triangles.points_to_barycentric(U[F[face]], P)
+    h1 = float(cKDTree(P).query(P, k=2)[0][:, 1].mean())
+    return U, F, P, face, bary, h1
+
+
+SAMPLED_MODELS = ("cow", "homer", "rocker-arm", "cheburashka", "teapot", "beetle", "alligator")
+
+
+def sampled_smooth_table(igl, n, loop, quick):
+    from manifold_sph.geometry.jets import mean_spacing
+
+    try:
+        from CGAL import CGAL_Point_set_processing_3  # noqa: F401
+        cgal = True
+    except ImportError:
+        cgal = False
+        print("(CGAL is not installed: its columns are skipped)")
+    print(f"\nSmoothing {n} random points on each mesh ({loop} Loop subdivisions), Gaussian noise of 0.5 h1 per coordinate "
+          "(h1: the sample's mean nearest-neighbour distance): mean distance to the clean mesh, in h1")
+    print(f"{'model':12s} {'h/h1':>5s} {'noisy':>7s} {'ours':>7s} {'CGAL24':>7s} {'CGAL48':>7s} {'x ours':>6s} "
+          f"{'x CGAL':>6s} {'clean':>6s} {'s ours':>6s} {'s CGAL':>6s}")
+    for name in SAMPLED_MODELS if not quick else ("homer",):
+        if not (MODELS / f"{name}.obj").exists():
+            continue
+        U, F, P, _, _, h1 = sampled_surface(name, n, loop)
+        noisy = P + 0.5 * h1 * np.random.default_rng(0).standard_normal(P.shape)
+
+        def dist(X, U=U, F=F, h1=h1):
+            return float(np.mean(np.sqrt(igl.point_mesh_squared_distance(X, U, F)[0]))) / h1
+
+        ours, t_ours = timed(quiet, smooth, noisy)
+        before = dist(noisy)
+        row = f"{name:12s} {mean_spacing(P) / h1:5.2f} {before:7.3f} {dist(ours.points):7.3f}"
+        if cgal:
+            c24, t_cgal = timed(cgal_jet_smooth, noisy, 24)
+            c24, c48 = dist(c24), dist(cgal_jet_smooth(noisy, 48))
+            row += f" {c24:7.3f} {c48:7.3f}"
+        else:
+            c24 = c48 = t_cgal = np.nan
+            row += f" {'-':>7s} {'-':>7s}"
+        row += (f" {before / dist(ours.points):6.2f} {before / min(c24, c48):6.2f} {dist(quiet(smooth, P).points):6.3f}"
+                f" {t_ours:6.1f} {t_cgal:6.1f}")
+        print(row, flush=True)
+
+
+def sampled_curvature_table(igl, n, loop, quick):
+    from scipy.stats import spearmanr
+
+    from manifold_sph.geometry import curvature_scale
+
+    scales = (8, 16)  # scale=r, in h1
+    print(f"\nMean curvature of {n} random points on each mesh ({loop} Loop subdivisions), clean and with Gaussian noise of "
+          f"0.3 and 0.9 h1 (h1: the sample's mean nearest-neighbour distance): Spearman correlation with the mesh's cotan H "
+          "diffused over r, interpolated to the points; 'auto' at the radius it chose per point, 'r=..' scale=r matched")
+    print(f"{'model':12s} {'input':6s} {'auto':>6s} " + " ".join(f"{'r=' + str(r) + 'h1':>7s}" for r in scales)
+          + f" {'auto r (h1) median':>18s} {'misor.':>7s} {'s':>6s}")
+    for name in ("cow", "homer", "cheburashka", "rocker-arm", "teapot", "beetle") if not quick else ("homer",):
+        if not (MODELS / f"{name}.obj").exists():
+            continue
+        U, F, P, face, bary, h1 = sampled_surface(name, n, loop)
+        H0, m, Nm = cotan_mean_curvature(igl, U, F)
+        keep = np.all(interior(F, len(U))[F[face]], axis=1) & np.all(m[F[face]] > 0, axis=1)
+        Np = np.einsum("nk,nkd->nd", bary, Nm[F[face]])
+        cache = {}
+
+        def ref(r, U=U, F=F, m=m, H0=H0, face=face, bary=bary, cache=cache):
+            key = round(r / h1, 6)
+            if key not in cache:
+                cache[key] = np.einsum("nk,nk->n", bary, heat_smoothed(igl, U, F, m, H0, r)[F[face]])
+            return cache[key]
+
+        def rho(a, b, keep=keep):
+            return spearmanr(a[keep], b[keep])[0]
+
+        gauss = np.random.default_rng(0).standard_normal(P.shape)
+        for label, X in [("clean", P)] + [(f"{a}h1", P + a * h1 * gauss) for a in CURVATURE_NOISE]:
+            t0 = time.perf_counter()
+            s = quiet(Surface, X)
+            side = np.sign(np.einsum("nd,nd->n", s.normals, Np))
+            auto = quiet(s.mean_curvature, scale="auto") * side
+            radii = curvature_scale(s)
+            own = np.empty(len(P))
+            for r in np.unique(radii):
+                at = radii == r
+                own[at] = ref(r)[at]
+            matched = [rho(quiet(s.mean_curvature, scale=r * h1) * side, ref(r * h1)) for r in scales]
+            print(f"{name:12s} {label:6s} {rho(auto, own):6.2f} " + " ".join(f"{v:7.2f}" for v in matched)
+                  + f" {np.median(radii) / h1:18.1f} {np.mean(side[keep] < 0):7.3f} {time.perf_counter() - t0:6.1f}",
+                  flush=True)
+
+
 def cotan_mean_curvature(igl, U, F):
     """The mesh's mean curvature at each vertex (cotan Laplacian of the coordinates on the Voronoi areas,
     along libigl's area-weighted vertex normals), the Voronoi areas and those normals."""
@@ -411,10 +529,12 @@ def opposite_distance(U, N, k=128):
     return np.where(away.any(axis=1), d[np.arange(len(U)), np.argmax(away, axis=1)], d[:, -1])
 
 
-def curvature_table(quick):
+def curvature_table(quick, sampled=None, loop=0):
     igl = peer("igl")
     if igl is None:
         return
+    if sampled:
+        return sampled_curvature_table(igl, sampled, loop, quick)
     from scipy.stats import spearmanr
 
     from manifold_sph.geometry import curvature_scale
@@ -502,6 +622,8 @@ if __name__ == "__main__":
         big_table()
         if only is None:
             sys.exit(0)
+    sampled = int(sys.argv[sys.argv.index("--sampled") + 1]) if "--sampled" in sys.argv else None
+    loop = int(sys.argv[sys.argv.index("--loop") + 1]) if "--loop" in sys.argv else 0
     for name, fn in TABLES.items():
         if only is None or name in only:
-            fn(quick)
+            fn(quick, sampled, loop) if name in ("smooth", "curvature") else fn(quick)

@@ -644,6 +644,32 @@ def test_smoothing_adapts_to_the_sampling_and_to_the_noise():
     assert np.mean(reductions) > 3.2, reductions
 
 
+def random_torus(n, seed, R=1.0, r=0.35):
+    """Points uniformly random on the torus's area (rejection sampling of its parameters)."""
+    rng = np.random.default_rng(seed)
+    t, p = rng.uniform(0, 2 * np.pi, (2, 4 * n))
+    keep = rng.uniform(0, 1, 4 * n) < (R + r * np.cos(p)) / (R + r)
+    t, p = t[keep][:n], p[keep][:n]
+    assert t.size == n
+    return np.stack([(R + r * np.cos(p)) * np.cos(t), (R + r * np.cos(p)) * np.sin(t), r * np.sin(p)], axis=1)
+
+
+def test_smoothing_dense_random_sample_reduces_noise_three_times():
+    """A dense, uniformly random torus sample (R = 1, r = 0.35, 10,000 points: the tube is about 40
+    spacings around) with Gaussian noise of 0.5 h1 per coordinate, h1 the mean distance to the nearest
+    other point: the mean distance to the torus falls at least 3.5x (measured 3.9x-4.2x, seeds 0-2; a
+    fixed number of points per fit, without the wider fits, gives 3.0x). Without smoothing the ratio is 1."""
+    from scipy.spatial import cKDTree
+
+    P = random_torus(10000, 0)
+    h1 = cKDTree(P).query(P, k=2)[0][:, 1].mean()
+    noisy = P + 0.5 * h1 * np.random.default_rng(1).standard_normal(P.shape)
+    d = torus_distance(noisy, r=0.35).mean()
+    out = geometry.smooth(noisy).points
+    assert d / torus_distance(out, r=0.35).mean() > 3.5, d / torus_distance(out, r=0.35).mean()
+    assert torus_distance(geometry.smooth(P).points, r=0.35).mean() < 0.01 * h1  # clean: barely moved
+
+
 def test_smoothing_is_invariant_under_rotation_translation_and_scale():
     P = thin_torus(1500, 2)
     noisy = P + 0.02 * np.random.default_rng(3).standard_normal(P.shape)

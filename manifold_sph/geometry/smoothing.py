@@ -17,6 +17,16 @@
     the radius of every fit; with ``features=False`` it defaults to ``4 h`` (plain fits over
     the narrow radii of densely sampled sharp edges round them; measured in docs/geometry.md).
 
+    *Wider where the surface allows* (``scale=None``, ``features=True``). A fit of a fixed
+    number of points removes a fixed share of the noise, whatever the density; where the
+    surface is smooth over more than ``r_i`` a wider fit removes more. Each particle takes
+    ``WIDER * r_i`` instead where plain fits over both radii say the wider one is the more
+    accurate: their heights differ by noise of a known variance plus the difference of their
+    biases; averaged over the particle's neighbours (a bias varies slowly, the noise does not),
+    that difference may exceed the noise by at most half the variance the wider fit saves.
+    Thin parts, bends and the creases of a polyhedral surface keep the narrow fits; a densely
+    sampled smooth surface gets the wide ones.
+
     *Noise level.* Each pass first fits plain quadrics; ``sigma`` is the median of their
     residuals' weighted RMS (at least ``0.02 h``): the noise normal to the surface on a noisy
     cloud, the quadrics' misfit on a clean one.
@@ -59,18 +69,22 @@ if TYPE_CHECKING:
     from ..pointcloud import PointCloud
     from ..surface import Surface
 
-__all__ = ["JET_WIDTH", "NOISE_REF", "SMOOTH_METHODS", "jet_heights", "local_spacing", "smooth"]
+__all__ = ["JET_WIDTH", "NOISE_REF", "SMOOTH_METHODS", "WIDER", "jet_heights", "local_spacing", "smooth"]
 
 SMOOTH_METHODS = ("jet", "flow")
 #: Fit radius of ``smooth(scale=None)`` in units of the local spacing :func:`local_spacing`.
 JET_WIDTH = 1.7
 #: Noise level (in mean spacings) below which ``smooth(scale=None)`` narrows its fits.
 NOISE_REF = 0.4
+#: Ratio of the wider fit radius :func:`smooth` takes where the surface allows (``_wider_fits``).
+WIDER = float(np.sqrt(2.0))
 #: Nearest points that set the local spacing.
 _LOCAL_K = 24
 _ROWS = 2048  # particles a chunk
 _BILATERAL = 2.0  # width of the bilateral weights, in noise levels
 _PASSES = 2  # reweighted refits after the bilateral one
+_POOL = 2.0  # _wider_fits averages its test over this many fit radii
+_BIAS_SHARE = 0.5  # _wider_fits: largest squared bias accepted, as a share of the variance the wider fit saves
 
 
 def local_spacing(points: np.ndarray, tree: cKDTree | None = None, k: int = _LOCAL_K) -> np.ndarray:
@@ -167,6 +181,82 @@ def jet_heights(
     return height, slope, rms
 
 
+def _wider_fits(
+    points: np.ndarray,
+    normals: np.ndarray,
+    radius: np.ndarray,
+    *,
+    factor: float,
+    count: int,
+    tree: cKDTree | None = None,
+) -> np.ndarray:
+    """Where a plain quadric fit over ``factor * radius`` is as accurate as one over ``radius``, shape (N,) bool.
+
+    Both fits are computed on the same neighbours. Their heights ``c0`` differ by
+    ``D = (a_w - a_n) . z``, ``a_n`` and ``a_w`` the fits' influence vectors (``c0 = a . z``): pure
+    noise of variance ``sigma^2 |a_w - a_n|^2`` plus the difference of their biases. ``D^2`` and that
+    variance are averaged over the particle's neighbours within ``2 radius`` (Gaussian weights
+    ``exp(-(d / radius)^2)``): a bias varies slowly along the surface, the noise does not, so the
+    average sees biases well below one fit's scatter (the neighbours' ``D`` share most of their
+    points: the ball of twice the radius holds about four independent ones). The wider fit is
+    kept where the averaged ``D^2`` is at most 1.5 times the averaged noise variance: its squared
+    bias is then at most half the variance it saves, ``|a_n|^2 - |a_w|^2 ~ |a_w - a_n|^2``, so it
+    is more accurate with a margin for the scatter of the test itself (at twice the variance the
+    two fits would break even). ``sigma`` is the median residual noise of the narrow fits
+    (degrees of freedom taken off).
+    """
+    n = points.shape[0]
+    count = min(count, n)
+    tree = cKDTree(points) if tree is None else tree
+    u, v = tangent_basis(normals)
+    D = np.zeros(n)
+    var = np.zeros(n)
+    noise = np.zeros(n)
+    chunk = max(1, min(_ROWS, 2_000_000 // count))
+    for lo in range(0, n, chunk):
+        rows = np.arange(lo, min(n, lo + chunk))
+        dist, idx = tree.query(points[rows], k=count, workers=-1)
+        dist, idx = dist.reshape(len(rows), count), idx.reshape(len(rows), count)
+        r = factor * radius[rows][:, None]
+        off = points[idx] - points[rows][:, None, :]
+        y1 = np.einsum("rkd,rd->rk", off, u[rows]) / r
+        y2 = np.einsum("rkd,rd->rk", off, v[rows]) / r
+        z = np.einsum("rkd,rd->rk", off, normals[rows])
+        A = np.stack([np.ones_like(y1), y1, y2, 0.5 * y1 * y1, y1 * y2, 0.5 * y2 * y2], axis=-1)
+        infl = []
+        for rr in (r / factor, r):
+            w = np.exp(-((2.0 * dist / rr) ** 2)) * (dist <= rr)
+            AtW = A * w[..., None]
+            G = np.einsum("rki,rkj->rij", AtW, A)
+            G += (1e-10 * np.trace(G, axis1=1, axis2=2) + 1e-300)[:, None, None] * np.eye(6)
+            x = np.linalg.solve(G, np.broadcast_to(np.eye(6)[:, :1], G.shape[:1] + (6, 1)))[..., 0]  # G^-1 e0
+            a = w * np.einsum("rki,ri->rk", A, x)  # c0 = a . z
+            infl.append(a)
+            if len(infl) == 1:
+                c = np.linalg.solve(G, np.einsum("rki,rk->ri", AtW, z)[..., None])[..., 0]
+                res = z - np.einsum("rki,ri->rk", A, c)
+                sw = np.maximum(w.sum(axis=1), 1e-300)
+                dof = np.maximum(sw - np.einsum("rk,rk->r", w, w) / sw * 6.0, 1.0)
+                noise[rows] = np.einsum("rk,rk->r", w, res * res) / dof
+        diff = infl[1] - infl[0]
+        D[rows] = np.einsum("rk,rk->r", diff, z)
+        var[rows] = np.einsum("rk,rk->r", diff, diff)
+    sigma2 = float(np.median(noise))
+    T = np.zeros(n)
+    E = np.zeros(n)
+    k_n = min(n, max(12, int(np.ceil(count * _POOL**2 / factor**2))))
+    for lo in range(0, n, chunk):
+        rows = np.arange(lo, min(n, lo + chunk))
+        dist, idx = tree.query(points[rows], k=k_n, workers=-1)
+        dist, idx = dist.reshape(len(rows), k_n), idx.reshape(len(rows), k_n)
+        rr = _POOL * radius[rows][:, None]
+        w = np.exp(-((2.0 * dist / rr) ** 2)) * (dist <= rr)
+        sw = np.maximum(w.sum(axis=1), 1e-300)
+        T[rows] = np.einsum("rk,rk->r", w, D[idx] ** 2) / sw
+        E[rows] = np.einsum("rk,rk->r", w, var[idx]) / sw
+    return T <= (1.0 + _BIAS_SHARE) * sigma2 * E
+
+
 def _orient(new: np.ndarray, like: np.ndarray | None) -> np.ndarray:
     if like is None:
         return new
@@ -246,6 +336,7 @@ def _jets(P, normals, tree, h, scale, iterations, features):
     if scale is None:
         radius = JET_WIDTH * local_spacing(P, tree)
         count = int(min(n, np.ceil(1.6 * (_LOCAL_K + 1) * JET_WIDTH**2)))
+        wide_count = int(min(n, np.ceil(count * WIDER**2)))
     else:
         radius = np.full(n, scale)
         count = int(min(n, max(12, np.ceil(1.2 * np.pi * scale * scale / (0.9 * h * h)))))
@@ -257,6 +348,11 @@ def _jets(P, normals, tree, h, scale, iterations, features):
             sigma = max(float(np.median(jet_heights(out, nrm, radius, count=count, tree=t)[2])), 0.02 * h)
             if it == 0 and scale is None:
                 radius = radius * min(1.0, (sigma / (NOISE_REF * h)) ** (1.0 / 3.0))
+                if WIDER > 1.0:
+                    wide = _wider_fits(out, nrm, radius, factor=WIDER, count=wide_count, tree=t)
+                    radius = np.where(wide, WIDER * radius, radius)
+                    if wide.any():
+                        count = wide_count
         d, g, _ = jet_heights(out, nrm, radius, count=count, sigma=sigma if features else None, tree=t)
         u, v = tangent_basis(nrm)
         out = out + d[:, None] * nrm
