@@ -101,7 +101,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
 from ..kernels import Kernel, get_kernel
-from .operators import cross_pairs
+from .operators import SUPERNODAL_MIN_N, cross_pairs, supernodal_available, supernodal_cholesky_solve
 
 __all__ = ["MimeticOperators", "mimetic_operators", "quadratic_gradient", "kernel_volumes", "LocalisedModes",
            "localised_modes"]
@@ -448,6 +448,11 @@ def _solve_spd(K: sp.spmatrix, rhs: np.ndarray) -> np.ndarray:
     """``K^-1 rhs`` for the symmetric positive definite normal equations (SuperLU, no pivoting, symmetric mode)."""
     K = K.tocsc()
     K = K + sp.identity(K.shape[0], format="csc") * (1e-13 * K.diagonal().max())
+    if K.shape[0] >= SUPERNODAL_MIN_N and supernodal_available():  # CHOLMOD supernodal where installed (docs/spem.md)
+        try:
+            return supernodal_cholesky_solve(K, rhs)
+        except ArithmeticError:
+            pass
     # K is symmetric positive definite: no pivoting, symmetric ordering (half the fill of a general LU)
     return splu(K, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True}).solve(rhs)
 
