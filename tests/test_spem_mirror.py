@@ -75,7 +75,7 @@ def _near_plane_residuals(s, lay, within):
 def test_sbp_pair_fitted_on_mirror_fields_is_consistent_next_to_the_planes_of_a_jittered_layout(seed):
     # sbp_pair(planes=): the rows and columns next to a plane are fitted on the mirror-compatible linear fields,
     # which the folded rows meet (1, y for Ez and Hx; x - m for Hy); fitted on plain linear fields they read
-    # 2.3e-7 to 7.6e-7 on the x pair (seeds 3 / 1 / 0); measured now 1.4e-10 to 3.1e-10 (x pair), 2.4e-8 at worst
+    # 2.3e-7 to 7.6e-7 on the x pair (seeds 3 / 1 / 0); fitted on the mirror fields 1.4e-10 to 3.1e-10 (x pair), 2.4e-8 at worst
     # (the y pair, as far from the planes: the regularised solve's level)
     lay = jitter(_box(), 0.2, seed=seed)
     s = TMzSolver(lay, mirror=PLANES)
@@ -101,6 +101,9 @@ def test_sbp_pair_mirror_conditions_need_degree_one():
     with pytest.raises(ValueError, match="degree=2"):
         sbp_pair(D, lay.e, lay.hx, 1, np.ones(len(lay.e)), np.ones(len(lay.hx)), scale=DR, degree=2, planes=PLANES,
                  reach=2 * DR)
+    for planes, reach in (((np.nan, 1.0), 2 * DR), (PLANES, -DR), (PLANES, np.inf)):
+        with pytest.raises(ValueError, match="planes must be finite x values and reach a finite length"):
+            sbp_pair(D, lay.e, lay.hx, 1, np.ones(len(lay.e)), np.ones(len(lay.hx)), scale=DR, planes=planes, reach=reach)
 
 
 @pytest.mark.parametrize("jittered", [False, True])

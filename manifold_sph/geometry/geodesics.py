@@ -55,7 +55,6 @@ DENOISE_NOISE = 0.07
 #: Below this reading of the 16-point quadrics' residuals (:meth:`LocalTriangles.noise`, an upper bound of the
 #: noise) a cloud is clean without the two-scale estimate.
 CLEAN_READING = 0.05
-_DENOISE = ("auto", True, False)
 
 
 def straight_line(P: np.ndarray, src: np.ndarray) -> np.ndarray:
@@ -66,6 +65,15 @@ def straight_line(P: np.ndarray, src: np.ndarray) -> np.ndarray:
             np.minimum(r, np.sqrt(np.einsum("nd,nd->n", P - P[i], P - P[i])), out=r)
         return r
     return cKDTree(P[src]).query(P, workers=-1 if P.shape[0] > 100_000 else 1)[0]
+
+
+def check_denoise(denoise: bool | str) -> bool | str:
+    """``denoise`` checked: ``"auto"``, True or False (numpy booleans as bool); ValueError otherwise."""
+    if isinstance(denoise, (bool, np.bool_)):
+        return bool(denoise)
+    if isinstance(denoise, str) and denoise == "auto":
+        return denoise
+    raise ValueError(f"denoise must be True, False or 'auto', got {denoise!r}")
 
 
 def _noise_level(tri) -> float:
@@ -294,9 +302,7 @@ class GeodesicSolver:
         denoise: bool | str = "auto",
     ) -> None:
         self.method = check_in("method", method, GEODESIC_METHODS)
-        if not (isinstance(denoise, (bool, np.bool_)) or (isinstance(denoise, str) and denoise == "auto")):
-            raise ValueError(f"denoise must be True, False or 'auto', got {denoise!r}")
-        denoise = denoise if isinstance(denoise, str) else bool(denoise)
+        denoise = check_denoise(denoise)
         if denoise is True and self.method != "wavefront":
             raise ValueError("denoise=True is supported by method='wavefront' only (smooth the cloud first for "
                              "the heat method: manifold_sph.geometry.smooth)")

@@ -236,9 +236,9 @@ class VectorHeatSolver:
         check_scale(surface.points, "vector heat method", SCALE_RANGE)
         self.surface = surface
         self.geodesics = check_in("geodesics", geodesics, ("heat", "wavefront"))
-        if not (isinstance(denoise, (bool, np.bool_)) or (isinstance(denoise, str) and denoise == "auto")):
-            raise ValueError(f"denoise must be True, False or 'auto', got {denoise!r}")
-        self.denoise: bool | str = denoise if isinstance(denoise, str) else bool(denoise)
+        from .geodesics import check_denoise
+
+        self.denoise = check_denoise(denoise)
         m = np.asarray(surface.mass_matrix().diagonal(), dtype=np.float64)
         self._h2 = float(m.mean())
         self.t = VECTOR_HEAT_TIME * self._h2 if t is None else check_positive("t", t)

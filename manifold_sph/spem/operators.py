@@ -541,6 +541,9 @@ def sbp_pair(D: sp.spmatrix | sp.sparray, rows: np.ndarray, cols: np.ndarray, ax
     wall_xy = np.asarray(wall, dtype=np.float64) if B is not None else np.zeros((0, 2))
     # each row (column) particle within ``reach`` of a mirror plane is tested on the linear fields that meet
     # the mirror conditions of the column (row) field instead of 1, x and y (:func:`mirror_fields`)
+    if not np.all(np.isfinite(np.asarray(planes, dtype=np.float64))) or not (np.isfinite(reach) and reach >= 0):
+        raise ValueError(f"sbp_pair: planes must be finite x values and reach a finite length >= 0, got planes="
+                         f"{list(planes)!r}, reach={reach!r}")
     near_r, plane_r = nearest_plane(rows, planes, reach)
     near_c, plane_c = nearest_plane(cols, planes, reach)
     if degree == 2 and (near_r.any() or near_c.any()):
