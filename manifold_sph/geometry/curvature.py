@@ -30,14 +30,14 @@
   ``2.5 h, 3.5 h, 5 h, 7 h, 10 h, 14 h`` is that of ``scale=r`` on the (denoised) points: the fit over
   the largest ladder radius ``b <= r`` over which the surface is a height function, averaged over
   ``sqrt(r^2 - b^2)``. Its standard deviation is the fit's own (from its weights and the noise of
-  the raw points, measured by the residuals of the smallest fit) times ``b / r``: Gaussian-weighted
-  averaging over that reach of fits correlated over ``b`` divides a variance by about
-  ``(r / b)^2``. Per particle the largest radius is taken whose estimate agrees with every smaller
-  one within ``AUTO_WIDTH`` standard deviations (the intersection of confidence intervals of
-  Lepski's method), and then the median of those picks over the particle's neighbours within
+  the raw points, measured by the residuals of the smallest fit) times ``b / r``, the factor for
+  Gaussian-weighted averaging over that reach of errors correlated over ``b``: an upper bound, as
+  the errors of curvature fits change sign between neighbours and average out faster
+  (docs/geometry.md). Per particle the largest radius is taken whose estimate agrees with every
+  smaller one within ``AUTO_WIDTH`` standard deviations (the intersection of confidence intervals
+  of Lepski's method), and then the median of those picks over the particle's neighbours within
   ``2.5 h``: a bias that ends the ladder grows smoothly over the surface, while a chance exit from
-  the intervals does not (0.1-3 % of the particles of noisy random tori and ellipsoids left the
-  ladder below ``7 h`` that way, each with the error of a small fit).
+  the intervals, which leaves a particle with the error of a small fit, does not.
   ``h`` is the mean distance to the 6 nearest points.
 """
 
@@ -249,8 +249,8 @@ def _auto_fits(surface) -> tuple[np.ndarray, np.ndarray]:
         Ws, unit_sd, _ = _jet_fits(surface, radii)
     n = P.shape[0]
     # the estimate at each radius is that of scale=radius: the fit over the largest radius b that is a height
-    # function, averaged over sqrt(radius^2 - b^2); averaging fits of radius b over that reach divides their
-    # variance by about (radius / b)^2 (Gaussian weights: b^2 / (b^2 + reach^2))
+    # function, averaged over sqrt(radius^2 - b^2); its standard deviation is taken as the fit's times b / radius
+    # (fits correlated over b under Gaussian weights), an upper bound (module notes)
     frames = np.stack(_fit_frame(surface, nrm), axis=2)
     Es, sd = Ws.copy(), unit_sd * noise[None, :]
     base = np.zeros(n, dtype=np.int64)
