@@ -410,7 +410,7 @@ def test_curvature_at_a_scale_on_clean_and_noisy_clouds():
     sn = quiet(noisy)
     rho_point = spearmanr(sn.mean_curvature(), exact)[0]
     rho_auto = spearmanr(sn.mean_curvature(scale="auto"), exact)[0]
-    assert rho_auto > 0.9 and rho_auto > rho_point + 0.5, (rho_point, rho_auto)  # measured 0.14 -> 0.96
+    assert rho_auto > 0.9 and rho_auto > rho_point + 0.5, (rho_point, rho_auto)  # measured 0.14 -> 0.99
     assert geometry.curvature_scale(sn).mean() > 2.5 * h  # noise pushes the scale up
 
 
@@ -809,8 +809,8 @@ def test_curvature_at_a_scale_matches_the_mesh_at_that_scale():
 
 def test_automatic_scale_stays_on_a_height_function():
     """A thin noisy torus (8,000 points, tube 7 spacings in radius, 0.5 spacings of noise): the automatic
-    scale stops where the ball would cross the tube's bend; rank correlation with the exact H 0.87
-    (0.70 when the ladder ran on to 14 spacings)."""
+    scale fits only where the ball is a height function (larger radii average those fits); rank correlation
+    with the exact H 0.98 (0.70 with single quadrics over up to 14 spacings)."""
     from scipy.stats import spearmanr
 
     c = shapes.torus(8000)
