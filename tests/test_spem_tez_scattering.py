@@ -228,7 +228,8 @@ def test_cases_bad_input():
     for kw, name in ((dict(kind="coated"), "kind"), (dict(radius=0.0), "radius"), (dict(n_radial=1), "n_radial"),
                      (dict(kind="dielectric", eps_r=-2.0), "eps_r"), (dict(layout="random"), "layout"),
                      (dict(average="mean"), "average"), (dict(ka=0.0), "ka"),
-                     (dict(jump_energy_weight=-1.0), "jump_energy_weight"), (dict(dft_periods=20.0), "dft_periods"),
+                     (dict(jump_energy_weight=-1.0), "jump_energy_weight"), (dict(periods=12.0, dft_periods=20.0), "dft_periods"),
+                     (dict(dft_periods=500.0), "dft_periods"), (dict(periods="long"), "periods"),
                      (dict(coupling="direct"), "coupling")):
         with pytest.raises(ValueError, match=name):
             ts.run_tez_scattering(**kw)

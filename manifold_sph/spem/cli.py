@@ -38,6 +38,11 @@ def _positive(kind):
     return conv
 
 
+def _periods(text: str) -> float | str:
+    """``--periods``: ``auto`` or a positive number."""
+    return "auto" if text == "auto" else _positive(float)(text)
+
+
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Add the ``spem`` subcommand to an ``argparse`` subparsers object and return it."""
     from .cases import CASES
@@ -222,14 +227,16 @@ def _add_scattering_arguments(p: argparse.ArgumentParser) -> None:
                              "PEC cavity of radius 0.1 m, curved walls; --n-radial, default 20; --coupling sbp|adjoint), "
                              "tez-scatter-pec, tez-scatter-dielectric (TEz plane wave on a cylinder of radius 0.1 m: "
                              "exact Hz series, split-field PML; --n-radial, default 8, --eps-r, default 4, --layout "
-                             "yee|jittered, --coupling sbp|adjoint, --h-ratio, default 0.8, --ka, --periods, default 12; "
+                             "yee|jittered, --coupling sbp|adjoint, --h-ratio, default 0.8, --ka, --periods, default auto; "
                              "tez-scatter-dielectric: --interface average|corrected|auto)")
     g.add_argument("--ka", type=_positive(float), default=None, help="wavenumber times radius (default 2)")
     g.add_argument("--core-radius", type=_positive(float), default=None,
                    help="scatter-coated: PEC core radius in m (default 0.05)")
-    g.add_argument("--periods", type=_positive(float), default=None,
-                   help="scatter-*: periods of the drive (default 20; the last 2 are Fourier-analysed); "
-                        "tez-cavity: periods before the error is taken (default 1)")
+    g.add_argument("--periods", type=_periods, default=None,
+                   help="scatter-*, tez-scatter-*: periods of the drive, or auto (default: until the Fourier-analysed "
+                        "phasor of the last 2 periods is steady to 1e-4; the JSON's 'periods' and 'transient' say "
+                        "what ran; a phasor left unsteady exits 3); tez-cavity, tez-disk: periods before the error "
+                        "is taken (default 1)")
     g.add_argument("--time-correction", action="store_true",
                    help="scatter-*: remove the leap-frog's time dispersion at the drive frequency (pays with "
                         "--coupling mimetic)")
@@ -322,6 +329,9 @@ def _run_scattering(args: argparse.Namespace) -> int:
             if kind == "dielectric":
                 extra = {"interface": {v: k for k, v in TEZ_CLI_INTERFACES.items()}.get(result.average, result.average)}
         elif args.case in ("tez-cavity", "tez-disk"):
+            if args.periods == "auto":
+                raise ValueError(f"--periods auto applies only to the scattering cases, not {args.case!r} "
+                                 "(give a number of periods)")
             for name in ("ka", "core_radius"):
                 if getattr(args, name) is not None:
                     raise ValueError(f"--{name.replace('_', '-')} does not apply to case {args.case!r}")
@@ -355,7 +365,6 @@ def _run_scattering(args: argparse.Namespace) -> int:
                     raise ValueError(f"--interface for case {args.case!r} must be one of auto, average, jump, "
                                      f"got {args.interface!r}")
                 kw["interface"] = args.interface
-            kw.setdefault("periods", 20.0)
             if args.mimetic_fast:
                 if kw["coupling"] != "mimetic":
                     raise ValueError("--mimetic-fast applies only with --coupling mimetic")

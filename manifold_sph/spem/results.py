@@ -221,6 +221,13 @@ class ScatteringResult(Result):
         Measured and exact scattered phasors there.
     interface : str
         The interface treatment used ("average" or "jump"; "average" for the PEC cylinder).
+    periods : float
+        Drive periods run (``steps`` over the steps per period).
+    transient : float
+        Estimated transient left in ``phasor``, relative to its L2 norm
+        (:class:`~manifold_sph.spem.steady.PeriodPhasors`).
+    certificate_failures : tuple of str
+        One sentence when the phasor is not steady to the run's ``steady_tol``.
     """
 
     _dict_skip = ('points', 'phasor', 'exact')
@@ -241,6 +248,9 @@ class ScatteringResult(Result):
     phasor: np.ndarray = dataclasses.field(repr=False)
     exact: np.ndarray = dataclasses.field(repr=False)
     interface: str = "average"
+    periods: float = 0.0
+    transient: float = 0.0
+    certificate_failures: tuple = ()
 
 
 @dataclass(frozen=True, repr=False, eq=False)
@@ -272,6 +282,8 @@ class TEzScatteringResult(Result):
         The evaluation Hz particles (outside the PML, outside a conductor).
     phasor, exact : (P,) complex arrays
         Measured and exact scattered phasors there.
+    periods, transient, certificate_failures
+        As :class:`ScatteringResult`.
     """
 
     _dict_skip = ('points', 'phasor', 'exact')
@@ -294,6 +306,9 @@ class TEzScatteringResult(Result):
     points: np.ndarray = dataclasses.field(repr=False)
     phasor: np.ndarray = dataclasses.field(repr=False)
     exact: np.ndarray = dataclasses.field(repr=False)
+    periods: float = 0.0
+    transient: float = 0.0
+    certificate_failures: tuple = ()
 
 
 @dataclass(frozen=True, repr=False, eq=False)

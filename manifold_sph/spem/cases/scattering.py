@@ -48,6 +48,7 @@ from ..operators import COUPLINGS, DEFAULT_COUPLING
 from ..pml import PML
 from ..results import ScatteringResult, TEzScatteringResult
 from ..sources import Source
+from ..steady import MAX_PERIODS, STEADY_TOL, check_periods, run_driven, steady_failures
 from ..tez import DISK_H_RATIO, CircularInterface, TEzPMLSolver
 from ..tmz import TMzSolver
 from .common import l2_error
@@ -324,7 +325,8 @@ def run_phasor(s: TMzSolver, ev: np.ndarray, w: float, steps: int, n_dft: int) -
 def run_scattering(kind: str = "dielectric", *, n_radial: int = 8, radius: float = 0.1, ka: float = 2.0,
                    eps_r: float = 4.0, core_radius: float | None = None, layout: str = "yee", amplitude: float = 0.2,
                    seed: int | None = 0, margin: float = 0.5, pml_thickness: float = 0.5, pml_order: int = 3,
-                   pml_reflection: float = 1e-6, periods: float | None = None, ramp: float = 3.0, dft_periods: float = 2.0,
+                   pml_reflection: float = 1e-6, periods: float | str = "auto", ramp: float = 3.0, dft_periods: float = 2.0,
+                   steady_tol: float = STEADY_TOL, max_periods: float = MAX_PERIODS,
                    coupling: str = DEFAULT_COUPLING, h_ratio: float | None = None,
                    kernel: str | Kernel | type[Kernel] = "cubic", form: str = "fpm", courant: float = 0.9,
                    sbp_layers: int | None | str = "auto", n_sub: int = 8,
@@ -358,12 +360,21 @@ def run_scattering(kind: str = "dielectric", *, n_radial: int = 8, radius: float
     core_radius : float, optional
         "coated": the PEC core (default ``radius / 2``).
     layout : {"yee", "jittered"}
-    periods : float, optional
-        Length of the run in drive periods (default: 20 for the dielectric,
-        whose modes ring down slowly: 12 leave 5.0e-3 at 8 spacings per radius
-        with the mimetic coupling where 20 give 6.9e-4; 12 for "pec" and
-        "coated"). The other numeric options (``margin``, ``pml_thickness``,
-        ``ramp``, ``dft_periods`` ...) are described above.
+    periods : float or "auto"
+        Length of the run in drive periods, or "auto" (default): whole periods
+        until the transient left in the phasor is estimated below
+        ``steady_tol`` of its norm (:mod:`..steady`; at most ``max_periods``).
+        The dielectric's modes ring down slowly: a fixed 12 periods left
+        5.0e-3 at 8 spacings per radius with the mimetic coupling, 20 left
+        6.9e-4. The result's ``periods`` and ``transient`` say what ran; a
+        phasor not steady to ``steady_tol`` (a fixed length too short, or
+        ``max_periods`` reached) is named in ``certificate_failures``. The
+        other numeric options (``margin``, ``pml_thickness``, ``ramp``,
+        ``dft_periods`` ...) are described above.
+    steady_tol, max_periods : float
+        The tolerance and the longest run of ``periods="auto"`` (defaults
+        :data:`~manifold_sph.spem.steady.STEADY_TOL`, 1e-4, and
+        :data:`~manifold_sph.spem.steady.MAX_PERIODS`, 400).
     coupling : {"sbp", "mimetic", "adjoint", "direct"}
         As :class:`.TMzSolver` ("direct" is refused where it would grow).
     h_ratio : float, optional
@@ -449,12 +460,10 @@ def run_scattering(kind: str = "dielectric", *, n_radial: int = 8, radius: float
         sbp_layers = 2 if kind == "dielectric" else None
     margin = check_positive("margin", margin)
     pml_thickness = check_positive("pml_thickness", pml_thickness)
-    if periods is None:  # the dielectric rings down slowly (module notes): 12 periods leave 5e-3 at 8 spacings per radius
-        periods = 20.0 if kind == "dielectric" else 12.0
-    periods = check_positive("periods", periods)
+    periods = check_periods(periods)
     ramp = check_positive("ramp", ramp, allow_zero=True)
     dft_periods = check_positive("dft_periods", dft_periods)
-    if dft_periods > periods - ramp:
+    if not isinstance(periods, str) and dft_periods > periods - ramp:
         raise ValueError(f"dft_periods must be at most periods - ramp = {periods - ramp:g}, got {dft_periods}")
     freq, dr, inner, outer = scattering_domain(radius, ka, n_radial, margin, pml_thickness)
     lay = scattering_layout(kind, radius, dr, outer, core_radius=core_radius,
@@ -535,18 +544,24 @@ def run_scattering(kind: str = "dielectric", *, n_radial: int = 8, radius: float
         s.set_dt(T / per)
     if drive is not None:
         drive.dt = s.dt
-    steps = int(round(periods * per))
-    n_dft = int(round(dft_periods * per))
     ev = interior_particles(s, e, inner)
     setup = time.perf_counter() - t_start
-    phasor = run_phasor(s, ev, w, steps, n_dft)
+
+    def advance(n: int) -> tuple[np.ndarray, float]:
+        s.step()
+        return s.e_field[ev], s.t
+
+    run = run_driven(advance, per, w, periods=periods, ramp=ramp, window=dft_periods, tol=steady_tol,
+                     max_periods=max_periods)
+    phasor, steps = run.phasor, run.steps
     pts = e[ev]
     exact = scattered_field(pts, kind, freq=freq, radius=radius, eps_r=eps_r, core_radius=core_radius)
     r_ev = np.hypot(pts[:, 0], pts[:, 1])
     ring = (r_ev > radius) & (r_ev <= 2 * radius)
     return ScatteringResult(kind, l2_error(phasor, exact), l2_error(phasor[ring], exact[ring]), lay.n_particles,
                             steps, time.perf_counter() - t_start, setup, dr, s.dt, layout, coupling, n_radial,
-                            pts, phasor, exact, interface if kind != "pec" else "average")
+                            pts, phasor, exact, interface if kind != "pec" else "average", run.periods,
+                            run.transient, steady_failures(run, periods, steady_tol))
 
 
 #: ``average="auto"`` of :func:`run_tez_scattering` uses the corrected interface up to this contrast
@@ -605,8 +620,9 @@ class IncidentResidual:
 def run_tez_scattering(kind: str = "pec", *, n_radial: int = 8, radius: float = 0.1, ka: float = 2.0,
                        eps_r: float = 4.0, layout: str = "yee", amplitude: float = 0.2, seed: int | None = 0,
                        average: str = "anisotropic", margin: float = 0.5, pml_thickness: float = 0.5,
-                       pml_order: int = 3, pml_reflection: float = 1e-6, periods: float = 12.0, ramp: float = 3.0,
-                       dft_periods: float = 2.0, coupling: str = "sbp", h_ratio: float = DISK_H_RATIO,
+                       pml_order: int = 3, pml_reflection: float = 1e-6, periods: float | str = "auto",
+                       ramp: float = 3.0, dft_periods: float = 2.0, steady_tol: float = STEADY_TOL,
+                       max_periods: float = MAX_PERIODS, coupling: str = "sbp", h_ratio: float = DISK_H_RATIO,
                        courant: float = 0.9, wall_spacing: float = 0.5, wall_margin: float = 0.3,
                        n_sub: int = 8, jump_energy_weight: float = 0.0,
                        bulk_order: int | None = None) -> TEzScatteringResult:
@@ -619,8 +635,9 @@ def run_tez_scattering(kind: str = "pec", *, n_radial: int = 8, radius: float = 
     reaches ``margin`` wavelengths beyond the cylinder, the PML
     ``pml_thickness`` wavelengths beyond it (a PEC box behind). The incident
     wave is switched on over ``ramp`` periods, the run lasts ``periods``
-    periods (an integer number of steps each) and the complex amplitude of Hz
-    is the DFT over the last ``dft_periods``.
+    periods (an integer number of steps each; "auto", the default: until the
+    phasor is steady to ``steady_tol``, as :func:`run_scattering`) and the
+    complex amplitude of Hz is the DFT over the last ``dft_periods``.
 
     Parameters
     ----------
@@ -689,10 +706,10 @@ def run_tez_scattering(kind: str = "pec", *, n_radial: int = 8, radius: float = 
     jump_energy_weight = check_positive("jump_energy_weight", jump_energy_weight, allow_zero=True)
     margin = check_positive("margin", margin)
     pml_thickness = check_positive("pml_thickness", pml_thickness)
-    periods = check_positive("periods", periods)
+    periods = check_periods(periods)
     ramp = check_positive("ramp", ramp, allow_zero=True)
     dft_periods = check_positive("dft_periods", dft_periods)
-    if dft_periods + 1.0 > periods - ramp:
+    if not isinstance(periods, str) and dft_periods + 1.0 > periods - ramp:
         raise ValueError(f"dft_periods must be at most periods - ramp - 1 = {periods - ramp - 1.0:g}, "
                          f"got {dft_periods}")
     freq, dr, inner, outer = scattering_domain(radius, ka, n_radial, margin, pml_thickness)
@@ -757,29 +774,32 @@ def run_tez_scattering(kind: str = "pec", *, n_radial: int = 8, radius: float = 
         # (dt / mu0) C E_inc - dHz_inc and (dt / eps) G Hz_inc - dE_inc instead of -(eps - 1) / eps dEy_inc
         band = IncidentResidual(s, lay, radius, TEZ_BAND_SPACINGS * dr, freq, x0, ramp, k0)
         fac = np.where(band.in_ey[diel], 0.0, fac)
-    steps = int(round(periods * per))
-    n_dft = int(round(dft_periods * per))
     hz = lay.hz
     ev = np.flatnonzero((np.abs(hz[:, 0]) <= inner) & (np.abs(hz[:, 1]) <= inner))
     setup = time.perf_counter() - t_start
-    acc = np.zeros(len(ev), dtype=complex)
-    peak = np.zeros(2)
-    for n in range(steps):
+    peaks: list[float] = []  # the largest |Hz| of each period
+
+    def advance(n: int) -> tuple[np.ndarray, float]:
+        nonlocal dey
         t_half = (n + 0.5) * s.dt
         if wall_inc is not None:
             et[ring] = -ETA0 * wall_inc(t_half) * tau_y
         if ey_inc is not None:
             dey[diel] = -fac * (ey_inc(t_half + s.dt) - ey_inc(t_half))
-        dex = None
+        dex = dhz = None
         if band is not None:
             dhz, dex, dey = band(t_half, dey)
         s.step(et if wall_inc is not None else None, dex, dey if ey_inc is not None else None, dhz)
         h = s.hz
-        if n >= steps - 2 * per:
-            peak[int(n >= steps - per)] = max(peak[int(n >= steps - per)], float(np.abs(h).max()))
-        if n >= steps - n_dft:
-            acc += h[ev] * np.exp(1j * w * s.t)
-    phasor = acc * (2.0 / n_dft)
+        if n % per == 0:
+            peaks.append(0.0)
+        peaks[-1] = max(peaks[-1], float(np.abs(h).max()))
+        return h[ev], s.t
+
+    run = run_driven(advance, per, w, periods=periods, ramp=ramp, window=dft_periods, tol=steady_tol,
+                     max_periods=max_periods)
+    phasor, steps = run.phasor, run.steps
+    peak = peaks[-2:] if run.steps % per == 0 else peaks[-3:-1]
     pts = hz[ev]
     exact = tez_scattered_field(pts, kind, freq=freq, radius=radius, eps_r=eps_r)
     r_ev = np.hypot(pts[:, 0], pts[:, 1])
@@ -787,4 +807,5 @@ def run_tez_scattering(kind: str = "pec", *, n_radial: int = 8, radius: float = 
     return TEzScatteringResult(kind, l2_error(phasor, exact), l2_error(phasor[near], exact[near]), lay.n_particles,
                                steps, time.perf_counter() - t_start, setup, dr, s.dt, layout, coupling,
                                average if kind == "dielectric" else "", n_radial, s.dt / s.dt_stable,
-                               peak[1] / peak[0], pts, phasor, exact)
+                               peak[1] / peak[0], pts, phasor, exact, run.periods, run.transient,
+                               steady_failures(run, periods, steady_tol))
