@@ -767,7 +767,7 @@ def run_tez_scattering(kind: str = "pec", *, n_radial: int = 8, radius: float = 
     ey_inc = SwitchedWave(lay.ey[diel, 0], freq, x0, ramp, k0) if len(diel) else None
     fac = ETA0 * (eps_y[diel] - 1.0) / eps_y[diel]
     dey = np.zeros(len(lay.ey))
-    band = dhz = None
+    band = None
     if iface is not None:
         # the corrected operators are exact for fields meeting the jump conditions, which the smooth incident
         # wave does not: near the circle the scattered field gets the incident wave's full residual
