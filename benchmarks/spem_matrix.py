@@ -45,13 +45,13 @@ CASES = {
     "waveguide": (TMZ_LAYOUTS, ["--ppw", "40"]),
     "planewave": (TMZ_LAYOUTS, ["--ppw", "20", "--size", "0.25"]),
     "pml": (TMZ_LAYOUTS, []),
-    "scatter-pec": (("yee", "jittered"), ["--n-radial", "4", "--periods", "10"]),
-    "scatter-dielectric": (("yee", "jittered"), ["--n-radial", "4", "--periods", "10"]),
-    "scatter-coated": (("yee", "jittered"), ["--n-radial", "4", "--periods", "10"]),
+    "scatter-pec": (("yee", "jittered"), ["--n-radial", "4"]),
+    "scatter-dielectric": (("yee", "jittered"), ["--n-radial", "4"]),
+    "scatter-coated": (("yee", "jittered"), ["--n-radial", "4"]),
     "tez-cavity": (("yee", "jittered", "poisson"), []),
     "tez-disk": (("yee", "jittered", "poisson"), ["--n-radial", "10"]),
-    "tez-scatter-pec": (("yee", "jittered"), ["--n-radial", "4", "--periods", "8"]),
-    "tez-scatter-dielectric": (("yee", "jittered"), ["--n-radial", "4", "--periods", "8"]),
+    "tez-scatter-pec": (("yee", "jittered"), ["--n-radial", "4"]),
+    "tez-scatter-dielectric": (("yee", "jittered"), ["--n-radial", "4"]),
 }
 #: extra arguments a layout needs for a case (the CLI refuses the layout without them)
 NEEDS = {("tez-cavity", "poisson"): ["--wall-closure"]}
@@ -115,14 +115,14 @@ def yee_reference(case: str, args: list[str]) -> float | None:
             from spem_vs_yee import run_yee_scattering
 
             kind = case.split("-", 1)[1]
-            periods = float(args[args.index("--periods") + 1]) if "--periods" in args else 20.0
+            periods = float(args[args.index("--periods") + 1]) if "--periods" in args else 60.0  # steady (auto: 9-29)
             kw = {"core_radius": 0.05} if kind == "coated" else {}
             return float(run_yee_scattering(kind, n or 8, periods=periods, **kw)["error"])
         if case.startswith("tez-scatter-"):
             from spem_tez import run_yee_tez_scattering
 
             kind = case.rsplit("-", 1)[1]
-            periods = float(args[args.index("--periods") + 1]) if "--periods" in args else 12.0
+            periods = float(args[args.index("--periods") + 1]) if "--periods" in args else "auto"
             return float(run_yee_tez_scattering(kind, n or 8, periods=periods)["error"])
     except (ImportError, KeyError, TypeError, ValueError) as exc:
         print(f"  (Yee reference for {case} unavailable: {exc})", file=sys.stderr)

@@ -27,6 +27,7 @@ from manifold_sph.spem.cases import l2_error
 from manifold_sph.spem.cases.scattering import scattering_domain
 from manifold_sph.spem.constants import C0, EPS0, MU0
 from manifold_sph.spem.pml import PML
+from manifold_sph.spem.steady import STEADY_TOL, run_driven
 
 
 def order(ns, values):
@@ -120,9 +121,10 @@ class YeeTEz:
         return hz
 
 
-def run_yee_tez_scattering(kind, n_radial, *, average="staircase", radius=0.1, ka=2.0, eps_r=4.0, periods=12.0,
+def run_yee_tez_scattering(kind, n_radial, *, average="staircase", radius=0.1, ka=2.0, eps_r=4.0, periods="auto",
                            ramp=3.0, dft_periods=2.0, margin=0.5, pml_thickness=0.5):
-    """The case of :func:`.run_tez_scattering` on the staircased Yee grid (same domain, PML, drive and DFT).
+    """The case of :func:`.run_tez_scattering` on the staircased Yee grid (same domain, PML, drive and DFT;
+    ``periods="auto"``: until the phasor is steady, :func:`manifold_sph.spem.steady.run_driven`).
 
     PEC: the Ey edges whose midpoint is inside the cylinder are held at the scattered
     ``-Ey_inc`` and the Ex edges there at 0 (``Ex_inc = 0``). Dielectric: ``eps`` per
@@ -165,12 +167,10 @@ def run_yee_tez_scattering(kind, n_radial, *, average="staircase", radius=0.1, k
     N = s.N
     unknowns = int(keep_h.sum()) + N * (N - 1) * 2 - fixed
     ev = np.flatnonzero(keep_h & (np.abs(hz_p[:, 0]) <= inner) & (np.abs(hz_p[:, 1]) <= inner))
-    steps = int(round(periods * per))
-    n_dft = int(round(dft_periods * per))
     w = 2 * math.pi * freq
     setup = time.perf_counter() - t0
-    acc = np.zeros(len(ev), dtype=complex)
-    for n in range(steps):
+
+    def advance(n):
         hz = s.step()
         t_next = (n + 1.5) * s.dt
         if kind == "pec":
@@ -178,9 +178,10 @@ def run_yee_tez_scattering(kind, n_radial, *, average="staircase", radius=0.1, k
             s.ey[pec_y] = -eta0 * inc(t_next)
         else:
             s.ey[diel] -= fac * (inc(t_next) - inc(t_next - s.dt))
-        if n >= steps - n_dft:
-            acc += hz.ravel()[ev] * np.exp(1j * w * (n + 1) * s.dt)
-    phasor = acc * (2.0 / n_dft)
+        return hz.ravel()[ev], (n + 1) * s.dt
+
+    run = run_driven(advance, per, w, periods=periods, ramp=ramp, window=dft_periods)
+    phasor, steps = run.phasor, run.steps
     pts = hz_p[ev]
     exact = ts.tez_scattered_field(pts, kind, freq=freq, radius=radius, eps_r=eps_r)
     r = np.hypot(pts[:, 0], pts[:, 1])
@@ -188,7 +189,8 @@ def run_yee_tez_scattering(kind, n_radial, *, average="staircase", radius=0.1, k
     total = time.perf_counter() - t0
     return {"method": "Yee " + ("staircased" if kind == "pec" or average == "staircase" else average),
             "case": kind, "n_radial": n_radial, "unknowns": unknowns, "error": l2_error(phasor, exact),
-            "ring": l2_error(phasor[ring], exact[ring]), "setup": setup, "run": total - setup, "steps": steps}
+            "ring": l2_error(phasor[ring], exact[ring]), "setup": setup, "run": total - setup, "steps": steps,
+            "periods": run.periods, "transient": run.transient}
 
 
 def run_spem_tez(kind, n_radial, **kw):
@@ -197,7 +199,7 @@ def run_spem_tez(kind, n_radial, **kw):
         + (f" {r.average}" if kind == "dielectric" else "")
     return {"method": label, "case": kind, "n_radial": n_radial, "unknowns": r.particles, "error": r.error,
             "ring": r.ring_error, "setup": r.setup_seconds, "run": r.seconds - r.setup_seconds, "steps": r.steps,
-            "growth": r.field_growth, "dt_frac": r.stable_fraction}
+            "growth": r.field_growth, "dt_frac": r.stable_fraction, "periods": r.periods, "transient": r.transient}
 
 
 def scattering_main():
@@ -319,11 +321,13 @@ def dielectric_table(ns=(4, 8, 16)):
     SPEM ``average="auto"`` (lattice: the jump-corrected curl pair, :class:`.CircularInterface`, with the
     fourth-order bulk rows; jittered: the anisotropic cell average), SPEM with the anisotropic cell average
     (second-order bulk: the previous default), and the Yee grid with the same anisotropic average and
-    staircased (:func:`run_yee_tez_scattering`), ka = 2 and eps_r = 4 unless given. ``ratio``: the averaged
-    Yee's error at SPEM's unknowns (log-log interpolation on Yee's own curve) over SPEM "auto"'s.
+    staircased (:func:`run_yee_tez_scattering`), ka = 2 and eps_r = 4 unless given. Every run lasts until its
+    phasor is steady (``periods="auto"``; the periods it took in brackets, ``*`` where it stopped unsteady).
+    ``ratio``: the averaged Yee's error at SPEM's unknowns (log-log interpolation on Yee's own curve) over
+    SPEM "auto"'s.
     """
     print("\nTEz dielectric cylinders: error of the scattered Hz at " + " / ".join(map(str, ns))
-          + " spacings per radius (unknowns in brackets)")
+          + " spacings per radius (unknowns, periods run until steady)")
     cases = [dict(), dict(ka=1.0), dict(ka=3.0), dict(eps_r=2.0), dict(eps_r=8.0), dict(layout="jittered")]
     for kw in cases:
         label = ", ".join(f"{k} {v}" for k, v in kw.items()) or "ka 2, eps_r 4"
@@ -339,21 +343,23 @@ def dielectric_table(ns=(4, 8, 16)):
                 try:
                     r = fn(n)
                 except (ValueError, MemoryError) as e:
-                    out.append((n, None, None, "", type(e).__name__))
+                    out.append((n, None, None, "", type(e).__name__, ""))
                     continue
                 if isinstance(r, dict):
-                    out.append((n, r["error"], r["unknowns"], "", ""))
+                    steady = "" if r["transient"] <= STEADY_TOL else "*"
+                    out.append((n, r["error"], r["unknowns"], "", "", f"{r['periods']:g}{steady}"))
                 else:
-                    out.append((n, r.error, r.particles, r.average, ""))
+                    steady = "" if not r.certificate_failures else "*"
+                    out.append((n, r.error, r.particles, r.average, "", f"{r.periods:g}{steady}"))
             rows[name] = out
-            cells = [f"{e:.2e} ({u})" if e is not None else f"failed: {why}" for _, e, u, _, why in out]
-            used = sorted({a for *_, a, _ in out if a})
+            cells = [f"{e:.2e} ({u}, {p})" if e is not None else f"failed: {why}" for _, e, u, _, why, p in out]
+            used = sorted({a for _, _, _, a, _, _ in out if a})
             print(f"  {label:<16s} {name:<17s} " + " / ".join(cells) + (f"   [{', '.join(used)}]" if used else ""),
                   flush=True)
-        yee = [(u, e) for _, e, u, _, _ in rows["Yee anisotropic"] if e is not None]
+        yee = [(u, e) for _, e, u, _, _, _ in rows["Yee anisotropic"] if e is not None]
         lu, le = np.log([u for u, _ in yee]), np.log([e for _, e in yee])
         ratios = []
-        for _, e, u, _, _ in rows["SPEM auto"]:
+        for _, e, u, _, _, _ in rows["SPEM auto"]:
             ratios.append(f"{math.exp(np.interp(math.log(u), lu, le)) / e:.1f}x" if e is not None else "-")
         print(f"  {label:<16s} {'ratio':<17s} " + " / ".join(ratios) + "   (averaged Yee at SPEM's unknowns / SPEM auto)",
               flush=True)
