@@ -6,7 +6,8 @@ Ey sets with wall particles); :mod:`.operators` (cross-set CSPM derivative matri
 the SBP correction with its PEC closure, the couplings) and :mod:`.mimetic` (the
 second-order energy-conserving "mimetic" coupling); :mod:`.pml`, :mod:`.sources`;
 :mod:`.stability` (CFL rule, spectral radius bound, leap-frog growth);
-:mod:`.stepping` (the ``run`` contract every solver shares); :mod:`.tmz`
+:mod:`.stepping` (the ``run`` contract every solver shares); :mod:`.steady` (driven runs
+until their phasor is steady); :mod:`.tmz`
 (:class:`TMzSolver`; compiled steps in :mod:`.compiled` and
 :mod:`.stencil`); :mod:`.line` (:class:`Line1DSolver`); :mod:`.tez` (:class:`TEzSolver`, :class:`TEzPMLSolver`);
 :mod:`.mie` (the exact cylinder series of both polarisations); :mod:`.interfaces`
@@ -107,6 +108,7 @@ from .results import (
 )
 from .sources import GaussianPulse, Sinusoid, Source, line_source, point_source
 from .stability import cfl_number, leapfrog_growth, spectral_radius_bound
+from .steady import PeriodPhasors, run_driven
 from .tez import DISK_H_RATIO, CircularInterface, TEzPMLSolver, TEzSolver
 from .tmz import TMzSolver
 
@@ -118,7 +120,7 @@ __all__ = [
     "FORMS", "COUPLINGS", "DEFAULT_COUPLING", "DEFAULT_H_RATIO", "cross_gradient", "cross_pairs", "sbp_pair",
     "PML", "sigma_max",
     "GaussianPulse", "Sinusoid", "Source", "line_source", "point_source",
-    "cfl_number", "leapfrog_growth", "spectral_radius_bound",
+    "cfl_number", "leapfrog_growth", "spectral_radius_bound", "PeriodPhasors", "run_driven",
     "TMzSolver", "Line1DSolver", "TEzSolver", "TEzPMLSolver", "CircularInterface", "DISK_H_RATIO",
     "SCATTERERS", "TEZ_SCATTERERS", "wavenumber", "mie_coefficients", "scattered_field", "total_field",
     "tez_mie_coefficients", "tez_scattered_field", "tez_total_field",
