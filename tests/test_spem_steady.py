@@ -15,7 +15,7 @@ import pytest
 
 import manifold_sph.spem as ts
 from manifold_sph.spem.cases import scattering as sc
-from manifold_sph.spem.steady import STEADY_TOL, PeriodPhasors, run_driven, steady_failures
+from manifold_sph.spem.steady import STEADY_ACCEPT, STEADY_TOL, PeriodPhasors, run_driven, steady_failures
 
 W, PER = 2 * np.pi, 40
 STEADY = np.array([np.exp(0.3j), 0.2j, -0.5])  # the phasors of cos(w t - 0.3), 0.2 sin(w t), -0.5 cos(w t)
@@ -62,9 +62,9 @@ def test_the_estimate_follows_the_distance_to_steady():
 
 def test_an_undamped_mode_stalls_and_is_reported():
     """A mode that does not decay (at 1.3 times the drive, beside a decaying one) never settles: "auto" stops
-    when the estimate stops falling (measured: 97 periods, once the decaying mode is below the undamped one),
+    when the estimate stops falling (measured: 73 periods, once the decaying mode is below the undamped one),
     not at max_periods, and says so."""
-    run = run_driven(_signal([0.1, 0.0], [0.8, 1.3], [0.5, 1e-3]), PER, W, periods="auto", ramp=3.0, window=2.0)
+    run = run_driven(_signal([0.1, 0.0], [0.8, 1.3], [0.5, 1e-2]), PER, W, periods="auto", ramp=3.0, window=2.0)
     assert run.stalled and not run.converged and run.periods < 120
     failures = steady_failures(run, "auto", STEADY_TOL)
     assert len(failures) == 1 and "stopped decaying" in failures[0]
@@ -108,6 +108,15 @@ def test_tmz_scattering_runs_until_steady():
     r = sc.run_scattering("dielectric", n_radial=4, interface="average")
     assert r.certificate_failures == () and r.transient <= STEADY_TOL and r.periods < 60
     assert r.to_dict()["periods"] == r.periods
+
+
+def test_an_undamped_remnant_below_the_acceptance_is_certified():
+    """The jittered TMz dielectric cylinder at 8 spacings per radius stops decaying at an estimated 6.6e-4
+    (54 periods, measured): below 10x the tolerance, so certified, and its error is the lattice's order
+    (7.8e-2 against 4.4e-2)."""
+    r = sc.run_scattering("dielectric", layout="jittered")
+    assert STEADY_TOL < r.transient <= STEADY_ACCEPT * STEADY_TOL and r.certificate_failures == ()
+    assert r.periods < 100 and r.error < 0.1
 
 
 def test_tez_pec_lattice_drift_at_4_spacings_is_not_certified():
