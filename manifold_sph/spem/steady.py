@@ -11,13 +11,17 @@ With an integer number of steps per period, the DFT of a steady field over one
 whole period is the same in every period (round-off apart). :class:`PeriodPhasors`
 keeps the phasor of each period, the phasor over the last ``window`` periods
 (what the cases report), and estimates how far that phasor still is from the
-steady one: the windows' successive changes ``d_k`` shrink geometrically once
-one mode dominates the transient, ``d_k ~ q d_(k-1)``, so what is left is at
-most ``d_k q / (1 - q)``. ``q`` is read, conservatively, as the largest of the
-last three per-period rates (``(d_k / d_(k-j))^(1/j)``, ``j = 1, 2, 3``), and
-taken as 0.99 where the changes do not shrink yet. :func:`run_driven` steps a
-case until that estimate falls below a tolerance (``periods="auto"``) or for a
-fixed number of periods.
+steady one. Once one mode dominates what is left of the transient, the window
+phasor's change from one period to the next is ``s_k = z s_(k-1)``, ``z`` a
+complex ratio (the mode's decay and its phase turn against the drive over a
+period), so what is left is ``s_k z / (1 - z)``: the estimate is
+``|s_k| |z| / |1 - z|`` relative to the phasor's norm, with ``z`` fitted by
+least squares over the last three lags (``|1 - z|`` kept above 0.01). On a
+dielectric cylinder at a contrast of 8 it follows the distance to a 320-period
+run within a factor 1.3 from 2e-3 down to 2e-4, and low by up to 2.2x before,
+between 3e-2 and 5e-3 (docs/spem.md, "Driven runs until steady"). :func:`run_driven` steps a case until the estimate
+stays below a tolerance for two periods (``periods="auto"``), until it stops
+falling (an undamped mode or a drift), or for a fixed number of periods.
 
 Examples
 --------
