@@ -32,7 +32,7 @@ Examples
 ...     t = (n + 1) * dt
 ...     return np.array([np.cos(w * t - 0.3) + np.exp(-0.2 * t) * np.cos(1.3 * w * t)]), t
 >>> run = run_driven(advance, per, w, periods="auto", ramp=0.0, window=2, tol=1e-6)
->>> run.converged, abs(run.phasor[0] - np.exp(0.3j)) < 1e-5
+>>> run.converged, bool(abs(run.phasor[0] - np.exp(0.3j)) < 1e-5)
 (True, True)
 """
 
