@@ -227,7 +227,12 @@ class ScatteringResult(Result):
         Estimated transient left in ``phasor``, relative to its L2 norm
         (:class:`~manifold_sph.spem.steady.PeriodPhasors`).
     certificate_failures : tuple of str
-        One sentence when the phasor is not steady to the run's ``steady_tol``.
+        One sentence per certificate outside its validated range: the phasor not steady
+        (:func:`~manifold_sph.spem.steady.steady_failures`), the interior consistency
+        (:func:`~manifold_sph.spem.certify.certificate_failures`).
+    consistency, consistency_interior : float
+        The operators' error on linear fields, everywhere and away from the conductors and
+        driven particles (as :class:`CaseResult`).
     """
 
     _dict_skip = ('points', 'phasor', 'exact')
@@ -251,6 +256,8 @@ class ScatteringResult(Result):
     periods: float = 0.0
     transient: float = 0.0
     certificate_failures: tuple = ()
+    consistency: float | None = None
+    consistency_interior: float | None = None
 
 
 @dataclass(frozen=True, repr=False, eq=False)

@@ -23,6 +23,7 @@ Examples
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from collections.abc import Callable
@@ -33,6 +34,7 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike
 
 from ..._validation import check_in, check_int, check_positive
+from ..certify import certificate_failures
 from ..constants import C0, ETA0, MU0
 from ..interfaces import (
     INTERFACES,
@@ -558,10 +560,12 @@ def run_scattering(kind: str = "dielectric", *, n_radial: int = 8, radius: float
     exact = scattered_field(pts, kind, freq=freq, radius=radius, eps_r=eps_r, core_radius=core_radius)
     r_ev = np.hypot(pts[:, 0], pts[:, 1])
     ring = (r_ev > radius) & (r_ev <= 2 * radius)
-    return ScatteringResult(kind, l2_error(phasor, exact), l2_error(phasor[ring], exact[ring]), lay.n_particles,
-                            steps, time.perf_counter() - t_start, setup, dr, s.dt, layout, coupling, n_radial,
-                            pts, phasor, exact, interface if kind != "pec" else "average", run.periods,
-                            run.transient, steady_failures(run, periods, steady_tol))
+    result = ScatteringResult(kind, l2_error(phasor, exact), l2_error(phasor[ring], exact[ring]), lay.n_particles,
+                              steps, time.perf_counter() - t_start, setup, dr, s.dt, layout, coupling, n_radial,
+                              pts, phasor, exact, interface if kind != "pec" else "average", run.periods,
+                              run.transient, (), s.consistency_residual(), s.interior_consistency_residual())
+    return dataclasses.replace(result, certificate_failures=steady_failures(run, periods, steady_tol)
+                               + certificate_failures(result))
 
 
 #: ``average="auto"`` of :func:`run_tez_scattering` uses the corrected interface up to this contrast
