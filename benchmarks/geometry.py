@@ -53,6 +53,10 @@ Tables (``python benchmarks/geometry.py [--only NAME[,NAME]] [--quick] [--big] [
     (barycentric weights on the point's face) to the clean point it came from; Spearman
     correlation over the points whose face has no boundary or non-manifold vertex, ``scale="auto"``
     against the reference at the radius it chose per point and ``scale=r`` at ``r`` = 8 and 16 ``h1``.
+``--open`` (for ``smooth``)
+    Open surfaces with exact distances (a spherical cap, an open cylinder, a saddle patch), 8,000
+    points uniformly random (``--quick``: 3,000, one seed), noise 0.5 ``h1``: the reduction within
+    5 ``h1`` of the boundary and farther, without the rim fits (``RIM_WIDER = 1``) and with them.
 ``big`` (with ``--big``)
     Wavefront geodesic on a 1,048,576-point Fibonacci sphere: build, first query, peak memory.
 
@@ -326,7 +330,68 @@ def cgal_jet_smooth(X, k):
     return np.array([[p.x(), p.y(), p.z()] for p in ps.points()])
 
 
+def open_surface(shape, n, rng):
+    """``n`` points uniformly random on an open surface: a spherical cap (polar angle up to 60 degrees),
+    an open cylinder (radius 0.5, height 1.5) or the saddle ``z = (x^2 - y^2) / 2`` over the unit disk;
+    with the exact distance to the surface and the distance to its boundary (along the surface)."""
+    if shape == "cap":
+        z, f = rng.uniform(0.5, 1.0, n), rng.uniform(0.0, 2.0 * np.pi, n)
+        P = np.c_[np.sqrt(1 - z * z) * np.cos(f), np.sqrt(1 - z * z) * np.sin(f), z]
+        return P, lambda X: np.abs(np.linalg.norm(X, axis=1) - 1.0), np.pi / 3 - np.arccos(z)
+    if shape == "cylinder":
+        f, z = rng.uniform(0.0, 2.0 * np.pi, n), rng.uniform(0.0, 1.5, n)
+        return np.c_[0.5 * np.cos(f), 0.5 * np.sin(f), z], lambda X: np.abs(np.hypot(X[:, 0], X[:, 1]) - 0.5), np.minimum(z, 1.5 - z)
+    x = np.zeros((0, 2))
+    while len(x) < n:  # uniform in the disk, then accepted in proportion to the area element
+        y = rng.uniform(-1.0, 1.0, (4 * n, 2))
+        y = y[(y * y).sum(axis=1) < 1.0]
+        J = np.sqrt(1.0 + (y * y).sum(axis=1))
+        x = np.concatenate([x, y[rng.uniform(0.0, np.sqrt(2.0), len(y)) < J]])
+    x = x[:n]
+
+    def dist(X):
+        return np.abs(X[:, 2] - 0.5 * (X[:, 0] ** 2 - X[:, 1] ** 2)) / np.sqrt(1.0 + X[:, 0] ** 2 + X[:, 1] ** 2)
+    return np.c_[x, 0.5 * (x[:, 0] ** 2 - x[:, 1] ** 2)], dist, 1.0 - np.hypot(x[:, 0], x[:, 1])
+
+
+def open_smooth_table(quick):
+    """Open surfaces: reduction of the mean distance near the boundary and inside, without and with the rim fits."""
+    from scipy.spatial import cKDTree
+
+    from manifold_sph.geometry import smoothing
+
+    n, seeds = (3000, (0,)) if quick else (8000, (0, 1, 2))
+    print(f"\nSmoothing {n} random points on open surfaces, noise 0.5 h1, seeds {seeds}: reduction of the mean distance to the "
+          "surface within 5 h1 of the boundary (rim), farther (inside) and overall; without rim fits (RIM_WIDER = 1) / default; "
+          "the clean cloud's mean distance after smoothing (default), in h1")
+    print(f"{'surface':9s} {'rim':>19s} {'inside':>13s} {'whole':>13s} {'clean':>8s}")
+    default = smoothing.RIM_WIDER
+    for shape in ("cap", "cylinder", "saddle"):
+        x = np.zeros((len(seeds), 2, 3))
+        bias = []
+        for i, seed in enumerate(seeds):
+            rng = np.random.default_rng(seed)
+            P, dist, to_rim = open_surface(shape, n, rng)
+            h1 = float(cKDTree(P).query(P, k=2)[0][:, 1].mean())
+            noisy = P + 0.5 * h1 * rng.standard_normal(P.shape)
+            near = to_rim < 5.0 * h1
+            d0 = dist(noisy)
+            for j, wider in enumerate((1.0, default)):
+                smoothing.RIM_WIDER = wider
+                try:
+                    d1 = dist(quiet(smooth, noisy).points)
+                finally:
+                    smoothing.RIM_WIDER = default
+                x[i, j] = [d0[m].mean() / d1[m].mean() for m in (near, ~near, np.ones_like(near))]
+            bias.append(dist(quiet(smooth, P).points).mean() / h1)
+        m = x.mean(axis=0)
+        print(f"{shape:9s} {m[0, 0]:5.2f} / {m[1, 0]:5.2f} ({x[:, 1, 0].min():.2f}-{x[:, 1, 0].max():.2f}) {m[0, 1]:5.2f} / {m[1, 1]:5.2f}"
+              f" {m[0, 2]:5.2f} / {m[1, 2]:5.2f} {max(bias):8.1e}", flush=True)
+
+
 def smooth_table(quick, sampled=None, loop=0):
+    if "--open" in sys.argv:
+        return open_smooth_table(quick)
     igl = peer("igl")
     if igl is None:
         return
