@@ -97,10 +97,11 @@ def test_tez_dielectric_at_contrast_8_runs_until_steady():
     auto = ts.run_tez_scattering("dielectric", **kw)
     long = ts.run_tez_scattering("dielectric", periods=300.0, **kw)
     short = ts.run_tez_scattering("dielectric", periods=12.0, **kw)
-    assert auto.certificate_failures == () and auto.transient <= STEADY_TOL and 60 < auto.periods < 300
+    assert auto.certificate_failures == () and auto.certified and auto.transient <= STEADY_TOL
+    assert 60 < auto.periods < 300
     assert np.linalg.norm(auto.phasor - long.phasor) / np.linalg.norm(long.phasor) < 2e-4
     assert abs(auto.error - long.error) < 1e-3  # measured 2.787e-1 / 2.786e-1; 12 periods 3.114e-1
-    assert short.transient > 0.05 and "not steady" in short.certificate_failures[0]
+    assert short.transient > 0.05 and "not steady" in short.certificate_failures[0] and not short.certified
 
 
 def test_tmz_scattering_runs_until_steady():

@@ -259,6 +259,11 @@ class ScatteringResult(Result):
     consistency: float | None = None
     consistency_interior: float | None = None
 
+    @property
+    def certified(self) -> bool:
+        """True when ``certificate_failures`` is empty (the phasor steady, the interior consistent)."""
+        return not self.certificate_failures
+
 
 @dataclass(frozen=True, repr=False, eq=False)
 class TEzScatteringResult(Result):
@@ -316,6 +321,11 @@ class TEzScatteringResult(Result):
     periods: float = 0.0
     transient: float = 0.0
     certificate_failures: tuple = ()
+
+    @property
+    def certified(self) -> bool:
+        """True when ``certificate_failures`` is empty (the phasor steady)."""
+        return not self.certificate_failures
 
 
 @dataclass(frozen=True, repr=False, eq=False)
