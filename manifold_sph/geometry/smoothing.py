@@ -122,6 +122,18 @@ def local_spacing(points: np.ndarray, tree: cKDTree | None = None, k: int = _LOC
     return np.exp(np.log(np.maximum(d[:, -1], tiny))[idx].mean(axis=1))
 
 
+def _fit_inputs(points: ArrayLike, normals: ArrayLike, radius: ArrayLike,
+                count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """The checked arrays of a local fit: points (N, 3), unit normals (N, 3), positive radii (N,), count <= N."""
+    points = as_points("points", points)
+    n = points.shape[0]
+    normals = as_field("normals", normals, n, 3)
+    radius = as_field("radius", radius, n)
+    if np.any(radius <= 0):
+        raise ValueError(f"radius must be positive, got minimum {radius.min():g}")
+    return points, normals, radius, min(check_int("count", count, minimum=1), n)
+
+
 def jet_heights(
     points: np.ndarray,
     normals: np.ndarray,
@@ -164,13 +176,8 @@ def jet_heights(
     rms : ndarray, shape (N,)
         Weighted RMS of the fit's residuals (a length).
     """
-    points = as_points("points", points)
+    points, normals, radius, count = _fit_inputs(points, normals, radius, count)
     n = points.shape[0]
-    normals = as_field("normals", normals, n, 3)
-    radius = as_field("radius", radius, n)
-    if np.any(radius <= 0):
-        raise ValueError(f"radius must be positive, got minimum {radius.min():g}")
-    count = min(check_int("count", count, minimum=1), n)
     if sigma is not None:
         sigma = check_positive("sigma", sigma)
     tree = cKDTree(points) if tree is None else tree
@@ -219,13 +226,8 @@ def rim_offset(
     radius); a particle on a rim sees a half-disk, whose centroid lies about a quarter of the radius
     inward. The ratio does not depend on the units, the density or the orientation.
     """
-    points = as_points("points", points)
+    points, normals, radius, count = _fit_inputs(points, normals, radius, count)
     n = points.shape[0]
-    normals = as_field("normals", normals, n, 3)
-    radius = as_field("radius", radius, n)
-    if np.any(radius <= 0):
-        raise ValueError(f"radius must be positive, got minimum {radius.min():g}")
-    count = min(check_int("count", count, minimum=1), n)
     tree = cKDTree(points) if tree is None else tree
     u, v = tangent_basis(normals)
     m = np.zeros(n)
