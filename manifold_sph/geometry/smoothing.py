@@ -124,7 +124,7 @@ def local_spacing(points: np.ndarray, tree: cKDTree | None = None, k: int = _LOC
 
 def _fit_inputs(points: ArrayLike, normals: ArrayLike, radius: ArrayLike,
                 count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
-    """The checked arrays of a local fit: points (N, 3), unit normals (N, 3), positive radii (N,), count <= N."""
+    """The checked arrays of a local fit: points (N, 3), normals (N, 3), positive radii (N,), count <= N."""
     points = as_points("points", points)
     n = points.shape[0]
     normals = as_field("normals", normals, n, 3)
