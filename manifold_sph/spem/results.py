@@ -296,6 +296,8 @@ class TEzScatteringResult(Result):
         Measured and exact scattered phasors there.
     periods, transient, certificate_failures
         As :class:`ScatteringResult`.
+    consistency_interior : float
+        :meth:`~manifold_sph.spem.tez.TEzSolver.interior_consistency_residual` of the run's operators.
     """
 
     _dict_skip = ('points', 'phasor', 'exact')
@@ -321,10 +323,11 @@ class TEzScatteringResult(Result):
     periods: float = 0.0
     transient: float = 0.0
     certificate_failures: tuple = ()
+    consistency_interior: float | None = None
 
     @property
     def certified(self) -> bool:
-        """True when ``certificate_failures`` is empty (the phasor steady)."""
+        """True when ``certificate_failures`` is empty (the phasor steady, the interior consistent)."""
         return not self.certificate_failures
 
 

@@ -808,8 +808,10 @@ def run_tez_scattering(kind: str = "pec", *, n_radial: int = 8, radius: float = 
     exact = tez_scattered_field(pts, kind, freq=freq, radius=radius, eps_r=eps_r)
     r_ev = np.hypot(pts[:, 0], pts[:, 1])
     near = (r_ev > radius) & (r_ev <= 2 * radius)
-    return TEzScatteringResult(kind, l2_error(phasor, exact), l2_error(phasor[near], exact[near]), lay.n_particles,
-                               steps, time.perf_counter() - t_start, setup, dr, s.dt, layout, coupling,
-                               average if kind == "dielectric" else "", n_radial, s.dt / s.dt_stable,
-                               peak[1] / peak[0], pts, phasor, exact, run.periods, run.transient,
-                               steady_failures(run, periods, steady_tol))
+    result = TEzScatteringResult(kind, l2_error(phasor, exact), l2_error(phasor[near], exact[near]),
+                                 lay.n_particles, steps, time.perf_counter() - t_start, setup, dr, s.dt, layout,
+                                 coupling, average if kind == "dielectric" else "", n_radial, s.dt / s.dt_stable,
+                                 peak[1] / peak[0], pts, phasor, exact, run.periods, run.transient, (),
+                                 s.interior_consistency_residual())
+    return dataclasses.replace(result, certificate_failures=steady_failures(run, periods, steady_tol)
+                               + certificate_failures(result))
