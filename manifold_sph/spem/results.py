@@ -342,6 +342,8 @@ class TEzCavityResult(Result):
     peak of the spectrum of Hz at one particle) and ``stable_fraction`` (the
     time step over the CFL step ``h / (sqrt(2) c)``). ``h_ratio`` is the support the run used and
     ``wall_closure`` whether the rectangle's walls were closure columns (None for the disk).
+    ``consistency_interior``: :meth:`~manifold_sph.spem.tez.TEzSolver.interior_consistency_residual`;
+    ``certificate_failures`` names it when above its validated range (``certified``: none).
     """
 
     case: str
@@ -360,6 +362,13 @@ class TEzCavityResult(Result):
     stable_fraction: float | None = None
     h_ratio: float | None = None
     wall_closure: bool | None = None
+    consistency_interior: float | None = None
+    certificate_failures: tuple = ()
+
+    @property
+    def certified(self) -> bool:
+        """True when ``certificate_failures`` is empty (the interior consistency in its validated range)."""
+        return not self.certificate_failures
 
 
 # ----------------------------------------------------------------------------- PML reflection

@@ -23,7 +23,7 @@ from numpy.typing import ArrayLike
 from scipy.special import j0, j1, jn_zeros
 
 from ..._validation import as_points, check_in, check_int, check_positive
-from ..certify import certified
+from ..certify import certificate_failures, certified
 from ..constants import C0, EPS0, MU0
 from ..layouts import POISSON_H_RATIO, disk_layout, tez_disk_layout, tez_layout, wall_closure_layout
 from ..operators import DEFAULT_COUPLING, DEFAULT_H_RATIO, SBP_LAYERS
@@ -308,9 +308,10 @@ def run_tez_cavity(*, a: float = 0.1, b: float = 0.06, n: int = 12, modes: Seque
         s.step()
         amp[k] = q @ s.hz
     fm = _fit_frequency(amp, s.dt * (steps + 1 + np.arange(more)), freqs[0])
-    return TEzCavityResult("tez-cavity", err, abs(fm - freqs[0]) / freqs[0], fm, freqs[0], lay.n_particles, s.n,
-                           time.perf_counter() - t0, dr, s.dt, coupling, layout, h_ratio=float(h_ratio),
-                           wall_closure=wall_closure)
+    result = TEzCavityResult("tez-cavity", err, abs(fm - freqs[0]) / freqs[0], fm, freqs[0], lay.n_particles, s.n,
+                             time.perf_counter() - t0, dr, s.dt, coupling, layout, h_ratio=float(h_ratio),
+                             wall_closure=wall_closure, consistency_interior=s.interior_consistency_residual())
+    return dataclasses.replace(result, certificate_failures=certificate_failures(result))
 
 
 def _fit_frequency(signal, times, f0):
@@ -437,10 +438,11 @@ def run_tez_circular_cavity(*, radius: float = 0.1, n_radial: int = 20,
     fm = _fit_frequency(amp, s.dt * (steps + 1 + np.arange(more)), freqs[0])
     fp = _probe_peak(sig, s.dt, freqs[0])
     cfl = s.h / (math.sqrt(2.0) * s.c_max)
-    return TEzCavityResult("tez-disk", err, abs(fm - freqs[0]) / freqs[0], fm, freqs[0], lay.n_particles, s.n,
-                           time.perf_counter() - t0, dr, s.dt, coupling, f"disk-{layout}",
-                           probe_frequency_error=abs(fp - freqs[0]) / freqs[0], stable_fraction=s.dt / cfl,
-                           h_ratio=float(h_ratio))
+    result = TEzCavityResult("tez-disk", err, abs(fm - freqs[0]) / freqs[0], fm, freqs[0], lay.n_particles, s.n,
+                             time.perf_counter() - t0, dr, s.dt, coupling, f"disk-{layout}",
+                             probe_frequency_error=abs(fp - freqs[0]) / freqs[0], stable_fraction=s.dt / cfl,
+                             h_ratio=float(h_ratio), consistency_interior=s.interior_consistency_residual())
+    return dataclasses.replace(result, certificate_failures=certificate_failures(result))
 
 
 def _probe_peak(signal, dt, f0):
