@@ -87,6 +87,18 @@ def test_bad_input():
             run_driven(advance, PER, W, **{"ramp": 3.0, "window": 2.0, **kw})
     with pytest.raises(TypeError, match="periods"):
         run_driven(advance, PER, W, periods=[12.0], ramp=3.0, window=2.0)
+    with pytest.raises(TypeError, match="advance"):
+        run_driven(None, PER, W, periods="auto", ramp=3.0, window=2.0)
+    for kw, name in ((dict(per=0), "per"), (dict(w=float("nan")), "w"), (dict(w=-1.0), "w"), (dict(window=0), "window")):
+        with pytest.raises(ValueError, match=name):
+            PeriodPhasors(**{"n": 3, "per": PER, "w": W, "window": 2, **kw})
+
+    def blows_up(n):  # an unstable run: the field turns to nan
+        values, t = advance(n)
+        return values * (np.nan if n > 5 * PER else 1.0), t
+
+    with pytest.raises(FloatingPointError, match="not finite after"):
+        run_driven(blows_up, PER, W, periods="auto", ramp=3.0, window=2.0)
 
 
 def test_tez_dielectric_at_contrast_8_runs_until_steady():

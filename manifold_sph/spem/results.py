@@ -32,6 +32,18 @@ __all__ = ["RunResult", "FieldHistory", "CaseResult", "LineResult", "CavityResul
            "TEzPMLResult", "PMLCertificate"]
 
 
+class Certified:
+    """``certified``: the run's ``certificate_failures`` (a field of the result) is empty."""
+
+    certificate_failures: tuple
+
+    @property
+    def certified(self) -> bool:
+        """True when every certificate the run reports lies in its validated range
+        (:func:`~manifold_sph.spem.certify.certificate_failures`; ``certificate_failures`` names the others)."""
+        return not self.certificate_failures
+
+
 @dataclass(frozen=True, repr=False, eq=False)
 class RunResult(Result):
     """What every SPEM solver's ``run`` returns (:class:`.stepping.Leapfrog`).
@@ -66,7 +78,7 @@ class FieldHistory(NamedTuple):
 
 
 @dataclass(frozen=True, repr=False, eq=False, kw_only=True)
-class CaseResult(Result):
+class CaseResult(Certified, Result):
     """The fields every validation case reports (:mod:`manifold_sph.spem.cases`).
 
     ``consistency`` is the largest error of the run's derivative matrices on linear fields
@@ -94,12 +106,6 @@ class CaseResult(Result):
     consistency: float | None = None
     consistency_interior: float | None = None
     certificate_failures: tuple = ()
-
-    @property
-    def certified(self) -> bool:
-        """True when every certificate the run reports lies in its validated range
-        (:func:`~manifold_sph.spem.certify.certificate_failures`; ``certificate_failures`` names the others)."""
-        return not self.certificate_failures
 
 
 @dataclass(frozen=True, repr=False, eq=False, kw_only=True)
@@ -198,7 +204,7 @@ class PMLResult(CaseResult):
 
 
 @dataclass(frozen=True, repr=False, eq=False)
-class ScatteringResult(Result):
+class ScatteringResult(Certified, Result):
     """What :func:`run_scattering` measured.
 
     Attributes
@@ -259,14 +265,9 @@ class ScatteringResult(Result):
     consistency: float | None = None
     consistency_interior: float | None = None
 
-    @property
-    def certified(self) -> bool:
-        """True when ``certificate_failures`` is empty (the phasor steady, the interior consistent)."""
-        return not self.certificate_failures
-
 
 @dataclass(frozen=True, repr=False, eq=False)
-class TEzScatteringResult(Result):
+class TEzScatteringResult(Certified, Result):
     """What :func:`run_tez_scattering` measured (the fields of :class:`.ScatteringResult`, for Hz, and more).
 
     Attributes
@@ -325,14 +326,9 @@ class TEzScatteringResult(Result):
     certificate_failures: tuple = ()
     consistency_interior: float | None = None
 
-    @property
-    def certified(self) -> bool:
-        """True when ``certificate_failures`` is empty (the phasor steady, the interior consistent)."""
-        return not self.certificate_failures
-
 
 @dataclass(frozen=True, repr=False, eq=False)
-class TEzCavityResult(Result):
+class TEzCavityResult(Certified, Result):
     """What :func:`run_tez_cavity` measured.
 
     ``error``: relative L2 error of Hz after ``periods`` periods of the first
@@ -364,11 +360,6 @@ class TEzCavityResult(Result):
     wall_closure: bool | None = None
     consistency_interior: float | None = None
     certificate_failures: tuple = ()
-
-    @property
-    def certified(self) -> bool:
-        """True when ``certificate_failures`` is empty (the interior consistency in its validated range)."""
-        return not self.certificate_failures
 
 
 # ----------------------------------------------------------------------------- PML reflection

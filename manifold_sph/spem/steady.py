@@ -4,8 +4,8 @@ A field driven by ``cos(w t)`` and read by a DFT at ``w`` reaches its steady
 state only as the transient (the modes the switch-on excited, ringing down at
 their own frequencies) decays. A dielectric cylinder is a resonator: at a
 contrast of 8 its modes ring down over tens of periods, and a DFT taken after a
-fixed number of periods measures the transient, not the discretisation (TEz,
-eps_r 8, 16 spacings per radius: 1.6e-1 after 12 periods, 4.8e-3 after 48).
+fixed number of periods measures the transient, not the discretisation
+(docs/spem.md, "Driven runs until steady", has the measurements).
 
 With an integer number of steps per period, the DFT of a steady field over one
 whole period is the same in every period (round-off apart). :class:`PeriodPhasors`
@@ -16,10 +16,8 @@ phasor's change from one period to the next is ``s_k = z s_(k-1)``, ``z`` a
 complex ratio (the mode's decay and its phase turn against the drive over a
 period), so what is left is ``s_k z / (1 - z)``: the estimate is
 ``|s_k| |z| / |1 - z|`` relative to the phasor's norm, with ``z`` fitted by
-least squares over the last three lags (``|1 - z|`` kept above 0.01). On a
-dielectric cylinder at a contrast of 8 it follows the distance to a 320-period
-run within a factor 1.3 from 2e-3 down to 2e-4, and low by up to 2.2x before,
-between 3e-2 and 5e-3 (docs/spem.md, "Driven runs until steady"). :func:`run_driven` steps a case until the estimate
+least squares over the last three lags (``|1 - z|`` kept above 0.01).
+:func:`run_driven` steps a case until the estimate
 stays below a tolerance for two periods (``periods="auto"``), until it stops
 falling (an undamped mode or a drift), or for a fixed number of periods.
 
@@ -56,7 +54,8 @@ STEADY_TOL = 1e-4
 STEADY_ACCEPT = 10.0
 #: ``periods="auto"`` stops here at the latest (the result then says it did not converge).
 MAX_PERIODS = 400.0
-#: Largest per-period decay rate the estimate uses (changes that do not shrink count as this slow).
+#: The estimate's ``|1 - z|`` is kept above ``1 - _Q_MAX`` (a change that does not shrink or turn counts as
+#: a transient that decays by this ratio a period).
 _Q_MAX = 0.99
 #: Period-to-period lags the transient's decay ratio is fitted over.
 _LAGS = 3
@@ -103,12 +102,11 @@ class PeriodPhasors:
     def __init__(self, n: int, per: int, w: float, window: int) -> None:
         self.per = check_int("per", per, minimum=1)
         self.window = check_int("window", window, minimum=1)
-        self.w = float(w)
+        self.w = check_positive("w", w)
         self._acc = np.zeros(int(n), dtype=complex)
         self._count = 0
         self._last: deque[np.ndarray] = deque(maxlen=self.window)
         self._mean: np.ndarray | None = None
-        self.changes: list[float] = []  #: ``||W_k - W_(k-1)|| / ||W_k||`` of the window phasors, one per period
         self.estimates: list[float] = []  #: the transient left after each period (:meth:`transient`)
         self._steps: deque[np.ndarray] = deque(maxlen=_LAGS + 1)
         self.periods = 0
@@ -128,11 +126,13 @@ class PeriodPhasors:
         if len(self._last) < self.window:
             return
         mean = np.mean(np.asarray(self._last), axis=0)
+        if not np.all(np.isfinite(mean)):
+            raise FloatingPointError(f"the driven field is not finite after {self.periods} periods (an unstable "
+                                     "step or a non-finite source)")
         if self._mean is not None:
             step = mean - self._mean
             norm = float(np.linalg.norm(mean))
             change = float(np.linalg.norm(step)) / norm if norm > 0 else math.inf
-            self.changes.append(change)
             self._steps.append(step)
             if len(self._steps) >= 2 and math.isfinite(change):
                 # the transient's ratio from one period to the next, fitted over the last lags:
@@ -155,7 +155,6 @@ class PeriodPhasors:
         if len(self.estimates) < _LAGS:
             return math.inf
         return self.estimates[-1]
-
 
     def stalled(self) -> bool:
         """The transient does not decay: the median estimate of the last 10 periods is above 1 / 1.5 of the
@@ -192,7 +191,7 @@ def run_driven(advance: Callable[[int], tuple[np.ndarray, float]], per: int, w: 
         Angular drive frequency.
     periods : float or "auto"
         A fixed length (the phasor is the DFT over the last ``window`` periods,
-        ``round(window * per)`` steps, as before any estimate), or ``"auto"``:
+        ``round(window * per)`` steps), or ``"auto"``:
         whole periods until :meth:`PeriodPhasors.transient` stays below ``tol``
         for two periods after the ``ramp`` (or ``max_periods``).
     ramp : float
@@ -206,6 +205,8 @@ def run_driven(advance: Callable[[int], tuple[np.ndarray, float]], per: int, w: 
     -------
     DrivenRun
     """
+    if not callable(advance):
+        raise TypeError(f"advance must be callable, got {type(advance).__name__}")
     periods = check_periods(periods)
     tol = check_positive("tol", tol)
     max_periods = check_positive("max_periods", max_periods)
@@ -248,8 +249,8 @@ def steady_failures(run: DrivenRun, periods: float | str, tol: float) -> tuple[s
     """The certificate sentence of a run whose phasor is not steady (empty when it is).
 
     A run is certified when its transient is at most :data:`STEADY_ACCEPT` times ``tol``: ``"auto"`` stops
-    at ``tol``, and a transient that stops decaying (an undamped remnant: the jittered TMz cylinders at 8
-    spacings per radius keep 6.6e-4 to 9.0e-4) limits the phasor to that level without growing.
+    at ``tol``, and a transient that stops decaying there (an undamped remnant) limits the phasor to that
+    level without growing.
     """
     if run.transient <= STEADY_ACCEPT * tol:
         return ()

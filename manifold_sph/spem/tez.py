@@ -472,10 +472,9 @@ class TEzSolver(Leapfrog):
         error times ``dr``) over the rows farther than :data:`~manifold_sph.spem.tmz.CONSISTENCY_MARGIN` kernel
         supports from every wall particle and held E particle and, with an ``interface``, from its circle (whose
         rows are fitted on the jump fields instead): the certificate of a run's interior, as
-        :meth:`TMzSolver.interior_consistency_residual`. Measured: curved walls (the disk at 10 spacings per
-        radius) "sbp" 1.9e-8 (lattice) / 3.2e-9 (jittered), "adjoint" 1.1e-14 / 4.4; the rectangle (0.1 x 0.06 m
-        at 0.005 m) "sbp" 5.9e-5 (lattice) / 4.9e-2 (jittered: its plain correction, see ``wall_closure``),
-        "adjoint" 2.3e-14 / 5.1.
+        :meth:`TMzSolver.interior_consistency_residual`: small for "sbp" and for "adjoint" on the lattice, O(1)
+        for "adjoint" on irregular layouts (docs/spem.md, "Defaults per layout and what certifies a run", has the
+        measured values).
 
         >>> from manifold_sph.spem import tez_disk_layout
         >>> disk = tez_disk_layout((0.0, 0.0), 0.1, 0.01, amplitude=0.2)

@@ -59,7 +59,7 @@ if TYPE_CHECKING:
     from ...kernels import Kernel
 
 __all__ = ["scattering_layout", "tez_scattering_layout", "scattering_domain", "SwitchedWave", "PECDrive", "VolumeDrive",
-           "interior_particles", "run_phasor", "run_scattering", "run_tez_scattering", "JITTER_CLEARANCE"]
+           "interior_particles", "run_scattering", "run_tez_scattering", "JITTER_CLEARANCE"]
 
 
 def scattering_domain(radius: float, ka: float, n_radial: int, margin: float,
@@ -314,16 +314,6 @@ def interior_particles(s: TMzSolver, e: np.ndarray, inner: float) -> np.ndarray:
     return np.flatnonzero(free & (np.abs(e[:, 0]) <= inner) & (np.abs(e[:, 1]) <= inner))
 
 
-def run_phasor(s: TMzSolver, ev: np.ndarray, w: float, steps: int, n_dft: int) -> np.ndarray:
-    """Run ``steps`` steps; the DFT phasor at angular frequency ``w`` of ``Ez[ev]`` over the last ``n_dft``."""
-    acc = np.zeros(len(ev), dtype=complex)
-    for n in range(steps):  # a loop over time steps
-        s.step()
-        if n >= steps - n_dft:
-            acc += s.e_field[ev] * np.exp(1j * w * s.t)
-    return acc * (2.0 / n_dft)
-
-
 def run_scattering(kind: str = "dielectric", *, n_radial: int = 8, radius: float = 0.1, ka: float = 2.0,
                    eps_r: float = 4.0, core_radius: float | None = None, layout: str = "yee", amplitude: float = 0.2,
                    seed: int | None = 0, margin: float = 0.5, pml_thickness: float = 0.5, pml_order: int = 3,
@@ -365,10 +355,9 @@ def run_scattering(kind: str = "dielectric", *, n_radial: int = 8, radius: float
     periods : float or "auto"
         Length of the run in drive periods, or "auto" (default): whole periods
         until the transient left in the phasor is estimated below
-        ``steady_tol`` of its norm (:mod:`..steady`; at most ``max_periods``).
-        The dielectric's modes ring down slowly: a fixed 12 periods left
-        5.0e-3 at 8 spacings per radius with the mimetic coupling, 20 left
-        6.9e-4. The result's ``periods`` and ``transient`` say what ran; a
+        ``steady_tol`` of its norm (:mod:`..steady`; at most ``max_periods``;
+        the dielectric's modes ring down slowly). The result's ``periods`` and
+        ``transient`` say what ran; a
         phasor not steady to ``steady_tol`` (a fixed length too short, or
         ``max_periods`` reached) is named in ``certificate_failures``. The
         other numeric options (``margin``, ``pml_thickness``, ``ramp``,
