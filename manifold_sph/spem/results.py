@@ -224,7 +224,8 @@ class ScatteringResult(Certified, Result):
     points : (P, 2) array
         The evaluation E particles (outside the PML, not on a conductor).
     phasor, exact : (P,) complex arrays
-        Measured and exact scattered phasors there.
+        Measured (the steady phasor extrapolated from the periods run, with ``periods="auto"``:
+        :mod:`~manifold_sph.spem.steady`) and exact scattered phasors there.
     interface : str
         The interface treatment used ("average" or "jump"; "average" for the PEC cylinder).
     periods : float
@@ -232,8 +233,11 @@ class ScatteringResult(Certified, Result):
     transient : float
         Estimated transient left in ``phasor``, relative to its L2 norm
         (:class:`~manifold_sph.spem.steady.PeriodPhasors`).
+    gain : float
+        The extrapolation's gain (1 for a fixed number of periods; above
+        :data:`~manifold_sph.spem.steady.GAIN_MAX` a mode resonates near the drive frequency).
     certificate_failures : tuple of str
-        One sentence per certificate outside its validated range: the phasor not steady
+        One sentence per certificate outside its validated range: the phasor not steady or resonant
         (:func:`~manifold_sph.spem.steady.steady_failures`), the interior consistency
         (:func:`~manifold_sph.spem.certify.certificate_failures`).
     consistency, consistency_interior : float
@@ -264,6 +268,7 @@ class ScatteringResult(Certified, Result):
     certificate_failures: tuple = ()
     consistency: float | None = None
     consistency_interior: float | None = None
+    gain: float = 1.0
 
 
 @dataclass(frozen=True, repr=False, eq=False)
@@ -295,7 +300,7 @@ class TEzScatteringResult(Certified, Result):
         The evaluation Hz particles (outside the PML, outside a conductor).
     phasor, exact : (P,) complex arrays
         Measured and exact scattered phasors there.
-    periods, transient, certificate_failures
+    periods, transient, gain, certificate_failures
         As :class:`ScatteringResult`.
     consistency_interior : float
         :meth:`~manifold_sph.spem.tez.TEzSolver.interior_consistency_residual` of the run's operators.
@@ -325,6 +330,7 @@ class TEzScatteringResult(Certified, Result):
     transient: float = 0.0
     certificate_failures: tuple = ()
     consistency_interior: float | None = None
+    gain: float = 1.0
 
 
 @dataclass(frozen=True, repr=False, eq=False)

@@ -11,8 +11,10 @@ whose closure columns multiply the scattered tangential field there,
 ``E_s . tau = -E_inc . tau``; a dielectric through per-E-particle permittivities
 and the source ``eps dE_s/dt = curl H_s - eps0 (eps_r - 1) dE_inc/dt``.
 Split-field PML absorbs the scattered wave, so no incident wave has to travel
-through the particles. After the switch-on the complex amplitude is read by a
-DFT at the drive frequency over the last periods and compared with the series.
+through the particles. After the switch-on the complex amplitude is read at the
+drive frequency (the steady phasor extrapolated from the periods run,
+:mod:`..steady`, or the DFT over the last periods of a fixed-length run) and
+compared with the series.
 
 Examples
 --------
@@ -336,7 +338,8 @@ def run_scattering(kind: str = "dielectric", *, n_radial: int = 8, radius: float
     wavelengths beyond the cylinder, the PML ``pml_thickness`` wavelengths
     beyond it. The incident wave is switched on over ``ramp`` periods, the
     run lasts ``periods`` periods (an integer number of steps each) and the
-    complex amplitude is the DFT over the last ``dft_periods``.
+    complex amplitude is the steady phasor extrapolated from the periods run
+    (``periods="auto"``) or the DFT over the last ``dft_periods``.
 
     Parameters
     ----------
@@ -354,10 +357,10 @@ def run_scattering(kind: str = "dielectric", *, n_radial: int = 8, radius: float
     layout : {"yee", "jittered"}
     periods : float or "auto"
         Length of the run in drive periods, or "auto" (default): whole periods
-        until the transient left in the phasor is estimated below
+        until the steady phasor extrapolated from them is estimated within
         ``steady_tol`` of its norm (:mod:`..steady`; at most ``max_periods``;
-        the dielectric's modes ring down slowly). The result's ``periods`` and
-        ``transient`` say what ran; a
+        the extrapolation removes the modes left ringing, damped or not). The result's ``periods``,
+        ``transient`` and ``gain`` say what ran; a
         phasor not steady to ``steady_tol`` (a fixed length too short, or
         ``max_periods`` reached) is named in ``certificate_failures``. The
         other numeric options (``margin``, ``pml_thickness``, ``ramp``,
@@ -553,7 +556,7 @@ def run_scattering(kind: str = "dielectric", *, n_radial: int = 8, radius: float
                               steps, time.perf_counter() - t_start, setup, dr, s.dt, layout, coupling, n_radial,
                               pts, phasor, exact, interface if kind != "pec" else "average", run.periods,
                               run.transient, (), s.consistency_residual(), s.interior_consistency_residual())
-    return dataclasses.replace(result, certificate_failures=steady_failures(run, periods, steady_tol)
+    return dataclasses.replace(result, gain=run.gain, certificate_failures=steady_failures(run, periods, steady_tol)
                                + certificate_failures(result))
 
 
@@ -630,7 +633,8 @@ def run_tez_scattering(kind: str = "pec", *, n_radial: int = 8, radius: float = 
     wave is switched on over ``ramp`` periods, the run lasts ``periods``
     periods (an integer number of steps each; "auto", the default: until the
     phasor is steady to ``steady_tol``, as :func:`run_scattering`) and the
-    complex amplitude of Hz is the DFT over the last ``dft_periods``.
+    complex amplitude of Hz is that steady phasor or, for a fixed length, the DFT over the last
+    ``dft_periods``.
 
     Parameters
     ----------
@@ -802,5 +806,5 @@ def run_tez_scattering(kind: str = "pec", *, n_radial: int = 8, radius: float = 
                                  coupling, average if kind == "dielectric" else "", n_radial, s.dt / s.dt_stable,
                                  peak[1] / peak[0], pts, phasor, exact, run.periods, run.transient, (),
                                  s.interior_consistency_residual())
-    return dataclasses.replace(result, certificate_failures=steady_failures(run, periods, steady_tol)
+    return dataclasses.replace(result, gain=run.gain, certificate_failures=steady_failures(run, periods, steady_tol)
                                + certificate_failures(result))
