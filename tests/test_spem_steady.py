@@ -133,9 +133,16 @@ def test_bad_input():
         run_driven(advance, PER, W, periods=[12.0], ramp=3.0, window=2.0)
     with pytest.raises(TypeError, match="advance"):
         run_driven(None, PER, W, periods="auto", ramp=3.0, window=2.0)
-    for kw, name in ((dict(per=0), "per"), (dict(w=float("nan")), "w"), (dict(w=-1.0), "w"), (dict(window=0), "window")):
+    for kw, name in ((dict(per=0), "per"), (dict(w=float("nan")), "w"), (dict(w=-1.0), "w"), (dict(window=0), "window"),
+                     (dict(settle=-1), "settle")):
         with pytest.raises(ValueError, match=name):
             PeriodPhasors(**{"n": 3, "per": PER, "w": W, "window": 2, **kw})
+    early = PeriodPhasors(3, PER, W, 2, settle=3)
+    for n in range(PER * 4):  # one period after the switch-on: nothing to extrapolate yet
+        early.add(*advance(n))
+    assert early.steady_transient() == np.inf
+    with pytest.raises(ValueError, match="fewer than 3 whole periods after settle"):
+        early.steady()
 
     def blows_up(n):  # an unstable run: the field turns to nan
         values, t = advance(n)

@@ -233,10 +233,11 @@ def _add_scattering_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--core-radius", type=_positive(float), default=None,
                    help="scatter-coated: PEC core radius in m (default 0.05)")
     g.add_argument("--periods", type=_periods, default=None,
-                   help="scatter-*, tez-scatter-*: periods of the drive, or auto (default: until the Fourier-analysed "
-                        "phasor of the last 2 periods is steady to 1e-4; the JSON's 'periods' and 'transient' say "
-                        "what ran; a transient left above 1e-3 exits 3); tez-cavity, tez-disk: periods before the error "
-                        "is taken (default 1)")
+                   help="scatter-*, tez-scatter-*: periods of the drive, or auto (default: until the steady phasor "
+                        "extrapolated from the periods run is steady to 1e-4; the JSON's 'periods', 'transient' and "
+                        "'gain' say what ran; a transient left above 1e-3 or a resonant mode (gain above 10) exits 3; "
+                        "a number: the Fourier-analysed phasor of its last 2 periods); tez-cavity, tez-disk: periods "
+                        "before the error is taken (default 1)")
     g.add_argument("--time-correction", action="store_true",
                    help="scatter-*: remove the leap-frog's time dispersion at the drive frequency (pays with "
                         "--coupling mimetic)")
