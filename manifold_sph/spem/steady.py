@@ -28,8 +28,10 @@ traps: its ``|z_m| = 1``, and no DFT window removes it). :func:`extrapolate`
 eliminates the modes by reduced rank extrapolation (RRE) over the per-period
 phasors since the switch-on (at most :data:`EXTRAPOLATION_PERIODS`, taken in
 pairs of consecutive periods): ``p ~ sum_j g_j p_j`` with ``sum_j g_j = 1`` and
-``||sum_j g_j (p_(j+1) - p_j)||`` least. Its distance from the steady phasor is estimated by how much it moved
-over the last three periods, doubled (:meth:`PeriodPhasors.steady_transient`).
+``||sum_j g_j (p_(j+1) - p_j)||`` least. Its distance from the steady phasor is
+estimated by how much it moved over the last three periods, doubled
+(:meth:`PeriodPhasors.steady_transient`); its gain ``sum_j |g_j|`` says how far
+beyond the periods run it lies (:data:`GAIN_MAX`).
 
 :func:`run_driven` with ``periods="auto"`` steps a case until that estimate
 stays below a tolerance for two periods, until it stops falling (a drift, or
@@ -96,12 +98,12 @@ _SETTLED = 2
 EXTRAPOLATION_PERIODS = 33
 #: :meth:`PeriodPhasors.steady_transient`: the change of the extrapolated phasor over this many periods ...
 _MOVE_LAG = 3
-#: ... times this factor (its distance from a long run's phasor measured at 0.1-1.5 times the estimate).
+#: ... times this factor (an upper bound of its distance from a long run's phasor in the measured cases:
+#: docs/spem.md, "Driven runs until steady").
 _MOVE_FACTOR = 2.0
 #: :func:`steady_failures` names an extrapolation whose gain ``sum_j |g_j|`` is above this: the steady phasor
 #: then lies far beyond every period run, the response of a mode of the discretisation resonating near the
-#: drive frequency (measured: 1.0-6.3 on the cases that converge, 21-59 on the TEz PEC lattice at 4 spacings
-#: per radius, whose wall mode resonates).
+#: drive frequency (docs/spem.md has the gains measured with and without such a mode).
 GAIN_MAX = 10.0
 #: :func:`extrapolate`'s Tikhonov floor on the differences' singular values, relative to the largest.
 _RRE_FLOOR = 1e-10
