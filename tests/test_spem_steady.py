@@ -70,7 +70,9 @@ def test_extrapolate_is_exact_on_modes_and_checks_its_input():
     P = steady + (z[None, :] ** k) @ shapes
     np.testing.assert_allclose(extrapolate(P), steady, atol=1e-9)
     np.testing.assert_allclose(extrapolate(np.repeat(steady[None], 4, 0)), steady, atol=0)
-    for bad in (P[:2], P[0]):
+    nan = P.copy()
+    nan[4, 2] = np.nan
+    for bad in (P[:2], P[0], nan):
         with pytest.raises(ValueError, match="phasors"):
             extrapolate(bad)
 

@@ -72,7 +72,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .._validation import check_int, check_positive
+from .._validation import check_finite, check_int, check_positive
 
 __all__ = ["PeriodPhasors", "DrivenRun", "run_driven", "steady_failures", "extrapolate", "STEADY_TOL",
            "STEADY_ACCEPT", "MAX_PERIODS", "EXTRAPOLATION_PERIODS", "GAIN_MAX", "check_periods"]
@@ -141,7 +141,7 @@ def extrapolate(phasors: np.ndarray) -> np.ndarray:
     P = np.asarray(phasors)
     if P.ndim != 2 or P.shape[0] < 3:
         raise ValueError(f"phasors must be a (K, n) array with K >= 3 periods, got shape {P.shape}")
-    return _rre(P)[0]
+    return _rre(check_finite("phasors", P))[0]
 
 
 def _rre(P: np.ndarray) -> tuple[np.ndarray, float]:
